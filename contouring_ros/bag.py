@@ -1,0 +1,209 @@
+"""MCAP bags in the rosbag2 layout, written without rosbag2 and read without rclpy.
+
+Writing: profile ``ros2``, one schema per message type with encoding ``ros2msg`` named ``pkg/msg/Type``
+(the .msg text with its dependencies, as rosbag2 stores it), CDR payloads exactly as they went over the
+wire, zstd chunks, and a summary with statistics, so that rosbag2, Foxglove, PlotJuggler and the
+``mcap``/``rosbags`` readers open it. The experiment's YAML is stored as the metadata record
+``contouring_ros.experiment``. Log and publish times are the messages' step stamps.
+
+Reading: :func:`read_run` decodes a bag with ``mcap`` + ``mcap-ros2-support`` into per-step arrays.
+"""
+from __future__ import annotations
+
+import os
+import re
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from . import graph
+from .errors import BagError
+
+__all__ = ["message_definition", "BagWriter", "RecordedRun", "read_run", "EXPERIMENT_METADATA"]
+
+EXPERIMENT_METADATA = "contouring_ros.experiment"
+_BUILTINS = {"bool", "byte", "char", "float32", "float64", "int8", "uint8", "int16", "uint16", "int32",
+             "uint32", "int64", "uint64", "string", "wstring"}
+_SEPARATOR = "=" * 80
+QOS_METADATA = ("- history: 3\n  depth: 0\n  reliability: 1\n  durability: 2\n"
+                "  deadline:\n    sec: 2147483647\n    nsec: 4294967295\n"
+                "  lifespan:\n    sec: 2147483647\n    nsec: 4294967295\n  liveliness: 1\n"
+                "  liveliness_lease_duration:\n    sec: 2147483647\n    nsec: 4294967295\n"
+                "  avoid_ros_namespace_conventions: false\n")
+
+
+def _msg_text(package: str, name: str) -> str:
+    """The .msg file of a message type, from <prefix>/share/<package>/msg of an ament prefix (a sourced ROS
+    install) or of this Python environment (the PyPI message wheels)."""
+    prefixes = [p for p in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep) if p] + [sys.prefix]
+    for prefix in prefixes:
+        path = Path(prefix) / "share" / package / "msg" / f"{name}.msg"
+        if path.is_file():
+            return path.read_text()
+    raise BagError(f"no definition of {package}/msg/{name} under {', '.join(prefixes)}")
+
+
+def _field_types(text: str, package: str):
+    """Complex field types ('pkg/Type') a .msg text refers to, in order."""
+    for line in text.splitlines():
+        tokens = line.split("#", 1)[0].split()
+        if len(tokens) < 2 or "=" in tokens[1]:       # blank, or a constant
+            continue
+        base = re.sub(r"(<=\d+)?(\[.*\])?$", "", tokens[0])
+        if base not in _BUILTINS:
+            yield base if "/" in base else f"{package}/{base}"
+
+
+def message_definition(type_name: str) -> str:
+    """The ros2msg schema text of 'pkg/msg/Type': its .msg file, then each dependency once, depth first."""
+    package, _, name = type_name.split("/")
+    parts, seen = [_msg_text(package, name)], set()
+    stack = list(_field_types(parts[0], package))
+    while stack:
+        dep = stack.pop(0)
+        if dep in seen:
+            continue
+        seen.add(dep)
+        dep_package, dep_name = dep.split("/")[0], dep.split("/")[-1]
+        text = _msg_text(dep_package, dep_name)
+        parts.append(f"{_SEPARATOR}\nMSG: {dep_package}/{dep_name}\n{text}")
+        stack.extend(_field_types(text, dep_package))
+    return "\n".join(part.rstrip("\n") for part in parts) + "\n"
+
+
+class BagWriter:
+    """Write CDR messages to an MCAP file in the rosbag2 layout; use as a context manager.
+
+    Parameters
+    ----------
+    path : path-like
+        The .mcap file to create.
+    topics : iterable of (name, 'pkg/msg/Type')
+    metadata : dict of str -> dict of str to str
+        Metadata records written at the start.
+    """
+
+    def __init__(self, path, topics, *, metadata=None, chunk_size: int = 256 * 1024):
+        from mcap.writer import CompressionType, Writer
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._file = open(self.path, "wb")
+        self._writer = Writer(self._file, chunk_size=chunk_size, compression=CompressionType.ZSTD)
+        self._writer.start(profile="ros2", library="contouring_ros")
+        schemas, self._channels, self._sequence = {}, {}, {}
+        for topic, type_name in topics:
+            if type_name not in schemas:
+                schemas[type_name] = self._writer.register_schema(
+                    name=type_name, encoding="ros2msg", data=message_definition(type_name).encode())
+            self._channels[topic] = self._writer.register_channel(
+                topic=topic, message_encoding="cdr", schema_id=schemas[type_name],
+                metadata={"offered_qos_profiles": QOS_METADATA})
+            self._sequence[topic] = 0
+        for name, record in (metadata or {}).items():
+            self._writer.add_metadata(name, record)
+        self.closed = False
+
+    def write(self, topic: str, stamp_ns: int, data: bytes):
+        """Append one serialised message, logged at its stamp."""
+        self._writer.add_message(self._channels[topic], log_time=stamp_ns, data=data, publish_time=stamp_ns,
+                                 sequence=self._sequence[topic])
+        self._sequence[topic] += 1
+
+    def close(self):
+        """Write the summary (statistics, indexes) and close the file."""
+        if not self.closed:
+            self.closed = True
+            self._writer.finish()
+            self._file.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+@dataclass
+class RecordedRun:
+    """A run as read back from a bag: arrays with one row per recorded step (see SimulationResult)."""
+
+    experiment_text: str
+    axes: list
+    time: np.ndarray
+    theta: np.ndarray
+    reference_position: np.ndarray
+    reference_velocity: np.ndarray
+    position: np.ndarray
+    velocity: np.ndarray
+    estimate_theta: np.ndarray
+    estimate_vector: np.ndarray
+    estimate_signed: np.ndarray
+    correction: np.ndarray
+    command: np.ndarray
+    complete_steps: int
+    payloads: dict
+
+
+def _stamp_ns(msg) -> int:
+    return msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+
+
+def read_run(path, keep_payloads: bool = False) -> RecordedRun:
+    """Decode a bag of the graph into per-step arrays (steps where every topic was recorded)."""
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+    path = Path(path)
+    if not path.is_file():
+        raise BagError(f"{path}: no such bag")
+    by_topic: dict = {}
+    payloads: dict = {}
+    try:
+        with open(path, "rb") as stream:
+            reader = make_reader(stream, decoder_factories=[DecoderFactory()])
+            experiment_text = None
+            for record in reader.iter_metadata():
+                if record.name == EXPERIMENT_METADATA:
+                    experiment_text = record.metadata.get("yaml")
+            for schema, channel, message, decoded in reader.iter_decoded_messages(log_time_order=False):
+                if channel.topic == graph.CLOCK:
+                    continue
+                by_topic.setdefault(channel.topic, {})[_stamp_ns(decoded)] = decoded
+                if keep_payloads:
+                    payloads.setdefault(channel.topic, []).append(bytes(message.data))
+    except BagError:
+        raise
+    except Exception as error:  # the mcap reader raises many kinds on a damaged file
+        raise BagError(f"{path}: cannot read the bag ({type(error).__name__}: {error})") from None
+    if experiment_text is None:
+        raise BagError(f"{path}: the bag has no '{EXPERIMENT_METADATA}' metadata (not written by contouring_ros?)")
+    if graph.REFERENCE not in by_topic:
+        raise BagError(f"{path}: the bag has no {graph.REFERENCE} messages")
+    names = list(by_topic[graph.REFERENCE].values())[0].joint_names
+    axes = list(names[:-1])
+    needed = [graph.REFERENCE, graph.CONTOUR_ERROR, graph.CORRECTION] + \
+        [graph.state_topic(a) for a in axes] + [graph.command_topic(a) for a in axes]
+    for topic in needed:
+        if topic not in by_topic:
+            raise BagError(f"{path}: the bag has no {topic} messages")
+    stamps = sorted(set.intersection(*(set(by_topic[t]) for t in needed)))
+    n = len(axes)
+    refs = [graph.reference_from_msg(by_topic[graph.REFERENCE][s], n) for s in stamps]
+    ests = [graph.estimate_from_msg(by_topic[graph.CONTOUR_ERROR][s], n) for s in stamps]
+
+    def per_axis(topic_of, field):
+        return np.array([[getattr(by_topic[topic_of(a)][s], field)[0] for a in axes] for s in stamps]).reshape(-1, n)
+
+    return RecordedRun(
+        experiment_text=experiment_text, axes=axes, time=np.array(stamps, dtype=float) * 1e-9,
+        theta=np.array([r.theta for r in refs]),
+        reference_position=np.array([r.position for r in refs]).reshape(-1, n),
+        reference_velocity=np.array([r.velocity for r in refs]).reshape(-1, n),
+        position=per_axis(graph.state_topic, "position"), velocity=per_axis(graph.state_topic, "velocity"),
+        estimate_theta=np.array([e.theta for e in ests]),
+        estimate_vector=np.array([e.vector for e in ests]).reshape(-1, n),
+        estimate_signed=np.array([e.signed for e in ests]),
+        correction=np.array([by_topic[graph.CORRECTION][s].effort for s in stamps]).reshape(-1, n),
+        command=per_axis(graph.command_topic, "effort"),
+        complete_steps=len(stamps), payloads=payloads)

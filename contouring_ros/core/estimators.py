@@ -1,0 +1,109 @@
+"""Contour error estimators.
+
+Every estimator has the same step: the reference at step k and the measured axis positions at k give a
+:class:`ContourEstimate` (estimated foot-point parameter, error vector E = R(theta_hat) - P, signed scalar).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .curves import Curve
+from .geometry import signed_error
+
+__all__ = ["ContourEstimate", "TangentLineEstimator", "NewtonEstimator"]
+
+
+@dataclass(frozen=True)
+class ContourEstimate:
+    """One step's contour error estimate.
+
+    Attributes
+    ----------
+    theta : float
+        Estimated foot-point parameter theta_hat.
+    vector : ndarray, shape (n,)
+        Estimated contour error vector, from the actual position to the estimated foot point [m].
+    signed : float
+        Signed scalar contour error [m] (see :func:`contouring_ros.core.geometry.signed_error`).
+    """
+
+    theta: float
+    vector: np.ndarray
+    signed: float
+
+
+class TangentLineEstimator:
+    """Static tangent-line estimate (Koren & Lo; paper 000 eq. 5-7).
+
+    The contour is replaced by its tangent line at the current reference point R(theta_r). With the
+    tracking error E = R(theta_r) - P and the unit tangent t there, the estimate is the part of E normal
+    to the tangent, E - (E.t) t, and the foot point on the tangent line lies at
+    theta_r - (E.t) / |R'(theta_r)|.
+    """
+
+    def __init__(self, curve: Curve):
+        self.curve = curve
+
+    def step(self, reference, position) -> ContourEstimate:
+        d = self.curve.derivatives(reference.theta, order=1)
+        speed = math.sqrt(float(d[1] @ d[1]))
+        tangent = d[1] / speed
+        tracking = d[0] - position
+        along = float(tracking @ tangent)
+        vector = tracking - along * tangent
+        return ContourEstimate(theta=float(reference.theta) - along / speed, vector=vector,
+                               signed=float(signed_error(vector, tangent)))
+
+
+class NewtonEstimator:
+    """Newton-based dynamic contour error estimate (paper 000 eq. 8-14).
+
+    d theta_hat / dt = -k' g / h with g = E^T R' (9) and h ~= |R'|^2 (11), E = R(theta_hat) - P (4). The
+    ratio g / h passes through a first-order low-pass filter of bandwidth c' before the integrator
+    (the "linear estimator" of Fig. 2). Within each control step the filter and the integrator are
+    advanced ``iterations`` times by ``inner_step`` (filter exact under a zero-order hold, integrator
+    by one rectangle), starting from the previous step's final estimate (Remark 3): the Newton flow runs
+    on its own fast time scale so that theta_hat settles on the moving foot point within the step.
+
+    Parameters
+    ----------
+    curve : Curve
+    k_prime : float
+        Adaptation gain k' [1/s].
+    c_prime : float
+        Filter bandwidth c' [rad/s].
+    theta0 : float
+        Initial estimate (paper: theta_0 = -a_r, the start of the contour).
+    iterations : int
+        Inner Newton iterations per control step.
+    inner_step : float
+        Time step of one inner iteration [s].
+    """
+
+    def __init__(self, curve: Curve, k_prime: float, c_prime: float, theta0: float, iterations: int,
+                 inner_step: float):
+        self.curve = curve
+        self.k_prime, self.c_prime = float(k_prime), float(c_prime)
+        self.iterations = int(iterations)
+        self.inner_step = float(inner_step)
+        self._filter_decay = math.exp(-self.c_prime * self.inner_step)
+        self._gain = self.k_prime * self.inner_step
+        self.theta = float(theta0)
+        self.filtered = 0.0
+
+    def step(self, reference, position) -> ContourEstimate:
+        curve, theta, filtered = self.curve, self.theta, self.filtered
+        decay, gain = self._filter_decay, self._gain
+        for _ in range(self.iterations):
+            d = curve.derivatives(theta, order=1)
+            newton = float((d[0] - position) @ d[1]) / float(d[1] @ d[1])   # g / h, eq. 9 and 11
+            filtered = decay * filtered + (1.0 - decay) * newton
+            theta = float(curve.wrap(theta - gain * filtered))
+        self.theta, self.filtered = theta, filtered
+        d = curve.derivatives(theta, order=1)
+        vector = d[0] - position
+        tangent = d[1] / math.sqrt(float(d[1] @ d[1]))
+        return ContourEstimate(theta=theta, vector=vector, signed=float(signed_error(vector, tangent)))

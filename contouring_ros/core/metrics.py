@@ -1,0 +1,68 @@
+"""Run scores (DESIGN.md, "Scoring"), always from the exact contour error.
+
+MCE = max |e|, TACE = time average of |e| (paper 000 section IV), RMS of e, estimation deviation
+|estimate - exact| (max and RMS), per-axis tracking error (max and RMS of R_i - P_i), RMS actuator effort
+per axis, and travel time.
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from .geometry import ExactContourError
+
+__all__ = ["Scores", "score"]
+
+
+@dataclass(frozen=True)
+class Scores:
+    """Scores of one run. Lengths in metres, effort in command units, time in seconds."""
+
+    mce: float
+    tace: float
+    rms: float
+    estimation_max: float
+    estimation_rms: float
+    tracking_max: tuple
+    tracking_rms: tuple
+    effort_rms: tuple
+    travel_time: float
+    steps: int
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+def _rms(x, axis=None):
+    return np.sqrt(np.mean(np.square(x), axis=axis))
+
+
+def score(curve, time, position, reference_position, estimate_vector, command,
+          exact: ExactContourError | None = None) -> tuple[Scores, np.ndarray]:
+    """Score a run and return (scores, exact contour error per step [m]).
+
+    Parameters
+    ----------
+    curve : Curve
+        The reference contour; the exact error is the distance to the whole curve.
+    time : (m,) step times [s]
+    position, reference_position : (m, n) measured and reference axis positions [m]
+    estimate_vector : (m, n) the estimator's contour error vector [m]
+    command : (m, n) actuator commands
+    exact : ExactContourError, optional
+        A prebuilt solver for ``curve`` (saves rebuilding its search tree).
+    """
+    exact = exact or ExactContourError(curve)
+    errors = exact(position).distance
+    estimated = np.linalg.norm(estimate_vector, axis=1)
+    deviation = np.abs(estimated - errors)
+    tracking = np.abs(reference_position - position)
+    travel = float(time[-1] - time[0]) if len(time) > 1 else 0.0
+    scores = Scores(mce=float(np.max(errors)), tace=float(np.mean(errors)), rms=float(_rms(errors)),
+                    estimation_max=float(np.max(deviation)), estimation_rms=float(_rms(deviation)),
+                    tracking_max=tuple(float(v) for v in tracking.max(axis=0)),
+                    tracking_rms=tuple(float(v) for v in _rms(tracking, axis=0)),
+                    effort_rms=tuple(float(v) for v in _rms(command, axis=0)),
+                    travel_time=travel, steps=int(len(time)))
+    return scores, errors

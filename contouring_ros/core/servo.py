@@ -1,0 +1,116 @@
+"""Per-axis position servo laws.
+
+Every law has the same step: the axis reference (position, velocity, acceleration), the axis state
+(position, velocity) and the cross-coupled correction at step k give the actuator command at k. The
+correction adds to the command (Koren's cross-coupling structure; paper 000 Fig. 5).
+"""
+from __future__ import annotations
+
+import math
+
+from .pid import DiscretePID
+
+__all__ = ["PIDFeedforwardServo", "IntegralSlidingModeServo", "DisturbanceObserver", "saturation"]
+
+
+def saturation(u: float) -> float:
+    """sat(u) = u for |u| <= 1, sign(u) otherwise (paper 000, after eq. 20)."""
+    return max(-1.0, min(1.0, u))
+
+
+def _inverse_first_order(ref_vel: float, ref_acc: float, gain: float, time_constant: float) -> float:
+    """Command that makes a first-order velocity axis follow the reference: (tau R'' + R') / k."""
+    return (time_constant * ref_acc + ref_vel) / gain
+
+
+class PIDFeedforwardServo:
+    """PID on the position error plus reference feedforward (paper 000 section IV-A).
+
+    T = PID(R - P) + (tau R'' + R') / k + correction; the derivative term uses the velocity error R' - V.
+
+    Parameters
+    ----------
+    kp, ki, kd : float
+        PID gains, e.g. PID_1 = 8.08 + 93.2/s + 0.24 s.
+    gain, time_constant : float
+        The axis model used by the feedforward (k, tau of eq. 2).
+    sample_time : float
+        Ts [s].
+    """
+
+    def __init__(self, kp, ki, kd, gain, time_constant, sample_time):
+        self.pid = DiscretePID(kp, ki, kd, sample_time)
+        self.gain = float(gain)
+        self.time_constant = float(time_constant)
+
+    def step(self, ref_pos, ref_vel, ref_acc, position, velocity, correction) -> float:
+        feedback = self.pid.step(ref_pos - position, ref_vel - velocity)
+        return feedback + _inverse_first_order(ref_vel, ref_acc, self.gain, self.time_constant) + correction
+
+
+class DisturbanceObserver:
+    """Adaptive disturbance estimate of paper 000 eq. 24-26.
+
+    dOmega/dt = -c Omega - c V                       (24)
+    xi        = (tau / k) c (Omega + V) + V / k - T   (25)
+    dDelta/dt = -d Delta + d xi                       (26)
+
+    c (Omega + V) = c s / (s + c) V is the filtered velocity derivative; the factor c in (25), lost in the
+    paper's text, is restored so that xi equals D for the model (2). Both filters are discretised exactly
+    under a zero-order hold. T is the command applied over the previous step. The filters start in the
+    steady state of a motion with the given initial velocity and acceleration and no disturbance.
+    """
+
+    def __init__(self, c, d, gain, time_constant, sample_time, velocity=0.0, acceleration=0.0):
+        self.c, self.d = float(c), float(d)
+        self.gain, self.time_constant = float(gain), float(time_constant)
+        self._omega_decay = math.exp(-self.c * sample_time)
+        self._delta_decay = math.exp(-self.d * sample_time)
+        self.omega = -float(velocity) + float(acceleration) / self.c
+        self.estimate = 0.0
+        self.previous_command = _inverse_first_order(velocity, acceleration, self.gain, self.time_constant)
+
+    def update(self, velocity: float) -> float:
+        """Return the estimate Delta_k and advance the filters with this step's velocity."""
+        estimate = self.estimate
+        xi = (self.time_constant / self.gain) * self.c * (self.omega + velocity) + velocity / self.gain \
+            - self.previous_command
+        self.omega = self._omega_decay * self.omega - (1.0 - self._omega_decay) * velocity
+        self.estimate = self._delta_decay * estimate + (1.0 - self._delta_decay) * xi
+        return estimate
+
+
+class IntegralSlidingModeServo:
+    """Integral sliding mode control with saturation (paper 000 eq. 16-23), optional eq. 24-26 compensation.
+
+    sigma = V~ + a P~ + b q                                                         (21)
+    dq/dt = -b q + mu sat(sigma / mu)                                              (20)
+    T'    = ((a + b) tau - 1) / k V~ + a b tau / k P~ + tau / k R'' + R' / k + kappa mu sat(sigma / mu)  (22)
+    T     = T' - Delta + correction
+
+    with P~ = R - P, V~ = R' - V (16-17). q is advanced by the exact zero-order-hold discretisation of (20).
+    Stability needs kappa >= M / mu + b tau / k for |D| <= M (23).
+    """
+
+    def __init__(self, a, b, mu, kappa, gain, time_constant, sample_time, observer=None):
+        self.a, self.b, self.mu, self.kappa = float(a), float(b), float(mu), float(kappa)
+        self.gain, self.time_constant = float(gain), float(time_constant)
+        self.observer = observer
+        self.q = 0.0
+        self._q_decay = math.exp(-self.b * sample_time)
+        self._q_input = (1.0 - self._q_decay) / self.b
+
+    def step(self, ref_pos, ref_vel, ref_acc, position, velocity, correction) -> float:
+        a, b, k, tau = self.a, self.b, self.gain, self.time_constant
+        p_err = ref_pos - position
+        v_err = ref_vel - velocity
+        switch = self.mu * saturation((v_err + a * p_err + b * self.q) / self.mu)
+        command = (((a + b) * tau - 1.0) / k) * v_err + (a * b * tau / k) * p_err \
+            + _inverse_first_order(ref_vel, ref_acc, k, tau) + self.kappa * switch
+        self.q = self._q_decay * self.q + self._q_input * switch
+        if self.observer is not None:
+            command -= self.observer.update(velocity)
+        command += correction
+        if self.observer is not None:
+            self.observer.previous_command = command
+        return command

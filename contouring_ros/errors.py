@@ -1,0 +1,20 @@
+"""Errors that reach the user as one line."""
+from __future__ import annotations
+
+__all__ = ["ContouringError", "ConfigError", "RunError", "BagError"]
+
+
+class ContouringError(Exception):
+    """Base class: the message is a complete one-line explanation for the user."""
+
+
+class ConfigError(ContouringError):
+    """An experiment file is malformed; the message names the file, the key and what was expected."""
+
+
+class RunError(ContouringError):
+    """The node graph failed (a node died, stalled or timed out); the message names the node."""
+
+
+class BagError(ContouringError):
+    """A bag cannot be read or lacks what scoring needs."""

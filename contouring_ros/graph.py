@@ -1,0 +1,117 @@
+"""The node graph: nodes, topics, message layouts and QoS, in one place.
+
+No rclpy import here: the bag reader and the analysis use the same layouts on decoded messages.
+
+Topic table (N axes named in the experiment's ``axes``; every message stamped t_k = k Ts):
+
+| topic               | type                             | publisher          | content (SI units)                                  |
+|---------------------|----------------------------------|--------------------|-----------------------------------------------------|
+| /clock              | rosgraph_msgs/msg/Clock          | interpolator       | simulated time t_k, once step k is under way        |
+| /reference          | trajectory_msgs/msg/JointTrajectory | interpolator    | joint_names = axes + [theta]; one point: positions [m], velocities [m/s], accelerations [m/s^2] of each axis, then theta and its derivatives |
+| /<axis>/state       | sensor_msgs/msg/JointState       | /<axis>/plant      | name [axis]; position [m], velocity [m/s] at step k |
+| /contour_error      | sensor_msgs/msg/JointState       | /contour_estimator | name = axes + [contour_error, foot_point_parameter]; position = error vector [m], signed error [m], theta_hat |
+| /ccc/correction     | sensor_msgs/msg/JointState       | /ccc               | name = axes; effort = correction per axis [command units] |
+| /<axis>/command     | sensor_msgs/msg/JointState       | /<axis>/servo      | name [axis]; effort = actuator command [command units] |
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["Topic", "topics", "node_names", "CONTOUR_ERROR_NAME", "FOOT_POINT_NAME", "THETA_NAME",
+           "LOOKAHEAD", "stamp_to_step", "step_to_stamp", "reference_from_msg",
+           "estimate_from_msg", "estimate_names", "estimate_values", "state_topic", "command_topic"]
+
+CLOCK = "/clock"
+REFERENCE = "/reference"
+CONTOUR_ERROR = "/contour_error"
+CORRECTION = "/ccc/correction"
+THETA_NAME = "theta"
+CONTOUR_ERROR_NAME = "contour_error"
+FOOT_POINT_NAME = "foot_point_parameter"
+LOOKAHEAD = 2   # the interpolator publishes the reference this many steps ahead of the estimator
+
+
+@dataclass(frozen=True)
+class Topic:
+    """One topic of the graph: its name, ROS type, the node that publishes it and the nodes that take it."""
+
+    name: str
+    type: str
+    publisher: str
+    subscribers: tuple
+
+    @property
+    def lockstep(self) -> bool:
+        return self.name != CLOCK
+
+
+def state_topic(axis: str) -> str:
+    return f"/{axis}/state"
+
+
+def command_topic(axis: str) -> str:
+    return f"/{axis}/command"
+
+
+def node_names(axes) -> list:
+    """Fully qualified names of every node of the graph, recorder last."""
+    return (["/interpolator"] + [f"/{a}/plant" for a in axes] + ["/contour_estimator", "/ccc"]
+            + [f"/{a}/servo" for a in axes] + ["/recorder"])
+
+
+def topics(axes) -> list:
+    """Every topic of the graph for ``axes``; the recorder takes them all."""
+    out = [Topic(CLOCK, "rosgraph_msgs/msg/Clock", "/interpolator", ("/recorder",)),
+           Topic(REFERENCE, "trajectory_msgs/msg/JointTrajectory", "/interpolator",
+                 ("/contour_estimator",) + tuple(f"/{a}/servo" for a in axes) + ("/recorder",))]
+    for a in axes:
+        out.append(Topic(state_topic(a), "sensor_msgs/msg/JointState", f"/{a}/plant",
+                         ("/contour_estimator", f"/{a}/servo", "/recorder")))
+    out.append(Topic(CONTOUR_ERROR, "sensor_msgs/msg/JointState", "/contour_estimator",
+                     ("/ccc", "/interpolator", "/recorder")))
+    out.append(Topic(CORRECTION, "sensor_msgs/msg/JointState", "/ccc",
+                     tuple(f"/{a}/servo" for a in axes) + ("/recorder",)))
+    for a in axes:
+        out.append(Topic(command_topic(a), "sensor_msgs/msg/JointState", f"/{a}/servo",
+                         (f"/{a}/plant", "/recorder")))
+    return out
+
+
+def stamp_to_step(sec: int, nanosec: int, sample_time_ns: int) -> int:
+    """Step index k of a header stamp (stamps are exactly k * Ts)."""
+    return (sec * 1_000_000_000 + nanosec) // sample_time_ns
+
+
+def step_to_stamp(k: int, sample_time_ns: int) -> tuple:
+    """(sec, nanosec) of step k."""
+    return divmod(k * sample_time_ns, 1_000_000_000)
+
+
+def reference_from_msg(msg, n_axes: int):
+    """The core Reference of one /reference message (works on rclpy and decoded bag messages)."""
+    from .core.interpolation import Reference
+    point = msg.points[0]
+    pos, vel, acc = point.positions, point.velocities, point.accelerations
+    return Reference(theta=pos[n_axes], theta_dot=vel[n_axes], theta_ddot=acc[n_axes],
+                     position=np.asarray(pos[:n_axes], dtype=float), velocity=np.asarray(vel[:n_axes], dtype=float),
+                     acceleration=np.asarray(acc[:n_axes], dtype=float))
+
+
+def estimate_from_msg(msg, n_axes: int):
+    """The core ContourEstimate of one /contour_error message."""
+    from .core.estimators import ContourEstimate
+    values = msg.position
+    return ContourEstimate(theta=values[n_axes + 1], vector=np.asarray(values[:n_axes], dtype=float),
+                           signed=values[n_axes])
+
+
+def estimate_names(axes) -> list:
+    """JointState names of a /contour_error message."""
+    return list(axes) + [CONTOUR_ERROR_NAME, FOOT_POINT_NAME]
+
+
+def estimate_values(estimate) -> list:
+    """JointState positions of a /contour_error message."""
+    return [float(v) for v in estimate.vector] + [float(estimate.signed), float(estimate.theta)]

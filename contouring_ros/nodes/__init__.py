@@ -1,0 +1,1 @@
+"""Thin rclpy nodes: each converts messages to arrays, calls the core, and publishes."""

@@ -1,0 +1,39 @@
+"""Contour estimator node: reference and every axis state of step k in, contour error estimate out."""
+from __future__ import annotations
+
+import numpy as np
+from sensor_msgs.msg import JointState
+
+from .. import graph
+from ..config import build_curve, build_estimator
+from .lockstep import LockstepNode, run_node
+
+
+class ContourEstimatorNode(LockstepNode):
+    role = "contour_estimator"
+    default_name = "contour_estimator"
+
+    def setup(self):
+        self.estimator = build_estimator(self.experiment, build_curve(self.experiment))
+        self.add_input(graph.REFERENCE)
+        self.state_topics = [graph.state_topic(a) for a in self.axes]
+        for topic in self.state_topics:
+            self.add_input(topic)
+        self.publisher = self.add_output(graph.CONTOUR_ERROR)
+        self.msg = JointState(name=graph.estimate_names(self.axes))
+
+    def on_step(self, k, inputs):
+        ref = graph.reference_from_msg(inputs[graph.REFERENCE], len(self.axes))
+        position = np.array([inputs[topic].position[0] for topic in self.state_topics])
+        estimate = self.estimator.step(ref, position)
+        self.stamp(self.msg.header, k)
+        self.msg.position = graph.estimate_values(estimate)
+        self.publisher.publish(self.msg)
+
+
+def main(args=None):
+    raise SystemExit(run_node(ContourEstimatorNode, args))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,61 @@
+"""Interpolator node: publishes the reference of every step, a few steps ahead, and /clock."""
+from __future__ import annotations
+
+from rosgraph_msgs.msg import Clock
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+
+from .. import graph
+from ..config import build_curve, build_schedule
+from ..core.interpolation import reference
+from ..core.simulation import step_time
+from .lockstep import LockstepNode, run_node
+
+
+class InterpolatorNode(LockstepNode):
+    """Publishes /reference for step k + LOOKAHEAD when the estimate of step k arrives (paced by the
+    graph, never more than LOOKAHEAD steps ahead), and /clock = t_k at that moment."""
+
+    role = "interpolator"
+    default_name = "interpolator"
+
+    def setup(self):
+        self.curve = build_curve(self.experiment)
+        self.schedule = build_schedule(self.experiment)
+        self.add_input(graph.CONTOUR_ERROR)
+        self.reference_pub = self.add_output(graph.REFERENCE)
+        self.clock_pub = self.add_output(graph.CLOCK)
+        self.msg = JointTrajectory(joint_names=self.axes + [graph.THETA_NAME])
+        self.clock = Clock()
+
+    def publish_reference(self, k: int):
+        if k >= self.n_steps:
+            return
+        ref = reference(self.curve, self.schedule, step_time(k, self.experiment.sample_time))
+        point = JointTrajectoryPoint(
+            positions=list(ref.position) + [float(ref.theta)],
+            velocities=list(ref.velocity) + [float(ref.theta_dot)],
+            accelerations=list(ref.acceleration) + [float(ref.theta_ddot)])
+        point.time_from_start.sec, point.time_from_start.nanosec = graph.step_to_stamp(k, self.sample_time_ns)
+        self.stamp(self.msg.header, k)
+        self.msg.points = [point]
+        self.reference_pub.publish(self.msg)
+
+    def start(self):
+        self.clock.clock.sec, self.clock.clock.nanosec = 0, 0
+        self.clock_pub.publish(self.clock)
+        for k in range(graph.LOOKAHEAD):
+            self.publish_reference(k)
+
+    def on_step(self, k, inputs):
+        if k > 0:
+            self.clock.clock.sec, self.clock.clock.nanosec = graph.step_to_stamp(k, self.sample_time_ns)
+            self.clock_pub.publish(self.clock)
+        self.publish_reference(k + graph.LOOKAHEAD)
+
+
+def main(args=None):
+    raise SystemExit(run_node(InterpolatorNode, args))
+
+
+if __name__ == "__main__":
+    main()

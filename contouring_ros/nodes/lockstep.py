@@ -1,0 +1,206 @@
+"""The lean lockstep loop every node of the graph runs on.
+
+A node declares its inputs (topics it needs for each step) and a step handler. The loop waits on one
+persistent wait set, takes messages directly from the subscriptions (no executor, no callbacks), files
+them by the step their header stamp names, and calls the handler for step k as soon as every input of
+step k is there (DESIGN.md, "One control step"). Nothing depends on wall-clock arrival order.
+
+QoS, in one place: every graph topic is reliable, volatile, keep-all, so that no message is lost to the
+recorder; nodes start publishing only once every expected subscriber has matched.
+"""
+from __future__ import annotations
+
+import importlib
+import sys
+import time
+
+import rclpy
+from rclpy.duration import Duration
+from rclpy.executors import ExternalShutdownException
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+from .. import graph
+from ..config import experiment_for_node
+from ..errors import ConfigError, ContouringError, RunError
+
+__all__ = ["GRAPH_QOS", "message_class", "LockstepNode", "run_node"]
+
+GRAPH_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE,
+                       history=HistoryPolicy.KEEP_ALL, depth=1)
+MATCH_TIMEOUT = 30.0     # s to wait for the rest of the graph at start
+STALL_TIMEOUT = 10.0     # s without a complete step before the node gives up
+ACK_TIMEOUT = 5.0        # s to wait for the last messages to be acknowledged
+
+
+def message_class(type_name: str):
+    """The Python class of 'pkg/msg/Type'."""
+    package, _, name = type_name.split("/")
+    return getattr(importlib.import_module(f"{package}.msg"), name)
+
+
+class LockstepNode:
+    """Base of the graph's nodes: parameters in, validated experiment, lockstep loop.
+
+    Subclasses set ``role``, call :meth:`add_input` / :meth:`add_output` in ``setup`` and implement
+    :meth:`start` (publish what needs no input) and :meth:`on_step` (handle one complete step).
+    """
+
+    role = ""
+    default_name = ""
+
+    def __init__(self, args=None):
+        self.node = rclpy.create_node(self.default_name, automatically_declare_parameters_from_overrides=True)
+        self.name = self.node.get_fully_qualified_name()
+        parameters = {name: p.value for name, p in self.node.get_parameters_by_prefix("").items()}
+        self.experiment = experiment_for_node(parameters, self.name, self.role)
+        self.sample_time_ns = int(round(self.experiment.sample_time * 1e9))
+        self.n_steps = self.experiment.n_steps
+        self.axes = list(self.experiment.axes)
+        self._topics = {t.name: t for t in graph.topics(self.axes)}
+        self._inputs = []          # (topic name, subscription, msg class, raw)
+        self._outputs = {}         # topic name -> publisher
+        self._pending = {}         # step -> {topic: msg}
+        self.next_step = 0
+        self.finished = False
+        self.setup()
+
+    # -- wiring -----------------------------------------------------------------------------------
+    def add_input(self, topic: str, raw: bool = False):
+        cls = message_class(self._topics[topic].type)
+        sub = self.node.create_subscription(cls, topic, lambda _msg: None, GRAPH_QOS, raw=raw)
+        self._inputs.append((topic, sub, cls, raw))
+
+    def add_output(self, topic: str):
+        pub = self.node.create_publisher(message_class(self._topics[topic].type), topic, GRAPH_QOS)
+        self._outputs[topic] = pub
+        return pub
+
+    def own_axis(self) -> str:
+        """The axis a per-axis node serves: its namespace (/x/plant serves x)."""
+        axis = self.name.strip("/").split("/")[0]
+        if axis not in self.axes:
+            raise ConfigError(f"{self.name}: the namespace names axis {axis!r}, which is not in axes {self.axes}")
+        return axis
+
+    def stamp(self, header, k: int):
+        header.stamp.sec, header.stamp.nanosec = graph.step_to_stamp(k, self.sample_time_ns)
+
+    def step_of(self, msg) -> int:
+        stamp = msg.header.stamp
+        return graph.stamp_to_step(stamp.sec, stamp.nanosec, self.sample_time_ns)
+
+    # -- to implement -----------------------------------------------------------------------------
+    def setup(self):
+        raise NotImplementedError
+
+    def start(self):
+        """Publish what the first step needs from this node before any input (default: nothing)."""
+
+    def on_step(self, k: int, inputs: dict):
+        raise NotImplementedError
+
+    # -- the loop ---------------------------------------------------------------------------------
+    def wait_for_graph(self):
+        """Block until every expected subscriber of our outputs and a publisher of every input matched."""
+        deadline = time.monotonic() + MATCH_TIMEOUT
+        while True:
+            missing = [f"subscribers of {topic} ({', '.join(self._topics[topic].subscribers)})"
+                       for topic, pub in self._outputs.items()
+                       if pub.get_subscription_count() < len(self._topics[topic].subscribers)]
+            missing += [f"the publisher of {topic}" for topic, sub, _, _ in self._inputs
+                        if sub.get_publisher_count() < 1]
+            if not missing:
+                return
+            if time.monotonic() > deadline:
+                raise RunError(f"{self.name}: the graph did not come up within {MATCH_TIMEOUT:.0f} s "
+                               f"(still waiting for {missing[0]})")
+            time.sleep(0.01)
+
+    def _take_all(self):
+        for topic, sub, cls, raw in self._inputs:
+            while True:
+                taken = sub.handle.take_message(cls, raw)
+                if taken is None:
+                    break
+                self.file_message(topic, taken[0])
+
+    def file_message(self, topic: str, msg):
+        """File an input under the step its stamp names."""
+        k = self.step_of(msg)
+        if k < self.next_step:
+            return
+        self._pending.setdefault(k, {})[topic] = msg
+
+    def _fire_ready_steps(self):
+        n_inputs = len(self._inputs)
+        while not self.finished:
+            ready = self._pending.get(self.next_step)
+            if ready is None or len(ready) < n_inputs:
+                return False
+            del self._pending[self.next_step]
+            self.on_step(self.next_step, ready)
+            self.next_step += 1
+            if self.next_step >= self.n_steps:
+                self.finished = True
+        return True
+
+    def missing_inputs(self) -> list:
+        have = self._pending.get(self.next_step, {})
+        return [topic for topic, *_ in self._inputs if topic not in have]
+
+    def spin(self):
+        """Run the lockstep loop until the last step has been handled."""
+        self.wait_for_graph()
+        self.start()
+        if not self._inputs:
+            return
+        wait_set = _rclpy.WaitSet(len(self._inputs), 0, 0, 0, 0, 0, self.node.context.handle)
+        handles = [sub.handle for _, sub, _, _ in self._inputs]
+        last_progress = time.monotonic()
+        while not self.finished:
+            wait_set.clear_entities()
+            for handle in handles:
+                wait_set.add_subscription(handle)
+            wait_set.wait(200_000_000)
+            if not rclpy.ok(context=self.node.context):
+                raise ExternalShutdownException()
+            self._take_all()
+            if self._fire_ready_steps():
+                last_progress = time.monotonic()
+            elif time.monotonic() - last_progress > STALL_TIMEOUT:
+                raise RunError(f"{self.name}: stalled at step {self.next_step}: no message on "
+                               f"{', '.join(self.missing_inputs())} for {STALL_TIMEOUT:.0f} s")
+
+    def finish(self):
+        """Wait until subscribers acknowledged everything we published."""
+        for pub in self._outputs.values():
+            pub.wait_for_all_acked(Duration(seconds=ACK_TIMEOUT))
+
+    def destroy(self):
+        self.node.destroy_node()
+
+
+def run_node(node_class, args=None) -> int:
+    """Entry point shared by every node's main(): init, spin to the end, clean shutdown.
+
+    Returns the process exit code: 0 when the run completed, 1 on an error (reported in one line),
+    130 when interrupted.
+    """
+    rclpy.init(args=args)
+    node = None
+    code = 0
+    try:
+        node = node_class(args)
+        node.spin()
+        node.finish()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        code = 130
+    except ContouringError as error:
+        print(f"error: {error}", file=sys.stderr)
+        code = 1
+    finally:
+        if node is not None:
+            node.destroy()
+        rclpy.try_shutdown()
+    return code

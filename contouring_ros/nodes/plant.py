@@ -1,0 +1,46 @@
+"""Plant node (one per axis, namespace = axis name): applies commands, publishes the axis state."""
+from __future__ import annotations
+
+from sensor_msgs.msg import JointState
+
+from .. import graph
+from ..config import build_plant, initial_state
+from ..core.simulation import step_time
+from .lockstep import LockstepNode, run_node
+
+
+class PlantNode(LockstepNode):
+    role = "plant"
+    default_name = "plant"
+
+    def setup(self):
+        self.axis = self.own_axis()
+        index = self.axes.index(self.axis)
+        positions, velocities, _ = initial_state(self.experiment)
+        self.plant = build_plant(self.experiment, self.axis, positions[index], velocities[index])
+        self.add_input(graph.command_topic(self.axis))
+        self.publisher = self.add_output(graph.state_topic(self.axis))
+        self.msg = JointState(name=[self.axis])
+
+    def publish_state(self, k: int):
+        self.stamp(self.msg.header, k)
+        self.msg.position = [self.plant.position]
+        self.msg.velocity = [self.plant.velocity]
+        self.publisher.publish(self.msg)
+
+    def start(self):
+        self.publish_state(0)
+
+    def on_step(self, k, inputs):
+        command = inputs[graph.command_topic(self.axis)].effort[0]
+        self.plant.step(command, step_time(k, self.experiment.sample_time))
+        if k + 1 < self.n_steps:
+            self.publish_state(k + 1)
+
+
+def main(args=None):
+    raise SystemExit(run_node(PlantNode, args))
+
+
+if __name__ == "__main__":
+    main()

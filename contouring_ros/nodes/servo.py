@@ -1,0 +1,42 @@
+"""Servo node (one per axis, namespace = axis name): reference, own state and correction in, command out."""
+from __future__ import annotations
+
+from sensor_msgs.msg import JointState
+
+from .. import graph
+from ..config import build_servo, initial_state
+from .lockstep import LockstepNode, run_node
+
+
+class ServoNode(LockstepNode):
+    role = "servo"
+    default_name = "servo"
+
+    def setup(self):
+        self.axis = self.own_axis()
+        self.index = self.axes.index(self.axis)
+        _, velocities, accelerations = initial_state(self.experiment)
+        self.servo = build_servo(self.experiment, self.axis, velocities[self.index], accelerations[self.index])
+        self.state_topic = graph.state_topic(self.axis)
+        for topic in (graph.REFERENCE, self.state_topic, graph.CORRECTION):
+            self.add_input(topic)
+        self.publisher = self.add_output(graph.command_topic(self.axis))
+        self.msg = JointState(name=[self.axis])
+
+    def on_step(self, k, inputs):
+        i = self.index
+        point = inputs[graph.REFERENCE].points[0]
+        state = inputs[self.state_topic]
+        command = self.servo.step(point.positions[i], point.velocities[i], point.accelerations[i],
+                                  state.position[0], state.velocity[0], inputs[graph.CORRECTION].effort[i])
+        self.stamp(self.msg.header, k)
+        self.msg.effort = [float(command)]
+        self.publisher.publish(self.msg)
+
+
+def main(args=None):
+    raise SystemExit(run_node(ServoNode, args))
+
+
+if __name__ == "__main__":
+    main()

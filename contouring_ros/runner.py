@@ -1,0 +1,145 @@
+"""Run an experiment through the node graph: every node its own process, on a private ROS domain.
+
+The runner validates the experiment before any node starts, starts the recorder and every node with the
+experiment file as their ``--params-file``, watches them, and stops all of them as soon as one fails
+(naming it). Discovery stays on localhost.
+"""
+from __future__ import annotations
+
+import os
+import random
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass
+from datetime import datetime
+from pathlib import Path
+
+from . import graph
+from .config import Experiment, load_experiment
+from .errors import RunError
+
+__all__ = ["NodeProcess", "graph_commands", "private_environment", "run_graph", "default_bag_path"]
+
+_MODULES = {"interpolator": "interpolator", "plant": "plant", "servo": "servo",
+            "contour_estimator": "contour_estimator", "ccc": "ccc", "recorder": "recorder"}
+
+
+@dataclass
+class NodeProcess:
+    name: str
+    command: list
+    process: subprocess.Popen | None = None
+    log: object = None
+
+    def last_error_line(self) -> str:
+        if self.log is None:
+            return ""
+        self.log.seek(0)
+        lines = [line.strip() for line in self.log.read().decode(errors="replace").splitlines() if line.strip()]
+        errors = [line for line in lines if line.startswith("error:")]
+        return (errors or lines or [""])[-1]
+
+
+def default_bag_path(experiment: Experiment, directory="bags") -> Path:
+    stamp = datetime.now().strftime("%Y%m%d_%H%M%S_%f")
+    return Path(directory) / f"{experiment.name}_{stamp}.mcap"
+
+
+def private_environment(domain_id: int | None = None) -> dict:
+    """The environment for one run's nodes: its own ROS domain, discovery on localhost only."""
+    env = dict(os.environ)
+    env["ROS_DOMAIN_ID"] = str(domain_id if domain_id is not None else random.SystemRandom().randint(1, 200))
+    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    env.pop("ROS_STATIC_PEERS", None)
+    env.setdefault("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
+    env["PYTHONUNBUFFERED"] = "1"
+    return env
+
+
+def graph_commands(experiment_path, experiment: Experiment, bag: Path) -> list:
+    """One NodeProcess per node of the graph (recorder first), each a `python -m` of its node module."""
+    out = []
+    for full_name in ["/recorder"] + [n for n in graph.node_names(experiment.axes) if n != "/recorder"]:
+        parts = full_name.strip("/").split("/")
+        namespace, name = ("/" + parts[0], parts[1]) if len(parts) == 2 else ("/", parts[0])
+        command = [sys.executable, "-m", f"contouring_ros.nodes.{_MODULES[name]}", "--ros-args",
+                   "-r", f"__ns:={namespace}", "-r", f"__node:={name}", "--params-file", str(experiment_path)]
+        if name == "recorder":
+            command += ["-p", f"bag:={bag}", "-p", f"experiment_file:={experiment_path}"]
+        out.append(NodeProcess(full_name, command))
+    return out
+
+
+def _stop(nodes, grace: float = 5.0):
+    """SIGINT every node still running, then SIGKILL whatever is left after ``grace`` seconds."""
+    for node in nodes:
+        if node.process is not None and node.process.poll() is None:
+            node.process.send_signal(signal.SIGINT)
+    deadline = time.monotonic() + grace
+    for node in nodes:
+        if node.process is None:
+            continue
+        try:
+            node.process.wait(timeout=max(0.0, deadline - time.monotonic()))
+        except subprocess.TimeoutExpired:
+            node.process.kill()
+            node.process.wait()
+
+
+def run_graph(experiment_path, bag=None, *, timeout: float | None = None, domain_id: int | None = None,
+              progress=None) -> Path:
+    """Run the experiment through the process graph and return the bag's path.
+
+    Parameters
+    ----------
+    experiment_path : path-like
+    bag : path-like, optional
+        Where to write the bag (default: bags/<experiment>_<time>.mcap).
+    timeout : float, optional
+        Wall-clock limit in seconds (default: generous for the run's length).
+    domain_id : int, optional
+        ROS domain (default: a random private one).
+    progress : callable(str), optional
+        Receives one-line status messages.
+    """
+    experiment_path = Path(experiment_path)
+    experiment = load_experiment(experiment_path)
+    bag = Path(bag) if bag is not None else default_bag_path(experiment)
+    bag.parent.mkdir(parents=True, exist_ok=True)
+    if bag.exists():
+        bag.unlink()
+    timeout = timeout if timeout is not None else 60.0 + experiment.n_steps / 50.0
+    env = private_environment(domain_id)
+    nodes = graph_commands(experiment_path.resolve(), experiment, bag.resolve())
+    say = progress or (lambda message: None)
+    say(f"starting {len(nodes)} nodes on ROS domain {env['ROS_DOMAIN_ID']}: {experiment.n_steps} steps")
+    started = time.monotonic()
+    try:
+        for node in nodes:
+            node.log = tempfile.TemporaryFile()
+            node.process = subprocess.Popen(node.command, env=env, stdout=node.log, stderr=subprocess.STDOUT,
+                                            stdin=subprocess.DEVNULL)
+        while True:
+            codes = {node.name: node.process.poll() for node in nodes}
+            failed = [node for node in nodes if codes[node.name] not in (None, 0)]
+            if failed:
+                node = failed[0]
+                detail = node.last_error_line()
+                raise RunError(f"node {node.name} exited with code {codes[node.name]}"
+                               + (f": {detail}" if detail else ""))
+            if all(code == 0 for code in codes.values()):
+                break
+            if time.monotonic() - started > timeout:
+                running = [name for name, code in codes.items() if code is None]
+                raise RunError(f"the run did not finish within {timeout:.0f} s (still running: {', '.join(running)})")
+            time.sleep(0.05)
+    finally:
+        _stop(nodes)
+        for node in nodes:
+            if node.log is not None:
+                node.log.close()
+    say(f"ran {experiment.n_steps} steps in {time.monotonic() - started:.1f} s wall time")
+    return bag

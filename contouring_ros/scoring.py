@@ -1,0 +1,48 @@
+"""Scoring of runs (bags or in-process results) and their tables."""
+from __future__ import annotations
+
+from .bag import RecordedRun, read_run
+from .config import build_curve, parse_experiment
+from .core.metrics import Scores, score
+
+__all__ = ["score_run", "score_bag", "format_scores"]
+
+
+def score_run(curve, run) -> Scores:
+    """Scores of a SimulationResult or RecordedRun on ``curve``."""
+    return score(curve, run.time, run.position, run.reference_position, run.estimate_vector, run.command)[0]
+
+
+def score_bag(path) -> tuple[Scores, RecordedRun]:
+    """Score a bag from its contents alone: the curve comes from the experiment stored in it."""
+    run = read_run(path)
+    experiment = parse_experiment(run.experiment_text, f"{path} (stored experiment)")
+    return score_run(build_curve(experiment), run), run
+
+
+_ROWS = [("MCE [um]", lambda s: s.mce * 1e6), ("TACE [um]", lambda s: s.tace * 1e6),
+         ("RMS contour error [um]", lambda s: s.rms * 1e6),
+         ("estimation deviation max [um]", lambda s: s.estimation_max * 1e6),
+         ("estimation deviation RMS [um]", lambda s: s.estimation_rms * 1e6)]
+
+
+def format_scores(named: list, axes=None) -> str:
+    """A plain-text table: one column per (name, Scores), one row per metric."""
+    axes = axes or [f"axis{i}" for i in range(len(named[0][1].tracking_max))]
+    rows = list(_ROWS)
+    for i, axis in enumerate(axes):
+        rows.append((f"tracking error max {axis} [um]", lambda s, i=i: s.tracking_max[i] * 1e6))
+        rows.append((f"tracking error RMS {axis} [um]", lambda s, i=i: s.tracking_rms[i] * 1e6))
+    for i, axis in enumerate(axes):
+        rows.append((f"effort RMS {axis}", lambda s, i=i: s.effort_rms[i]))
+    rows += [("travel time [s]", lambda s: s.travel_time), ("steps", lambda s: s.steps)]
+    width = max(len(label) for label, _ in rows)
+    columns = [max(12, len(name)) for name, _ in named]
+    lines = ["  ".join([" " * width] + [name.rjust(w) for (name, _), w in zip(named, columns)])]
+    for label, get in rows:
+        cells = []
+        for (_, scores), w in zip(named, columns):
+            value = get(scores)
+            cells.append((f"{value:d}" if isinstance(value, int) else f"{value:.4g}").rjust(w))
+        lines.append("  ".join([label.ljust(width)] + cells))
+    return "\n".join(lines)

@@ -1,0 +1,28 @@
+from glob import glob
+
+from setuptools import find_packages, setup
+
+package_name = "contouring_ros"
+NODES = ["interpolator", "plant", "servo", "contour_estimator", "ccc", "recorder"]
+
+setup(
+    name=package_name,
+    version="0.1.0",
+    packages=find_packages(exclude=["tests"]),
+    data_files=[
+        ("share/ament_index/resource_index/packages", [f"resource/{package_name}"]),
+        (f"share/{package_name}", ["package.xml"]),
+        (f"share/{package_name}/config", glob("config/*.yaml")),
+    ],
+    install_requires=["setuptools", "numpy", "scipy", "PyYAML", "mcap", "mcap-ros2-support"],
+    extras_require={"test": ["pytest"]},
+    zip_safe=True,
+    maintainer="contouring_ros maintainers",
+    maintainer_email="maintainers@contouring-ros.org",
+    description="Multi-axis contouring control of CNC feed drives as a graph of rclpy nodes",
+    license="Apache-2.0",
+    entry_points={
+        "console_scripts": [f"{node} = {package_name}.nodes.{node}:main" for node in NODES]
+        + [f"contouring-ros = {package_name}.cli:main"],
+    },
+)

@@ -1,0 +1,25 @@
+"""Shared fixtures: experiment texts and paths."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+CONFIG = ROOT / "config"
+DEFAULT = CONFIG / "paper000_b_ismc_h50_newton.yaml"
+
+
+def shortened(path: Path, duration: float) -> str:
+    """The experiment at ``path`` cut to ``duration`` seconds of its schedule."""
+    text = path.read_text()
+    return text.replace("    sample_time: 0.001\n", f"    sample_time: 0.001\n    duration: {duration}\n", 1)
+
+
+@pytest.fixture
+def write_experiment(tmp_path):
+    def write(text: str, name: str = "experiment.yaml") -> Path:
+        path = tmp_path / name
+        path.write_text(text)
+        return path
+    return write
