@@ -150,6 +150,15 @@ def _stamp_ns(msg) -> int:
     return msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
 
 
+def _step_times(stamps_ns, sample_time) -> np.ndarray:
+    """Times of the recorded steps, computed as the simulation computes them (k Ts) when Ts is known."""
+    if sample_time is None or not np.isfinite(sample_time):
+        return np.array(stamps_ns, dtype=float) * 1e-9
+    from .core.simulation import step_time
+    ts_ns = int(round(sample_time * 1e9))
+    return np.array([step_time(stamp // ts_ns, sample_time) for stamp in stamps_ns])
+
+
 def read_run(path, keep_payloads: bool = False) -> RecordedRun:
     """Decode a bag of the graph into per-step arrays (steps where every topic was recorded)."""
     from mcap.reader import make_reader
@@ -162,10 +171,11 @@ def read_run(path, keep_payloads: bool = False) -> RecordedRun:
     try:
         with open(path, "rb") as stream:
             reader = make_reader(stream, decoder_factories=[DecoderFactory()])
-            experiment_text = None
+            experiment_text, sample_time = None, None
             for record in reader.iter_metadata():
                 if record.name == EXPERIMENT_METADATA:
                     experiment_text = record.metadata.get("yaml")
+                    sample_time = float(record.metadata.get("sample_time", "nan"))
             for schema, channel, message, decoded in reader.iter_decoded_messages(log_time_order=False):
                 if channel.topic == graph.CLOCK:
                     continue
@@ -196,7 +206,7 @@ def read_run(path, keep_payloads: bool = False) -> RecordedRun:
         return np.array([[getattr(by_topic[topic_of(a)][s], field)[0] for a in axes] for s in stamps]).reshape(-1, n)
 
     return RecordedRun(
-        experiment_text=experiment_text, axes=axes, time=np.array(stamps, dtype=float) * 1e-9,
+        experiment_text=experiment_text, axes=axes, time=_step_times(stamps, sample_time),
         theta=np.array([r.theta for r in refs]),
         reference_position=np.array([r.position for r in refs]).reshape(-1, n),
         reference_velocity=np.array([r.velocity for r in refs]).reshape(-1, n),

@@ -23,6 +23,7 @@ from .errors import RunError
 
 __all__ = ["NodeProcess", "graph_commands", "private_environment", "run_graph", "default_bag_path"]
 
+SHUTDOWN_GRACE = 10.0   # s the nodes get to exit on their own once the recorder has the whole run
 _MODULES = {"interpolator": "interpolator", "plant": "plant", "servo": "servo",
             "contour_estimator": "contour_estimator", "ccc": "ccc", "recorder": "recorder"}
 
@@ -122,16 +123,24 @@ def run_graph(experiment_path, bag=None, *, timeout: float | None = None, domain
             node.log = tempfile.TemporaryFile()
             node.process = subprocess.Popen(node.command, env=env, stdout=node.log, stderr=subprocess.STDOUT,
                                             stdin=subprocess.DEVNULL)
+        recorder_done = None
         while True:
             codes = {node.name: node.process.poll() for node in nodes}
             failed = [node for node in nodes if codes[node.name] not in (None, 0)]
             if failed:
-                node = failed[0]
-                detail = node.last_error_line()
-                raise RunError(f"node {node.name} exited with code {codes[node.name]}"
-                               + (f": {detail}" if detail else ""))
+                time.sleep(0.2)     # let the other nodes report too, then name the root cause first
+                failed = [node for node in nodes if node.process.poll() not in (None, 0)]
+                failed.sort(key=lambda node: "stalled" in node.last_error_line())
+                raise RunError("; ".join(f"node {node.name} exited with code {node.process.poll()}"
+                                         + (f": {node.last_error_line()}" if node.last_error_line() else "")
+                                         for node in failed))
             if all(code == 0 for code in codes.values()):
                 break
+            if codes["/recorder"] == 0:
+                # The bag is complete; a node still shutting down after its last step is stopped below.
+                recorder_done = recorder_done or time.monotonic()
+                if time.monotonic() - recorder_done > SHUTDOWN_GRACE:
+                    break
             if time.monotonic() - started > timeout:
                 running = [name for name, code in codes.items() if code is None]
                 raise RunError(f"the run did not finish within {timeout:.0f} s (still running: {', '.join(running)})")

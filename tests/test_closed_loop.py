@@ -12,11 +12,11 @@ LINE = """
 /**:
   ros__parameters:
     sample_time: 0.001
-    duration: 3.0
+    duration: 2.0
     axes: ["x", "y"]
     curve: {{type: line, start: [0.0, 0.0], end: [0.03, 0.04]}}
-    schedule: {{type: uniform, theta_start: 0.0, theta_end: 0.05, duration: 1.0}}
-    initial_state: at_rest
+    schedule: {{type: uniform, theta_start: 0.0, theta_end: 0.05, duration: 2.0}}
+    initial_state: on_reference
 /x/plant:
   ros__parameters: {{model: first_order_velocity, gain: 10.3, time_constant: 0.040,
                     disturbance: {{type: constant, value: 1.5e-4}}}}
@@ -54,7 +54,7 @@ def test_closed_loop_settles_on_a_line(servo, pair):
     error = ExactContourError(loop.curve)(result.position).distance
     tracking = np.linalg.norm(result.reference_position - result.position, axis=1)
     assert np.all(np.isfinite(result.position))
-    # Started at rest behind a moving reference: a bounded transient, then the error dies out after the stop.
+    # The constant load on x excites a transient at the start; the loop must settle while moving.
     assert tracking.max() < 5e-3
-    assert error[-1] < 1e-7 and error[-1] < 0.5 * error[-500]
-    assert tracking[-1] < 1e-6
+    assert error[-1] < 1e-7 and error[-1] < 0.1 * error[:500].max()
+    assert tracking[-1] < 1e-6 and tracking[-1] < 0.1 * tracking[:500].max()

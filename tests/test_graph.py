@@ -1,0 +1,76 @@
+"""The node graph: lockstep identity with the in-process simulation, determinism, bags readable by others."""
+import numpy as np
+import pytest
+
+from contouring_ros.bag import read_run
+from contouring_ros.config import build_loop, load_experiment
+from contouring_ros.core.simulation import simulate
+from contouring_ros.runner import run_graph
+from contouring_ros.scoring import score_bag, score_run
+from conftest import CONFIG, DEFAULT, shortened
+
+pytestmark = [pytest.mark.graph, pytest.mark.slow]
+SIGNALS = ["theta", "reference_position", "reference_velocity", "position", "velocity", "estimate_theta",
+           "estimate_vector", "estimate_signed", "correction", "command"]
+
+
+@pytest.fixture(scope="module")
+def default_runs(tmp_path_factory):
+    """The default experiment, cut to 0.4 s, run twice through the process graph."""
+    directory = tmp_path_factory.mktemp("graph")
+    path = directory / "default_short.yaml"
+    path.write_text(shortened(DEFAULT, 0.4))
+    bags = [run_graph(path, directory / f"run{i}.mcap") for i in range(2)]
+    return path, bags
+
+
+def _assert_identical(experiment_path, bag):
+    loop = build_loop(load_experiment(experiment_path))
+    expected = simulate(loop)
+    recorded = read_run(bag)
+    assert recorded.complete_steps == loop.n_steps
+    for name in SIGNALS:
+        np.testing.assert_array_equal(getattr(recorded, name), getattr(expected, name), err_msg=name)
+    np.testing.assert_allclose(recorded.time, expected.time, rtol=0, atol=1e-12)
+    assert score_bag(bag)[0] == score_run(loop.curve, expected)
+
+
+def test_graph_reproduces_simulation_exactly(default_runs):
+    path, bags = default_runs
+    _assert_identical(path, bags[0])
+
+
+def test_variable_gain_graph_reproduces_simulation_exactly(tmp_path):
+    path = tmp_path / "vg.yaml"
+    path.write_text(shortened(CONFIG / "paper000_b_ismc_h100_vgccc.yaml", 0.3))
+    _assert_identical(path, run_graph(path, tmp_path / "vg.mcap"))
+
+
+def test_two_runs_record_identical_payloads(default_runs):
+    _, bags = default_runs
+    first, second = (read_run(bag, keep_payloads=True).payloads for bag in bags)
+    assert set(first) == set(second) and len(first) >= 7
+    for topic in first:
+        assert sorted(first[topic]) == sorted(second[topic]), topic
+
+
+def test_bag_opens_with_plain_mcap_and_ros2_decoder(default_runs):
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+    _, bags = default_runs
+    with open(bags[0], "rb") as stream:
+        reader = make_reader(stream, decoder_factories=[DecoderFactory()])
+        header = reader.get_header()
+        summary = reader.get_summary()
+        assert header.profile == "ros2"
+        assert summary.statistics.message_count > 0
+        schemas = {s.name: s.encoding for s in summary.schemas.values()}
+        assert schemas["sensor_msgs/msg/JointState"] == "ros2msg"
+        assert {c.message_encoding for c in summary.channels.values()} == {"cdr"}
+        count = 0
+        for _, channel, _, decoded in reader.iter_decoded_messages(topics=["/x/state"]):
+            assert decoded.name == ["x"] and len(decoded.position) == 1
+            count += 1
+        assert count == 401
+        metadata = {m.name: m.metadata for m in reader.iter_metadata()}
+        assert "curve" in metadata["contouring_ros.experiment"]["yaml"]

@@ -1,0 +1,37 @@
+"""The ament_python package builds with colcon and installs an executable per node where ros2 run looks."""
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from conftest import ROOT
+
+NODES = ["interpolator", "plant", "servo", "contour_estimator", "ccc", "recorder"]
+
+
+@pytest.mark.slow
+def test_colcon_build_installs_every_node(tmp_path):
+    colcon = shutil.which("colcon") or str(Path(sys.executable).parent / "colcon")
+    if not os.path.exists(colcon):
+        pytest.fail("colcon is not installed (pip install colcon-core colcon-ros)")
+    src = tmp_path / "src" / "contouring_ros"
+    shutil.copytree(ROOT, src, ignore=shutil.ignore_patterns(".git", ".venv", "build", "install", "log", "bags",
+                                                              "__pycache__", "*.egg-info"))
+    result = subprocess.run([colcon, "build", "--base-paths", "src"], cwd=tmp_path, capture_output=True,
+                            text=True, timeout=600)
+    assert result.returncode == 0, result.stdout + result.stderr
+    prefix = tmp_path / "install" / "contouring_ros"
+    # ros2 run <pkg> <exe> finds the package prefix through the ament index, then looks in lib/<pkg>.
+    marker = prefix / "share" / "ament_index" / "resource_index" / "packages" / "contouring_ros"
+    assert marker.is_file()
+    env = dict(os.environ, AMENT_PREFIX_PATH=str(prefix))
+    found = subprocess.run([sys.executable, "-c", "from ament_index_python.packages import get_package_prefix;"
+                            "print(get_package_prefix('contouring_ros'))"], env=env, capture_output=True, text=True)
+    assert found.stdout.strip() == str(prefix), found.stderr
+    for node in NODES:
+        executable = prefix / "lib" / "contouring_ros" / node
+        assert executable.is_file() and os.access(executable, os.X_OK), node
+    assert list((prefix / "share" / "contouring_ros" / "config").glob("paper000_*.yaml"))
