@@ -24,6 +24,13 @@ class Curve(ABC):
     closed: bool = False
 
     @abstractmethod
+    def columns(self, theta) -> list:
+        """[R, dR, d2R, d3R] at theta (derivatives by theta), each a tuple with one entry per coordinate.
+
+        The entries are floats for a float theta (the fast scalar path the estimators iterate on) and
+        arrays for an array theta.
+        """
+
     def derivatives(self, theta, order: int = 2) -> np.ndarray:
         """R and its derivatives up to ``order`` (<= 3).
 
@@ -39,13 +46,22 @@ class Curve(ABC):
         ndarray, shape (order + 1, dimension) for scalar theta, (order + 1, m, dimension) otherwise.
             ``out[j]`` is d^j R / d theta^j.
         """
+        theta = np.asarray(theta, dtype=float) if np.ndim(theta) else theta
+        return _stack(self.columns(theta), theta, order)
 
     def point(self, theta) -> np.ndarray:
         """R(theta): shape (dimension,) or (m, dimension)."""
         return self.derivatives(theta, order=0)[0]
 
+    def wrap_scalar(self, theta: float) -> float:
+        """:meth:`wrap` for one float (the estimators' inner loops)."""
+        lo, hi = self.domain
+        return lo + (theta - lo) % (hi - lo) if self.closed else min(max(theta, lo), hi)
+
     def wrap(self, theta):
         """Map theta into the domain (periodically for closed curves, by clipping otherwise)."""
+        if np.ndim(theta) == 0:
+            return self.wrap_scalar(theta)
         lo, hi = self.domain
         if self.closed:
             return lo + np.mod(np.asarray(theta, dtype=float) - lo, hi - lo)
@@ -82,11 +98,9 @@ class Parabola(Curve):
         self.h = float(h)
         self.domain = (-self.a, self.a)
 
-    def derivatives(self, theta, order: int = 2) -> np.ndarray:
-        t = np.asarray(theta, dtype=float)
+    def columns(self, t) -> list:
         h = self.h
-        cols = [(t, h * t * t), (1.0, 2.0 * h * t), (0.0, 2.0 * h), (0.0, 0.0)]
-        return _stack(cols, t, order)
+        return [(t, h * t * t), (1.0, 2.0 * h * t), (0.0, 2.0 * h), (0.0, 0.0)]
 
 
 class Line(Curve):
@@ -102,13 +116,13 @@ class Line(Curve):
             raise ValueError("line start and end must differ")
         self.dimension = self.start.size
         self.direction = (self.end - self.start) / length
+        self._start, self._direction = tuple(self.start.tolist()), tuple(self.direction.tolist())
         self.domain = (0.0, length)
 
-    def derivatives(self, theta, order: int = 2) -> np.ndarray:
-        t = np.asarray(theta, dtype=float)
-        cols = [tuple(self.start[i] + t * self.direction[i] for i in range(self.dimension)),
-                tuple(self.direction), (0.0,) * self.dimension, (0.0,) * self.dimension]
-        return _stack(cols, t, order)
+    def columns(self, t) -> list:
+        start, direction = self._start, self._direction
+        return [tuple(s + t * d for s, d in zip(start, direction)), direction,
+                (0.0,) * self.dimension, (0.0,) * self.dimension]
 
 
 class Circle(Curve):
@@ -122,11 +136,10 @@ class Circle(Curve):
         if self.radius <= 0.0:
             raise ValueError("circle radius must be positive")
         self.center = np.asarray(center, dtype=float)
+        self._center = tuple(self.center.tolist())
         self.domain = (0.0, 2.0 * np.pi)
 
-    def derivatives(self, theta, order: int = 2) -> np.ndarray:
-        t = np.asarray(theta, dtype=float)
-        r, (cx, cy) = self.radius, self.center
+    def columns(self, t) -> list:
+        r, (cx, cy) = self.radius, self._center
         c, s = r * np.cos(t), r * np.sin(t)
-        cols = [(cx + c, cy + s), (-s, c), (-c, -s), (s, -c)]
-        return _stack(cols, t, order)
+        return [(cx + c, cy + s), (-s, c), (-c, -s), (s, -c)]

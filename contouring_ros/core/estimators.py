@@ -97,11 +97,16 @@ class NewtonEstimator:
     def step(self, reference, position) -> ContourEstimate:
         curve, theta, filtered = self.curve, self.theta, self.filtered
         decay, gain = self._filter_decay, self._gain
+        coordinates = [float(p) for p in position]
+        columns, wrap = curve.columns, curve.wrap_scalar
         for _ in range(self.iterations):
-            d = curve.derivatives(theta, order=1)
-            newton = float((d[0] - position) @ d[1]) / float(d[1] @ d[1])   # g / h, eq. 9 and 11
-            filtered = decay * filtered + (1.0 - decay) * newton
-            theta = float(curve.wrap(theta - gain * filtered))
+            point, tangent = columns(theta)[:2]
+            gradient = hessian = 0.0
+            for r, p, t in zip(point, coordinates, tangent):
+                gradient += (r - p) * t          # g = E^T R', eq. 9
+                hessian += t * t                 # h ~= |R'|^2, eq. 11
+            filtered = decay * filtered + (1.0 - decay) * (gradient / hessian)
+            theta = wrap(theta - gain * filtered)
         self.theta, self.filtered = theta, filtered
         d = curve.derivatives(theta, order=1)
         vector = d[0] - position

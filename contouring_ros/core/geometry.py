@@ -10,7 +10,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from .curves import Curve
 
@@ -93,6 +92,7 @@ class ExactContourError:
     def __init__(self, curve: Curve, samples: int = 20001, tolerance: float = 1e-15, max_iterations: int = 50):
         self.curve = curve
         lo, hi = curve.domain
+        from scipy.spatial import cKDTree   # imported here: the nodes never need it, and it is slow to load
         self._grid = np.linspace(lo, hi, int(samples))
         self._tree = cKDTree(curve.point(self._grid))
         self.tolerance = float(tolerance)

@@ -173,9 +173,18 @@ class LockstepNode:
                                f"{', '.join(self.missing_inputs())} for {STALL_TIMEOUT:.0f} s")
 
     def finish(self):
-        """Wait until subscribers acknowledged everything we published."""
-        for pub in self._outputs.values():
-            pub.wait_for_all_acked(Duration(seconds=ACK_TIMEOUT))
+        """Wait until what we published has been delivered: every subscriber acknowledged it, or the
+        recorder, which takes every message of the run, has left the graph (it leaves only complete).
+
+        Polling matters: acknowledgements otherwise arrive with the writers' next periodic heartbeat,
+        seconds later, and two nodes waiting on each other's acknowledgements would wait that long.
+        """
+        deadline = time.monotonic() + ACK_TIMEOUT
+        for topic, pub in self._outputs.items():
+            expected = len(self._topics[topic].subscribers)
+            while time.monotonic() < deadline:
+                if pub.get_subscription_count() < expected or pub.wait_for_all_acked(Duration(nanoseconds=20_000_000)):
+                    break
 
     def destroy(self):
         self.node.destroy_node()
