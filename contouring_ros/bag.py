@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from . import graph
+from .core.simulation import SimulationResult, step_time
 from .errors import BagError
 
 __all__ = ["message_definition", "BagWriter", "RecordedRun", "read_run", "EXPERIMENT_METADATA"]
@@ -127,23 +128,27 @@ class BagWriter:
 
 @dataclass
 class RecordedRun:
-    """A run as read back from a bag: arrays with one row per recorded step (see SimulationResult)."""
+    """A run as read back from a bag.
+
+    Attributes
+    ----------
+    experiment_text : str
+        The experiment YAML stored in the bag.
+    axes : list of str
+    result : SimulationResult
+        The per-step signals of every step for which each topic was recorded.
+    payloads : dict
+        topic -> list of raw CDR payloads (only when asked for).
+    """
 
     experiment_text: str
     axes: list
-    time: np.ndarray
-    theta: np.ndarray
-    reference_position: np.ndarray
-    reference_velocity: np.ndarray
-    position: np.ndarray
-    velocity: np.ndarray
-    estimate_theta: np.ndarray
-    estimate_vector: np.ndarray
-    estimate_signed: np.ndarray
-    correction: np.ndarray
-    command: np.ndarray
-    complete_steps: int
+    result: SimulationResult
     payloads: dict
+
+    @property
+    def complete_steps(self) -> int:
+        return len(self.result.time)
 
 
 def _stamp_ns(msg) -> int:
@@ -154,7 +159,6 @@ def _step_times(stamps_ns, sample_time) -> np.ndarray:
     """Times of the recorded steps, computed as the simulation computes them (k Ts) when Ts is known."""
     if sample_time is None or not np.isfinite(sample_time):
         return np.array(stamps_ns, dtype=float) * 1e-9
-    from .core.simulation import step_time
     ts_ns = int(round(sample_time * 1e9))
     return np.array([step_time(stamp // ts_ns, sample_time) for stamp in stamps_ns])
 
@@ -205,15 +209,15 @@ def read_run(path, keep_payloads: bool = False) -> RecordedRun:
     def per_axis(topic_of, field):
         return np.array([[getattr(by_topic[topic_of(a)][s], field)[0] for a in axes] for s in stamps]).reshape(-1, n)
 
-    return RecordedRun(
-        experiment_text=experiment_text, axes=axes, time=_step_times(stamps, sample_time),
-        theta=np.array([r.theta for r in refs]),
+    result = SimulationResult(
+        time=_step_times(stamps, sample_time), theta=np.array([r.theta for r in refs]),
         reference_position=np.array([r.position for r in refs]).reshape(-1, n),
         reference_velocity=np.array([r.velocity for r in refs]).reshape(-1, n),
+        reference_acceleration=np.array([r.acceleration for r in refs]).reshape(-1, n),
         position=per_axis(graph.state_topic, "position"), velocity=per_axis(graph.state_topic, "velocity"),
         estimate_theta=np.array([e.theta for e in ests]),
         estimate_vector=np.array([e.vector for e in ests]).reshape(-1, n),
         estimate_signed=np.array([e.signed for e in ests]),
         correction=np.array([by_topic[graph.CORRECTION][s].effort for s in stamps]).reshape(-1, n),
-        command=per_axis(graph.command_topic, "effort"),
-        complete_steps=len(stamps), payloads=payloads)
+        command=per_axis(graph.command_topic, "effort"))
+    return RecordedRun(experiment_text=experiment_text, axes=axes, result=result, payloads=payloads)

@@ -14,7 +14,6 @@ and what was expected. The nodes validate the parameters they receive with the s
 """
 from __future__ import annotations
 
-import math
 import re
 from dataclasses import dataclass, field
 from pathlib import Path

@@ -9,7 +9,7 @@ __all__ = ["score_run", "score_bag", "format_scores"]
 
 
 def score_run(curve, run) -> Scores:
-    """Scores of a SimulationResult or RecordedRun on ``curve``."""
+    """Scores of a SimulationResult on ``curve``."""
     return score(curve, run.time, run.position, run.reference_position, run.estimate_vector, run.command)[0]
 
 
@@ -17,7 +17,7 @@ def score_bag(path) -> tuple[Scores, RecordedRun]:
     """Score a bag from its contents alone: the curve comes from the experiment stored in it."""
     run = read_run(path)
     experiment = parse_experiment(run.experiment_text, f"{path} (stored experiment)")
-    return score_run(build_curve(experiment), run), run
+    return score_run(build_curve(experiment), run.result), run
 
 
 _ROWS = [("MCE [um]", lambda s: s.mce * 1e6), ("TACE [um]", lambda s: s.tace * 1e6),

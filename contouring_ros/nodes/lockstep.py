@@ -149,28 +149,40 @@ class LockstepNode:
         have = self._pending.get(self.next_step, {})
         return [topic for topic, *_ in self._inputs if topic not in have]
 
-    def spin(self):
-        """Run the lockstep loop until the last step has been handled."""
-        self.wait_for_graph()
-        self.start()
-        if not self._inputs:
-            return
+    def wait_loop(self, done, take_progress, describe_stall):
+        """Wait on the inputs' persistent wait set and take what arrives until ``done()``.
+
+        ``take_progress()`` takes the ready messages and says whether anything moved on; after
+        STALL_TIMEOUT seconds without progress the node gives up with ``describe_stall()`` as the reason.
+        """
         wait_set = _rclpy.WaitSet(len(self._inputs), 0, 0, 0, 0, 0, self.node.context.handle)
         handles = [sub.handle for _, sub, _, _ in self._inputs]
         last_progress = time.monotonic()
-        while not self.finished:
+        while not done():
             wait_set.clear_entities()
             for handle in handles:
                 wait_set.add_subscription(handle)
             wait_set.wait(200_000_000)
             if not rclpy.ok(context=self.node.context):
                 raise ExternalShutdownException()
-            self._take_all()
-            if self._fire_ready_steps():
+            if take_progress():
                 last_progress = time.monotonic()
             elif time.monotonic() - last_progress > STALL_TIMEOUT:
-                raise RunError(f"{self.name}: stalled at step {self.next_step}: no message on "
-                               f"{', '.join(self.missing_inputs())} for {STALL_TIMEOUT:.0f} s")
+                raise RunError(f"{self.name}: stalled: {describe_stall()} for {STALL_TIMEOUT:.0f} s")
+
+    def spin(self):
+        """Run the lockstep loop until the last step has been handled."""
+        self.wait_for_graph()
+        self.start()
+        if not self._inputs:
+            return
+
+        def take_and_fire():
+            self._take_all()
+            return self._fire_ready_steps()
+
+        self.wait_loop(lambda: self.finished, take_and_fire,
+                       lambda: f"at step {self.next_step}, no message on {', '.join(self.missing_inputs())}")
 
     def finish(self):
         """Wait until what we published has been delivered: every subscriber acknowledged it, or the

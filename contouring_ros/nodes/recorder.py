@@ -8,17 +8,12 @@ on SIGINT/SIGTERM it closes the bag with its summary.
 from __future__ import annotations
 
 import struct
-import time
 from pathlib import Path
-
-import rclpy
-from rclpy.executors import ExternalShutdownException
-from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 
 from .. import __version__, graph
 from ..bag import EXPERIMENT_METADATA, BagWriter
-from ..errors import ConfigError, RunError
-from .lockstep import STALL_TIMEOUT, LockstepNode, run_node
+from ..errors import ConfigError
+from .lockstep import LockstepNode, run_node
 
 _STAMP = struct.Struct("<iI")   # builtin_interfaces/Time right after the 4-byte CDR encapsulation header
 
@@ -48,24 +43,14 @@ class RecorderNode(LockstepNode):
 
     def spin(self):
         self.wait_for_graph()
-        wait_set = _rclpy.WaitSet(len(self._inputs), 0, 0, 0, 0, 0, self.node.context.handle)
-        handles = [sub.handle for _, sub, _, _ in self._inputs]
-        last_progress = time.monotonic()
-        while min(self.counts.values()) < self.n_steps:
-            wait_set.clear_entities()
-            for handle in handles:
-                wait_set.add_subscription(handle)
-            wait_set.wait(200_000_000)
-            if not rclpy.ok(context=self.node.context):
-                raise ExternalShutdownException()
+
+        def take():
             before = sum(self.counts.values())
             self._take_all()
-            if sum(self.counts.values()) > before:
-                last_progress = time.monotonic()
-            elif time.monotonic() - last_progress > STALL_TIMEOUT:
-                short = [t for t, n in self.counts.items() if n < self.n_steps]
-                raise RunError(f"{self.name}: stalled: no message for {STALL_TIMEOUT:.0f} s; incomplete topics: "
-                               f"{', '.join(short)}")
+            return sum(self.counts.values()) > before
+
+        self.wait_loop(lambda: min(self.counts.values()) >= self.n_steps, take,
+                       lambda: "incomplete topics " + ", ".join(t for t, n in self.counts.items() if n < self.n_steps))
         self.finished = True
 
     def destroy(self):
