@@ -23,6 +23,7 @@ from .errors import RunError
 
 __all__ = ["NodeProcess", "graph_commands", "private_environment", "run_graph", "default_bag_path"]
 
+FASTDDS_PROFILE = Path(__file__).resolve().parent / "fastdds_profile.xml"
 SHUTDOWN_GRACE = 10.0   # s the nodes get to exit on their own once the recorder has the whole run
 _MODULES = {"interpolator": "interpolator", "plant": "plant", "servo": "servo",
             "contour_estimator": "contour_estimator", "ccc": "ccc", "recorder": "recorder"}
@@ -50,12 +51,14 @@ def default_bag_path(experiment: Experiment, directory="bags") -> Path:
 
 
 def private_environment(domain_id: int | None = None) -> dict:
-    """The environment for one run's nodes: its own ROS domain, discovery on localhost only."""
+    """The environment for one run's nodes: its own ROS domain, discovery on localhost only, and the
+    package's Fast DDS profile (fast reliable-protocol heartbeats) unless one is set already."""
     env = dict(os.environ)
     env["ROS_DOMAIN_ID"] = str(domain_id if domain_id is not None else random.SystemRandom().randint(1, 200))
     env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     env.pop("ROS_STATIC_PEERS", None)
     env.setdefault("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
+    env.setdefault("FASTRTPS_DEFAULT_PROFILES_FILE", str(FASTDDS_PROFILE))
     env["PYTHONUNBUFFERED"] = "1"
     return env
 
