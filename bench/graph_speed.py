@@ -1,14 +1,16 @@
-"""Benchmark: control steps per wall-clock second of the default experiment through the process graph.
+"""Benchmark: control steps per wall-clock second of an experiment through the process graph.
 
-Prints, in one run: the in-process simulation rate, the graph's total wall time (start-up included) and
-its steady rate (steps between the first and last /clock message divided by the wall time between them,
-taken from the recorder's receive order is not available, so the steady rate is measured as
-(steps) / (wall time - start-up time of an empty run)).
+Prints, for each of ``--runs`` runs of the experiment (default: the default experiment): the total wall
+time from launch to exit, and the lockstep rate measured by the recorder between the first and the last
+message of the run (start-up and shutdown excluded). Also prints the in-process simulation's rate, and
+the ratio between the two in the same run.
 
-Usage: python bench/graph_speed.py [config.yaml]
+Usage: python bench/graph_speed.py [CONFIG] [--runs N]
 """
 from __future__ import annotations
 
+import argparse
+import statistics
 import sys
 import tempfile
 import time
@@ -17,38 +19,40 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
+from contouring_ros.bag import RUN_METADATA, read_metadata  # noqa: E402
 from contouring_ros.config import build_loop, load_experiment  # noqa: E402
 from contouring_ros.core.simulation import simulate  # noqa: E402
 from contouring_ros.runner import run_graph  # noqa: E402
 
 
-def shortened(path: Path, duration: float) -> str:
-    return path.read_text().replace("    sample_time: 0.001\n", f"    sample_time: 0.001\n    duration: {duration}\n", 1)
-
-
 def main():
-    config = Path(sys.argv[1]) if len(sys.argv) > 1 else ROOT / "config" / "paper000_b_ismc_h50_newton.yaml"
-    experiment = load_experiment(config)
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("config", nargs="?", default=str(ROOT / "config" / "paper000_b_ismc_h50_newton.yaml"))
+    parser.add_argument("--runs", type=int, default=3)
+    args = parser.parse_args()
+    experiment = load_experiment(args.config)
+    steps = experiment.n_steps
     loop = build_loop(experiment)
     start = time.perf_counter()
     simulate(loop)
-    sim = time.perf_counter() - start
-    print(f"in-process simulation: {experiment.n_steps} steps in {sim:.3f} s = {experiment.n_steps / sim:.0f} steps/s "
-          f"({experiment.n_steps * experiment.sample_time / sim:.1f}x real time)")
+    sim_rate = steps / (time.perf_counter() - start)
+    print(f"in-process simulation: {sim_rate:.0f} steps/s ({sim_rate * experiment.sample_time:.1f}x real time)")
+    totals, rates = [], []
     with tempfile.TemporaryDirectory() as tmp:
-        short = Path(tmp) / "short.yaml"
-        short.write_text(shortened(config, 0.01))      # 11 steps: start-up and shutdown cost
-        start = time.perf_counter()
-        run_graph(short, Path(tmp) / "short.mcap")
-        overhead = time.perf_counter() - start
-        start = time.perf_counter()
-        run_graph(config, Path(tmp) / "full.mcap")
-        total = time.perf_counter() - start
-    steps = experiment.n_steps - 11
-    rate = steps / (total - overhead)
-    print(f"process graph: {experiment.n_steps} steps in {total:.2f} s wall (start-up + shutdown {overhead:.2f} s)")
-    print(f"process graph, lockstep: {rate:.0f} control steps per wall second "
-          f"(real-time factor {rate * experiment.sample_time:.2f}); {1e6 / rate:.0f} us per step")
+        for i in range(args.runs):
+            bag = Path(tmp) / f"run{i}.mcap"
+            start = time.perf_counter()
+            run_graph(args.config, bag)
+            totals.append(time.perf_counter() - start)
+            lockstep = float(read_metadata(bag)[RUN_METADATA]["wall_seconds_first_to_last_message"])
+            rates.append((steps - 1) / lockstep)
+            print(f"run {i + 1}: {steps} steps, {totals[-1]:.2f} s launch to exit ({steps / totals[-1]:.0f} steps/s "
+                  f"overall), lockstep {lockstep:.2f} s = {rates[-1]:.0f} steps/s ({1e6 / rates[-1]:.0f} us/step)")
+    rate = statistics.median(rates)
+    print(f"process graph, lockstep, median of {args.runs}: {rate:.0f} control steps per wall second "
+          f"(real-time factor {rate * experiment.sample_time:.2f}); overall incl. start-up "
+          f"{steps / statistics.median(totals):.0f} steps/s")
+    print(f"ratio in-process / graph lockstep: {sim_rate / rate:.1f}")
 
 
 if __name__ == "__main__":

@@ -22,9 +22,11 @@ from . import graph
 from .core.simulation import SimulationResult, step_time
 from .errors import BagError
 
-__all__ = ["message_definition", "BagWriter", "RecordedRun", "read_run", "EXPERIMENT_METADATA"]
+__all__ = ["message_definition", "BagWriter", "RecordedRun", "read_run", "read_metadata", "EXPERIMENT_METADATA",
+           "RUN_METADATA"]
 
 EXPERIMENT_METADATA = "contouring_ros.experiment"
+RUN_METADATA = "contouring_ros.run"      # wall-clock figures of the recording
 _BUILTINS = {"bool", "byte", "char", "float32", "float64", "int8", "uint8", "int16", "uint16", "int32",
              "uint32", "int64", "uint64", "string", "wstring"}
 _SEPARATOR = "=" * 80
@@ -106,6 +108,10 @@ class BagWriter:
             self._writer.add_metadata(name, record)
         self.closed = False
 
+    def add_metadata(self, name: str, record: dict):
+        """Add a metadata record (str -> str) before the bag is closed."""
+        self._writer.add_metadata(name, record)
+
     def write(self, topic: str, stamp_ns: int, data: bytes):
         """Append one serialised message, logged at its stamp."""
         self._writer.add_message(self._channels[topic], log_time=stamp_ns, data=data, publish_time=stamp_ns,
@@ -149,6 +155,13 @@ class RecordedRun:
     @property
     def complete_steps(self) -> int:
         return len(self.result.time)
+
+
+def read_metadata(path) -> dict:
+    """All metadata records of a bag: name -> dict of str to str."""
+    from mcap.reader import make_reader
+    with open(path, "rb") as stream:
+        return {record.name: dict(record.metadata) for record in make_reader(stream).iter_metadata()}
 
 
 def _stamp_ns(msg) -> int:

@@ -2,9 +2,8 @@
 from __future__ import annotations
 
 import numpy as np
-from sensor_msgs.msg import JointState
 
-from .. import graph
+from .. import cdr, graph
 from ..config import build_curve, build_estimator
 from .lockstep import LockstepNode, run_node
 
@@ -20,15 +19,13 @@ class ContourEstimatorNode(LockstepNode):
         for topic in self.state_topics:
             self.add_input(topic)
         self.publisher = self.add_output(graph.CONTOUR_ERROR)
-        self.msg = JointState(name=graph.estimate_names(self.axes))
+        self.names = graph.estimate_names(self.axes)
 
     def on_step(self, k, inputs):
         ref = graph.reference_from_msg(inputs[graph.REFERENCE], len(self.axes))
         position = np.array([inputs[topic].position[0] for topic in self.state_topics])
         estimate = self.estimator.step(ref, position)
-        self.stamp(self.msg.header, k)
-        self.msg.position = graph.estimate_values(estimate)
-        self.publisher.publish(self.msg)
+        self.publisher.publish(cdr.encode_joint_state(*self.stamp(k), self.names, graph.estimate_values(estimate)))
 
 
 def main(args=None):

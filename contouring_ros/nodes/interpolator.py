@@ -1,10 +1,7 @@
 """Interpolator node: publishes the reference of every step, a few steps ahead, and /clock."""
 from __future__ import annotations
 
-from rosgraph_msgs.msg import Clock
-from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
-
-from .. import graph
+from .. import cdr, graph
 from ..config import build_curve, build_schedule
 from ..core.interpolation import reference
 from ..core.simulation import step_time
@@ -24,32 +21,25 @@ class InterpolatorNode(LockstepNode):
         self.add_input(graph.CONTOUR_ERROR)
         self.reference_pub = self.add_output(graph.REFERENCE)
         self.clock_pub = self.add_output(graph.CLOCK)
-        self.msg = JointTrajectory(joint_names=self.axes + [graph.THETA_NAME])
-        self.clock = Clock()
+        self.names = self.axes + [graph.THETA_NAME]
 
     def publish_reference(self, k: int):
         if k >= self.n_steps:
             return
         ref = reference(self.curve, self.schedule, step_time(k, self.experiment.sample_time))
-        point = JointTrajectoryPoint(
-            positions=list(ref.position) + [float(ref.theta)],
-            velocities=list(ref.velocity) + [float(ref.theta_dot)],
-            accelerations=list(ref.acceleration) + [float(ref.theta_ddot)])
-        point.time_from_start.sec, point.time_from_start.nanosec = graph.step_to_stamp(k, self.sample_time_ns)
-        self.stamp(self.msg.header, k)
-        self.msg.points = [point]
-        self.reference_pub.publish(self.msg)
+        stamp = self.stamp(k)
+        self.reference_pub.publish(cdr.encode_joint_trajectory(
+            *stamp, self.names, [*ref.position, float(ref.theta)], [*ref.velocity, float(ref.theta_dot)],
+            [*ref.acceleration, float(ref.theta_ddot)], stamp))
 
     def start(self):
-        self.clock.clock.sec, self.clock.clock.nanosec = 0, 0
-        self.clock_pub.publish(self.clock)
+        self.clock_pub.publish(cdr.encode_clock(0, 0))
         for k in range(graph.LOOKAHEAD):
             self.publish_reference(k)
 
     def on_step(self, k, inputs):
         if k > 0:
-            self.clock.clock.sec, self.clock.clock.nanosec = graph.step_to_stamp(k, self.sample_time_ns)
-            self.clock_pub.publish(self.clock)
+            self.clock_pub.publish(cdr.encode_clock(*self.stamp(k)))
         self.publish_reference(k + graph.LOOKAHEAD)
 
 

@@ -1,7 +1,8 @@
 """The lean lockstep loop every node of the graph runs on.
 
 A node declares its inputs (topics it needs for each step) and a step handler. The loop waits on one
-persistent wait set, takes messages directly from the subscriptions (no executor, no callbacks), files
+persistent wait set, takes serialised messages directly from the subscriptions (no executor, no
+callbacks, no rclpy message objects: :mod:`contouring_ros.cdr` reads and writes the wire format), files
 them by the step their header stamp names, and calls the handler for step k as soon as every input of
 step k is there (DESIGN.md, "One control step"). Nothing depends on wall-clock arrival order.
 
@@ -20,7 +21,7 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from .. import graph
+from .. import cdr, graph
 from ..config import experiment_for_node
 from ..errors import ConfigError, ContouringError, RunError
 
@@ -28,6 +29,8 @@ __all__ = ["GRAPH_QOS", "message_class", "LockstepNode", "run_node"]
 
 GRAPH_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE,
                        history=HistoryPolicy.KEEP_ALL, depth=1)
+_DECODERS = {"sensor_msgs/msg/JointState": cdr.decode_joint_state,
+             "trajectory_msgs/msg/JointTrajectory": cdr.decode_joint_trajectory}
 MATCH_TIMEOUT = 30.0     # s to wait for the rest of the graph at start
 STALL_TIMEOUT = 10.0     # s without a complete step before the node gives up
 ACK_TIMEOUT = 5.0        # s to wait for the last messages to be acknowledged
@@ -58,7 +61,7 @@ class LockstepNode:
         self.n_steps = self.experiment.n_steps
         self.axes = list(self.experiment.axes)
         self._topics = {t.name: t for t in graph.topics(self.axes)}
-        self._inputs = []          # (topic name, subscription, msg class, raw)
+        self._inputs = []          # (topic name, subscription, msg class, decoder)
         self._outputs = {}         # topic name -> publisher
         self._pending = {}         # step -> {topic: msg}
         self.next_step = 0
@@ -66,10 +69,12 @@ class LockstepNode:
         self.setup()
 
     # -- wiring -----------------------------------------------------------------------------------
-    def add_input(self, topic: str, raw: bool = False):
-        cls = message_class(self._topics[topic].type)
-        sub = self.node.create_subscription(cls, topic, lambda _msg: None, GRAPH_QOS, raw=raw)
-        self._inputs.append((topic, sub, cls, raw))
+    def add_input(self, topic: str):
+        """Subscribe to ``topic``; its messages reach :meth:`on_step` decoded by the cdr codec."""
+        type_name = self._topics[topic].type
+        cls = message_class(type_name)
+        sub = self.node.create_subscription(cls, topic, lambda _msg: None, GRAPH_QOS, raw=True)
+        self._inputs.append((topic, sub, cls, _DECODERS.get(type_name)))
 
     def add_output(self, topic: str):
         pub = self.node.create_publisher(message_class(self._topics[topic].type), topic, GRAPH_QOS)
@@ -83,12 +88,9 @@ class LockstepNode:
             raise ConfigError(f"{self.name}: the namespace names axis {axis!r}, which is not in axes {self.axes}")
         return axis
 
-    def stamp(self, header, k: int):
-        header.stamp.sec, header.stamp.nanosec = graph.step_to_stamp(k, self.sample_time_ns)
-
-    def step_of(self, msg) -> int:
-        stamp = msg.header.stamp
-        return graph.stamp_to_step(stamp.sec, stamp.nanosec, self.sample_time_ns)
+    def stamp(self, k: int) -> tuple:
+        """(sec, nanosec) of step k."""
+        return graph.step_to_stamp(k, self.sample_time_ns)
 
     # -- to implement -----------------------------------------------------------------------------
     def setup(self):
@@ -118,19 +120,18 @@ class LockstepNode:
             time.sleep(0.01)
 
     def _take_all(self):
-        for topic, sub, cls, raw in self._inputs:
+        for topic, sub, cls, _ in self._inputs:
             while True:
-                taken = sub.handle.take_message(cls, raw)
+                taken = sub.handle.take_message(cls, True)
                 if taken is None:
                     break
                 self.file_message(topic, taken[0])
 
-    def file_message(self, topic: str, msg):
-        """File an input under the step its stamp names."""
-        k = self.step_of(msg)
-        if k < self.next_step:
-            return
-        self._pending.setdefault(k, {})[topic] = msg
+    def file_message(self, topic: str, data: bytes):
+        """File a serialised input under the step its stamp names."""
+        k = cdr.stamp_ns(data) // self.sample_time_ns
+        if k >= self.next_step:
+            self._pending.setdefault(k, {})[topic] = data
 
     def _fire_ready_steps(self):
         n_inputs = len(self._inputs)
@@ -139,7 +140,7 @@ class LockstepNode:
             if ready is None or len(ready) < n_inputs:
                 return False
             del self._pending[self.next_step]
-            self.on_step(self.next_step, ready)
+            self.on_step(self.next_step, {topic: decode(ready[topic]) for topic, _, _, decode in self._inputs})
             self.next_step += 1
             if self.next_step >= self.n_steps:
                 self.finished = True

@@ -1,9 +1,7 @@
 """Plant node (one per axis, namespace = axis name): applies commands, publishes the axis state."""
 from __future__ import annotations
 
-from sensor_msgs.msg import JointState
-
-from .. import graph
+from .. import cdr, graph
 from ..config import build_plant, initial_state
 from ..core.simulation import step_time
 from .lockstep import LockstepNode, run_node
@@ -20,13 +18,11 @@ class PlantNode(LockstepNode):
         self.plant = build_plant(self.experiment, self.axis, positions[index], velocities[index])
         self.add_input(graph.command_topic(self.axis))
         self.publisher = self.add_output(graph.state_topic(self.axis))
-        self.msg = JointState(name=[self.axis])
+        self.names = [self.axis]
 
     def publish_state(self, k: int):
-        self.stamp(self.msg.header, k)
-        self.msg.position = [self.plant.position]
-        self.msg.velocity = [self.plant.velocity]
-        self.publisher.publish(self.msg)
+        self.publisher.publish(cdr.encode_joint_state(*self.stamp(k), self.names, [self.plant.position],
+                                                      [self.plant.velocity]))
 
     def start(self):
         self.publish_state(0)

@@ -1,22 +1,19 @@
 """Recorder node: takes every topic of the graph undecoded and writes one MCAP bag.
 
 The CDR payloads are written as they arrived; each message is logged at its step stamp (read from the
-fixed CDR layout of the header, without deserialising), so a bag's payloads are identical run to run. The
+serialised header, without deserialising the message), so a bag's payloads are identical run to run. The
 experiment's YAML is stored in the bag. The recorder stops once every topic has delivered all its steps;
 on SIGINT/SIGTERM it closes the bag with its summary.
 """
 from __future__ import annotations
 
-import struct
+import time
 from pathlib import Path
 
-from .. import __version__, graph
-from ..bag import EXPERIMENT_METADATA, BagWriter
+from .. import __version__, cdr, graph
+from ..bag import EXPERIMENT_METADATA, RUN_METADATA, BagWriter
 from ..errors import ConfigError
 from .lockstep import LockstepNode, run_node
-
-_STAMP = struct.Struct("<iI")   # builtin_interfaces/Time right after the 4-byte CDR encapsulation header
-
 
 class RecorderNode(LockstepNode):
     role = "recorder"
@@ -29,17 +26,20 @@ class RecorderNode(LockstepNode):
         text = Path(options["experiment_file"]).read_text() if options["experiment_file"] else ""
         self.topic_list = graph.topics(self.axes)
         for topic in self.topic_list:
-            self.add_input(topic.name, raw=True)
+            self.add_input(topic.name)
         self.counts = {topic.name: 0 for topic in self.topic_list}
+        self.first_receive = self.last_receive = None
         self.writer = BagWriter(options["bag"], [(t.name, t.type) for t in self.topic_list], metadata={
             EXPERIMENT_METADATA: {"yaml": text, "axes": ",".join(self.axes), "steps": str(self.n_steps),
                                   "sample_time": repr(self.experiment.sample_time),
                                   "contouring_ros_version": __version__}})
 
     def file_message(self, topic, data):
-        sec, nanosec = _STAMP.unpack_from(data, 4)
-        self.writer.write(topic, sec * 1_000_000_000 + nanosec, data)
+        self.writer.write(topic, cdr.stamp_ns(data), data)
         self.counts[topic] += 1
+        self.last_receive = time.monotonic()
+        if self.first_receive is None:
+            self.first_receive = self.last_receive
 
     def spin(self):
         self.wait_for_graph()
@@ -54,6 +54,10 @@ class RecorderNode(LockstepNode):
         self.finished = True
 
     def destroy(self):
+        if self.first_receive is not None:
+            self.writer.add_metadata(RUN_METADATA, {
+                "wall_seconds_first_to_last_message": repr(self.last_receive - self.first_receive),
+                "messages": str(sum(self.counts.values())), "complete": str(self.finished).lower()})
         self.writer.close()
         super().destroy()
 

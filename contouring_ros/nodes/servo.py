@@ -1,9 +1,7 @@
 """Servo node (one per axis, namespace = axis name): reference, own state and correction in, command out."""
 from __future__ import annotations
 
-from sensor_msgs.msg import JointState
-
-from .. import graph
+from .. import cdr, graph
 from ..config import build_servo, initial_state
 from .lockstep import LockstepNode, run_node
 
@@ -21,7 +19,7 @@ class ServoNode(LockstepNode):
         for topic in (graph.REFERENCE, self.state_topic, graph.CORRECTION):
             self.add_input(topic)
         self.publisher = self.add_output(graph.command_topic(self.axis))
-        self.msg = JointState(name=[self.axis])
+        self.names = [self.axis]
 
     def on_step(self, k, inputs):
         i = self.index
@@ -29,9 +27,7 @@ class ServoNode(LockstepNode):
         state = inputs[self.state_topic]
         command = self.servo.step(point.positions[i], point.velocities[i], point.accelerations[i],
                                   state.position[0], state.velocity[0], inputs[graph.CORRECTION].effort[i])
-        self.stamp(self.msg.header, k)
-        self.msg.effort = [float(command)]
-        self.publisher.publish(self.msg)
+        self.publisher.publish(cdr.encode_joint_state(*self.stamp(k), self.names, effort=[float(command)]))
 
 
 def main(args=None):
