@@ -24,7 +24,9 @@ from .errors import RunError
 __all__ = ["NodeProcess", "graph_commands", "private_environment", "run_graph", "default_bag_path"]
 
 FASTDDS_PROFILE = Path(__file__).resolve().parent / "fastdds_profile.xml"
-SHUTDOWN_GRACE = 10.0   # s the nodes get to exit on their own once the recorder has the whole run
+SHUTDOWN_GRACE = 10.0
+OFF_CRITICAL_PATH = {"/recorder"}
+OFF_CRITICAL_PATH_NICENESS = 5   # s the nodes get to exit on their own once the recorder has the whole run
 _MODULES = {"interpolator": "interpolator", "plant": "plant", "servo": "servo",
             "contour_estimator": "contour_estimator", "ccc": "ccc", "recorder": "recorder"}
 
@@ -35,6 +37,13 @@ class NodeProcess:
     command: list
     process: subprocess.Popen | None = None
     log: object = None
+
+    def lower_priority(self):
+        """Run off-critical-path nodes (the recorder) at a lower CPU priority: the lockstep nodes then
+        get the cores first, and the recorder catches up in between (keep-all QoS holds what it has
+        not taken yet, so nothing is lost)."""
+        if self.name in OFF_CRITICAL_PATH:
+            os.nice(OFF_CRITICAL_PATH_NICENESS)
 
     def last_error_line(self) -> str:
         if self.log is None:
@@ -125,7 +134,7 @@ def run_graph(experiment_path, bag=None, *, timeout: float | None = None, domain
         for node in nodes:
             node.log = tempfile.TemporaryFile()
             node.process = subprocess.Popen(node.command, env=env, stdout=node.log, stderr=subprocess.STDOUT,
-                                            stdin=subprocess.DEVNULL)
+                                            stdin=subprocess.DEVNULL, preexec_fn=node.lower_priority)
         recorder_done = None
         while True:
             codes = {node.name: node.process.poll() for node in nodes}
@@ -143,6 +152,9 @@ def run_graph(experiment_path, bag=None, *, timeout: float | None = None, domain
                 # The bag is complete; a node still shutting down after its last step is stopped below.
                 recorder_done = recorder_done or time.monotonic()
                 if time.monotonic() - recorder_done > SHUTDOWN_GRACE:
+                    lingering = [name for name, code in codes.items() if code is None]
+                    say(f"stopping {', '.join(lingering)}: still running {SHUTDOWN_GRACE:.0f} s after the bag "
+                        "was complete")
                     break
             if time.monotonic() - started > timeout:
                 running = [name for name, code in codes.items() if code is None]
