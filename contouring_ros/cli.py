@@ -11,20 +11,33 @@ from .errors import ContouringError
 DEFAULT_EXPERIMENT = "config/paper000_b_ismc_h50_newton.yaml"
 
 
+def _experiment_path(name: str) -> Path:
+    """An experiment file as given, else the packaged scenario of that name (config/<name>[.yaml])."""
+    path = Path(name)
+    if path.exists():
+        return path
+    from .paper import CONFIG_DIR
+    for candidate in (CONFIG_DIR / path.name, CONFIG_DIR / f"{path.name}.yaml"):
+        if candidate.exists():
+            return candidate
+    return path
+
+
 def _run(args):
     from .runner import run_graph
     from .scoring import format_scores, score_bag
-    bag = run_graph(args.config, args.bag, progress=lambda m: print(m, flush=True))
+    config = _experiment_path(args.config)
+    bag = run_graph(config, args.bag, progress=lambda m: print(m, flush=True))
     scores, run = score_bag(bag)
     print(f"bag: {bag}")
-    print(format_scores([(Path(args.config).stem, scores)], run.axes))
+    print(format_scores([(config.stem, scores)], run.axes))
 
 
 def _simulate(args):
     from .config import build_loop, load_experiment
     from .core.simulation import simulate
     from .scoring import format_scores, score_run
-    experiment = load_experiment(args.config)
+    experiment = load_experiment(_experiment_path(args.config))
     loop = build_loop(experiment)
     print(format_scores([(experiment.name, score_run(loop.curve, simulate(loop)))], list(experiment.axes)))
 
