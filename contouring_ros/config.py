@@ -102,7 +102,11 @@ GLOBALS = {
     "curve": Param("dict", choices=CURVES),
     "schedule": Param("dict", choices=SCHEDULES),
     "initial_state": Param("str", "on_reference"),
+    "network": Param("bool", False),          # discover nodes beyond localhost
+    "stall_timeout": Param("float", 10.0, "positive"),   # s without a complete step before a node gives up
+    "on_invalid_input": Param("str", "stop"),  # stop | hold: a non-finite or malformed input message
 }
+INVALID_INPUT_POLICIES = ("stop", "hold")
 INITIAL_STATES = ("on_reference", "at_rest")
 # node section -> (key holding the type name, registry)
 ROLE_TYPES = {"plant": ("model", PLANTS), "servo": ("law", SERVOS),
@@ -123,6 +127,9 @@ class Experiment:
     curve: dict
     schedule: dict
     initial_state: str
+    network: bool = False
+    stall_timeout: float = 10.0
+    on_invalid_input: str = "stop"
     plants: dict = field(default_factory=dict)     # axis -> plant section
     servos: dict = field(default_factory=dict)     # axis -> servo section
     estimator: dict = field(default_factory=dict)
@@ -251,6 +258,9 @@ def _validate_globals(where, given: dict) -> dict:
             _fail(where, "axes", f"axis name {axis!r} must be a plain identifier (it becomes a namespace)")
     if len(set(axes)) != len(axes):
         _fail(where, "axes", f"axis names must be unique, got {axes}")
+    if out["on_invalid_input"] not in INVALID_INPUT_POLICIES:
+        _fail(where, "on_invalid_input", f"expected one of {', '.join(INVALID_INPUT_POLICIES)}, "
+                                         f"got {out['on_invalid_input']!r}")
     if out["initial_state"] not in INITIAL_STATES:
         _fail(where, "initial_state", f"expected one of {', '.join(INITIAL_STATES)}, got {out['initial_state']!r}")
     dimension = build_curve_from(out["curve"], where).dimension
@@ -305,7 +315,8 @@ def parse_experiment(text: str, where: str = "<experiment>") -> Experiment:
     return Experiment(
         path=where, text=text, sample_time=globals_["sample_time"], duration=globals_["duration"],
         axes=tuple(axes), curve=globals_["curve"], schedule=globals_["schedule"],
-        initial_state=globals_["initial_state"],
+        initial_state=globals_["initial_state"], network=globals_["network"],
+        stall_timeout=globals_["stall_timeout"], on_invalid_input=globals_["on_invalid_input"],
         plants={a: parsed[f"/{a}/plant"] for a in axes}, servos={a: parsed[f"/{a}/servo"] for a in axes},
         estimator=parsed["/contour_estimator"], controller=parsed["/ccc"],
         info={"experiment": globals_["experiment"], "paper": globals_["paper"]})
@@ -325,6 +336,8 @@ def experiment_for_node(parameters: dict, node: str, role: str, where: str | Non
     return Experiment(
         path=where, text="", sample_time=globals_["sample_time"], duration=globals_["duration"], axes=axes,
         curve=globals_["curve"], schedule=globals_["schedule"], initial_state=globals_["initial_state"],
+        network=globals_["network"], stall_timeout=globals_["stall_timeout"],
+        on_invalid_input=globals_["on_invalid_input"],
         plants={axis: section} if role == "plant" else {}, servos={axis: section} if role == "servo" else {},
         estimator=section if role == "contour_estimator" else {}, controller=section if role == "ccc" else {},
         info={"experiment": globals_["experiment"], "paper": globals_["paper"], "node": section})

@@ -13,7 +13,14 @@ class ConfigError(ContouringError):
 
 
 class RunError(ContouringError):
-    """The node graph failed (a node died, stalled or timed out); the message names the node."""
+    """The node graph failed (a node died, stalled or timed out); the message names the node.
+
+    ``bag`` is the path of the bag the run was writing, if it got that far.
+    """
+
+    def __init__(self, message: str, bag=None):
+        super().__init__(message)
+        self.bag = bag
 
 
 class BagError(ContouringError):

@@ -15,15 +15,18 @@ Topic table (N axes named in the experiment's ``axes``; every message stamped t_
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
 __all__ = ["Topic", "topics", "node_names", "CONTOUR_ERROR_NAME", "FOOT_POINT_NAME", "THETA_NAME",
            "LOOKAHEAD", "stamp_to_step", "step_to_stamp", "reference_from_msg",
-           "estimate_from_msg", "estimate_names", "estimate_values", "state_topic", "command_topic"]
+           "estimate_from_msg", "estimate_names", "estimate_values", "state_topic", "command_topic",
+           "message_problem", "recorded_topics"]
 
 CLOCK = "/clock"
+DIAGNOSTICS = "/diagnostics"
 REFERENCE = "/reference"
 CONTOUR_ERROR = "/contour_error"
 CORRECTION = "/ccc/correction"
@@ -41,10 +44,8 @@ class Topic:
     type: str
     publisher: str
     subscribers: tuple
-
-    @property
-    def lockstep(self) -> bool:
-        return self.name != CLOCK
+    layout: tuple = ()    # (field, length) pairs every message must have, values finite
+    every_step: bool = True   # one message per step (else event-driven, like /diagnostics)
 
 
 def state_topic(axis: str) -> str:
@@ -63,20 +64,45 @@ def node_names(axes) -> list:
 
 def topics(axes) -> list:
     """Every topic of the graph for ``axes``; the recorder takes them all."""
+    n = len(axes)
+    axis_state = (("position", 1), ("velocity", 1))
     out = [Topic(CLOCK, "rosgraph_msgs/msg/Clock", "/interpolator", ("/recorder",)),
            Topic(REFERENCE, "trajectory_msgs/msg/JointTrajectory", "/interpolator",
-                 ("/contour_estimator",) + tuple(f"/{a}/servo" for a in axes) + ("/recorder",))]
+                 ("/contour_estimator",) + tuple(f"/{a}/servo" for a in axes) + ("/recorder",),
+                 (("positions", n + 1), ("velocities", n + 1), ("accelerations", n + 1)))]
     for a in axes:
         out.append(Topic(state_topic(a), "sensor_msgs/msg/JointState", f"/{a}/plant",
-                         ("/contour_estimator", f"/{a}/servo", "/recorder")))
+                         ("/contour_estimator", f"/{a}/servo", "/recorder"), axis_state))
     out.append(Topic(CONTOUR_ERROR, "sensor_msgs/msg/JointState", "/contour_estimator",
-                     ("/ccc", "/interpolator", "/recorder")))
+                     ("/ccc", "/interpolator", "/recorder"), (("position", n + 2),)))
     out.append(Topic(CORRECTION, "sensor_msgs/msg/JointState", "/ccc",
-                     tuple(f"/{a}/servo" for a in axes) + ("/recorder",)))
+                     tuple(f"/{a}/servo" for a in axes) + ("/recorder",), (("effort", n),)))
     for a in axes:
         out.append(Topic(command_topic(a), "sensor_msgs/msg/JointState", f"/{a}/servo",
-                         (f"/{a}/plant", "/recorder")))
+                         (f"/{a}/plant", "/recorder"), (("effort", 1),)))
     return out
+
+
+def recorded_topics(axes) -> list:
+    """What the recorder takes: every lockstep topic, then /diagnostics (event-driven, not counted)."""
+    return topics(axes) + [Topic(DIAGNOSTICS, "diagnostic_msgs/msg/DiagnosticArray", "any node", ("/recorder",),
+                                  every_step=False)]
+
+
+def message_problem(topic: Topic, msg) -> str | None:
+    """What is wrong with a decoded message of ``topic`` (wrong array length, non-finite value), or None."""
+    holder = msg
+    if topic.type == "trajectory_msgs/msg/JointTrajectory":
+        if len(msg.points) != 1:
+            return f"expected 1 trajectory point, got {len(msg.points)}"
+        holder = msg.points[0]
+    for name, length in topic.layout:
+        values = getattr(holder, name)
+        if len(values) != length:
+            return f"{name} has {len(values)} values, expected {length}"
+        if not all(math.isfinite(v) for v in values):
+            return f"{name} holds a non-finite value {list(values)}"
+    return None
 
 
 def stamp_to_step(sec: int, nanosec: int, sample_time_ns: int) -> int:

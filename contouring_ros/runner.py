@@ -6,12 +6,14 @@ experiment file as their ``--params-file``, watches them, and stops all of them 
 """
 from __future__ import annotations
 
+import fcntl
 import os
 import random
 import signal
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from dataclasses import dataclass
 from datetime import datetime
@@ -21,7 +23,7 @@ from . import graph
 from .config import Experiment, load_experiment
 from .errors import RunError
 
-__all__ = ["NodeProcess", "graph_commands", "private_environment", "run_graph", "default_bag_path"]
+__all__ = ["NodeProcess", "DomainLease", "graph_commands", "private_environment", "run_graph", "default_bag_path"]
 
 FASTDDS_PROFILE = Path(__file__).resolve().parent / "fastdds_profile.xml"
 SHUTDOWN_GRACE = 10.0
@@ -59,12 +61,12 @@ def default_bag_path(experiment: Experiment, directory="bags") -> Path:
     return Path(directory) / f"{experiment.name}_{stamp}.mcap"
 
 
-def private_environment(domain_id: int | None = None) -> dict:
-    """The environment for one run's nodes: its own ROS domain, discovery on localhost only, and the
-    package's Fast DDS profile (fast reliable-protocol heartbeats) unless one is set already."""
+def private_environment(domain_id: int, network: bool = False) -> dict:
+    """The environment for one run's nodes: its own ROS domain, discovery on localhost only (unless the
+    experiment sets ``network: true``), and the package's Fast DDS profile unless one is set already."""
     env = dict(os.environ)
-    env["ROS_DOMAIN_ID"] = str(domain_id if domain_id is not None else random.SystemRandom().randint(1, 200))
-    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    env["ROS_DOMAIN_ID"] = str(domain_id)
+    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "SUBNET" if network else "LOCALHOST"
     env.pop("ROS_STATIC_PEERS", None)
     env.setdefault("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
     env.setdefault("FASTRTPS_DEFAULT_PROFILES_FILE", str(FASTDDS_PROFILE))
@@ -102,9 +104,65 @@ def _stop(nodes, grace: float = 5.0):
             node.process.wait()
 
 
+def _exit_description(code: int) -> str:
+    if code < 0:
+        try:
+            return f"was killed by {signal.Signals(-code).name}"
+        except ValueError:
+            return f"was killed by signal {-code}"
+    return f"exited with code {code}"
+
+
+class DomainLease:
+    """A ROS domain id held for one run: an exclusive lock file per id, so that concurrent runs on this
+    machine never share a domain (and so never hear each other)."""
+
+    DIRECTORY = Path(tempfile.gettempdir()) / "contouring_ros_domains"
+    IDS = range(1, 101)   # Fast DDS port arithmetic allows up to 232; 100 concurrent runs are plenty
+
+    def __init__(self, domain_id: int | None = None):
+        self.DIRECTORY.mkdir(parents=True, exist_ok=True)
+        candidates = [domain_id] if domain_id is not None else random.SystemRandom().sample(list(self.IDS),
+                                                                                              len(self.IDS))
+        self._file = None
+        for candidate in candidates:
+            handle = open(self.DIRECTORY / f"{candidate}.lock", "w")
+            try:
+                fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError:
+                handle.close()
+                continue
+            self.domain_id, self._file = candidate, handle
+            return
+        raise RunError(f"no free ROS domain id among {list(candidates)[:5]}... (lock files in {self.DIRECTORY})")
+
+    def release(self):
+        if self._file is not None:
+            self._file.close()      # closing drops the lock
+            self._file = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.release()
+
+
+class _Terminated(Exception):
+    """SIGTERM reached the runner."""
+
+
+def _raise_terminated(signum, frame):
+    raise _Terminated()
+
+
 def run_graph(experiment_path, bag=None, *, timeout: float | None = None, domain_id: int | None = None,
-              progress=None) -> Path:
+              progress=None, on_started=None) -> Path:
     """Run the experiment through the process graph and return the bag's path.
+
+    On any failure (a node dying, a stall, a timeout, SIGINT or SIGTERM) every node is stopped, the
+    recorder closes the bag with its summary where it still can, and a RunError names the cause; its
+    ``bag`` attribute is the (partial) bag.
 
     Parameters
     ----------
@@ -114,9 +172,11 @@ def run_graph(experiment_path, bag=None, *, timeout: float | None = None, domain
     timeout : float, optional
         Wall-clock limit in seconds (default: generous for the run's length).
     domain_id : int, optional
-        ROS domain (default: a random private one).
+        ROS domain (default: a free one, held exclusively for the run).
     progress : callable(str), optional
         Receives one-line status messages.
+    on_started : callable(list of NodeProcess), optional
+        Called once every node process has been started.
     """
     experiment_path = Path(experiment_path)
     experiment = load_experiment(experiment_path)
@@ -125,45 +185,71 @@ def run_graph(experiment_path, bag=None, *, timeout: float | None = None, domain
     if bag.exists():
         bag.unlink()
     timeout = timeout if timeout is not None else 60.0 + experiment.n_steps / 50.0
-    env = private_environment(domain_id)
     nodes = graph_commands(experiment_path.resolve(), experiment, bag.resolve())
     say = progress or (lambda message: None)
-    say(f"starting {len(nodes)} nodes on ROS domain {env['ROS_DOMAIN_ID']}: {experiment.n_steps} steps")
+    in_main_thread = threading.current_thread() is threading.main_thread()
+    previous_handler = signal.signal(signal.SIGTERM, _raise_terminated) if in_main_thread else None
     started = time.monotonic()
     try:
-        for node in nodes:
-            node.log = tempfile.TemporaryFile()
-            node.process = subprocess.Popen(node.command, env=env, stdout=node.log, stderr=subprocess.STDOUT,
-                                            stdin=subprocess.DEVNULL, preexec_fn=node.lower_priority)
-        recorder_done = None
-        while True:
-            codes = {node.name: node.process.poll() for node in nodes}
-            failed = [node for node in nodes if codes[node.name] not in (None, 0)]
-            if failed:
-                time.sleep(0.2)     # let the other nodes report too, then name the root cause first
-                failed = [node for node in nodes if node.process.poll() not in (None, 0)]
-                failed.sort(key=lambda node: "stalled" in node.last_error_line())
-                raise RunError("; ".join(f"node {node.name} exited with code {node.process.poll()}"
-                                         + (f": {node.last_error_line()}" if node.last_error_line() else "")
-                                         for node in failed))
-            if all(code == 0 for code in codes.values()):
-                break
-            if codes["/recorder"] == 0:
-                # The bag is complete; a node still shutting down after its last step is stopped below.
-                recorder_done = recorder_done or time.monotonic()
-                if time.monotonic() - recorder_done > SHUTDOWN_GRACE:
-                    lingering = [name for name, code in codes.items() if code is None]
-                    say(f"stopping {', '.join(lingering)}: still running {SHUTDOWN_GRACE:.0f} s after the bag "
-                        "was complete")
-                    break
-            if time.monotonic() - started > timeout:
-                running = [name for name, code in codes.items() if code is None]
-                raise RunError(f"the run did not finish within {timeout:.0f} s (still running: {', '.join(running)})")
-            time.sleep(0.05)
+        with DomainLease(domain_id) as lease:
+            env = private_environment(lease.domain_id, network=experiment.network)
+            say(f"starting {len(nodes)} nodes on ROS domain {lease.domain_id}: {experiment.n_steps} steps")
+            try:
+                for node in nodes:
+                    node.log = tempfile.TemporaryFile()
+                    node.process = subprocess.Popen(node.command, env=env, stdout=node.log,
+                                                    stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
+                                                    preexec_fn=node.lower_priority)
+                if on_started is not None:
+                    on_started(nodes)
+                _watch(nodes, timeout, started, say)
+            except (KeyboardInterrupt, _Terminated) as interrupt:
+                what = "SIGTERM" if isinstance(interrupt, _Terminated) else "SIGINT"
+                raise RunError(f"interrupted by {what}: stopped every node; the bag {bag} holds the steps "
+                               "recorded so far", bag=bag) from None
+            except RunError as error:
+                raise RunError(str(error), bag=bag) from None
+            finally:
+                _stop(nodes)
+                for node in nodes:
+                    if node.log is not None:
+                        node.log.close()
     finally:
-        _stop(nodes)
-        for node in nodes:
-            if node.log is not None:
-                node.log.close()
+        if in_main_thread:
+            signal.signal(signal.SIGTERM, previous_handler)
     say(f"ran {experiment.n_steps} steps in {time.monotonic() - started:.1f} s wall time")
     return bag
+
+
+def _watch(nodes, timeout, started, say):
+    """Poll the node processes until the run completes; raise RunError naming the cause of a failure."""
+    recorder_done = None
+    while True:
+        codes = {node.name: node.process.poll() for node in nodes}
+        if any(code not in (None, 0) for code in codes.values()):
+            time.sleep(0.2)     # let the other nodes report too, then name the root cause first
+            failed = [node for node in nodes if node.process.poll() not in (None, 0)]
+            failed.sort(key=lambda node: "stalled" in node.last_error_line())
+            reasons = []
+            for node in failed:
+                detail = node.last_error_line()
+                reasons.append(f"node {node.name} {_exit_description(node.process.poll())}"
+                               + (f": {detail}" if detail and node.process.poll() > 0 else ""))
+            if codes["/recorder"] is not None and codes["/recorder"] < 0:
+                reasons.append("the recorder could not close the bag: it has no summary and is readable up to "
+                               "its last complete chunk")
+            raise RunError("; ".join(reasons))
+        if all(code == 0 for code in codes.values()):
+            return
+        if codes["/recorder"] == 0:
+            # The bag is complete; a node still shutting down after its last step is stopped by the caller.
+            recorder_done = recorder_done or time.monotonic()
+            if time.monotonic() - recorder_done > SHUTDOWN_GRACE:
+                lingering = [name for name, code in codes.items() if code is None]
+                say(f"stopping {', '.join(lingering)}: still running {SHUTDOWN_GRACE:.0f} s after the bag "
+                    "was complete")
+                return
+        if time.monotonic() - started > timeout:
+            running = [name for name, code in codes.items() if code is None]
+            raise RunError(f"the run did not finish within {timeout:.0f} s (still running: {', '.join(running)})")
+        time.sleep(0.05)

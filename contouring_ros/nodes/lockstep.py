@@ -19,6 +19,7 @@ import rclpy
 from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from .. import cdr, graph
@@ -31,8 +32,9 @@ GRAPH_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, durability=Durabi
                        history=HistoryPolicy.KEEP_ALL, depth=1)
 _DECODERS = {"sensor_msgs/msg/JointState": cdr.decode_joint_state,
              "trajectory_msgs/msg/JointTrajectory": cdr.decode_joint_trajectory}
+DIAGNOSTICS_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE,
+                             history=HistoryPolicy.KEEP_LAST, depth=100)
 MATCH_TIMEOUT = 30.0     # s to wait for the rest of the graph at start
-STALL_TIMEOUT = 10.0     # s without a complete step before the node gives up
 ACK_TIMEOUT = 5.0        # s to wait for the last messages to be acknowledged
 
 
@@ -60,20 +62,23 @@ class LockstepNode:
         self.sample_time_ns = int(round(self.experiment.sample_time * 1e9))
         self.n_steps = self.experiment.n_steps
         self.axes = list(self.experiment.axes)
-        self._topics = {t.name: t for t in graph.topics(self.axes)}
+        self._topics = {t.name: t for t in graph.recorded_topics(self.axes)}
         self._inputs = []          # (topic name, subscription, msg class, decoder)
         self._outputs = {}         # topic name -> publisher
         self._pending = {}         # step -> {topic: msg}
+        self.rejected = {}         # topic -> count of rejected messages
+        self._last_valid = {}      # topic -> last valid decoded message (for on_invalid_input: hold)
+        self._diagnostics = self.node.create_publisher(DiagnosticArray, graph.DIAGNOSTICS, DIAGNOSTICS_QOS)
         self.next_step = 0
         self.finished = False
         self.setup()
 
     # -- wiring -----------------------------------------------------------------------------------
-    def add_input(self, topic: str):
+    def add_input(self, topic: str, qos=GRAPH_QOS):
         """Subscribe to ``topic``; its messages reach :meth:`on_step` decoded by the cdr codec."""
         type_name = self._topics[topic].type
         cls = message_class(type_name)
-        sub = self.node.create_subscription(cls, topic, lambda _msg: None, GRAPH_QOS, raw=True)
+        sub = self.node.create_subscription(cls, topic, lambda _msg: None, qos, raw=True)
         self._inputs.append((topic, sub, cls, _DECODERS.get(type_name)))
 
     def add_output(self, topic: str):
@@ -111,7 +116,7 @@ class LockstepNode:
                        for topic, pub in self._outputs.items()
                        if pub.get_subscription_count() < len(self._topics[topic].subscribers)]
             missing += [f"the publisher of {topic}" for topic, sub, _, _ in self._inputs
-                        if sub.get_publisher_count() < 1]
+                        if sub.get_publisher_count() < 1 and self._topics[topic].every_step]
             if not missing:
                 return
             if time.monotonic() > deadline:
@@ -140,11 +145,43 @@ class LockstepNode:
             if ready is None or len(ready) < n_inputs:
                 return False
             del self._pending[self.next_step]
-            self.on_step(self.next_step, {topic: decode(ready[topic]) for topic, _, _, decode in self._inputs})
+            self.on_step(self.next_step, self._checked_inputs(self.next_step, ready))
             self.next_step += 1
             if self.next_step >= self.n_steps:
                 self.finished = True
         return True
+
+    def _checked_inputs(self, k: int, ready: dict) -> dict:
+        """Decode step k's inputs and check each against its topic's layout.
+
+        A malformed or non-finite message stops the run (``on_invalid_input: stop``, the default) or is
+        replaced by the last valid message of its topic (``hold``, zero-order hold); either way it is
+        reported on /diagnostics and counted.
+        """
+        inputs = {}
+        for topic, _, _, decode in self._inputs:
+            msg = decode(ready[topic])
+            problem = graph.message_problem(self._topics[topic], msg)
+            if problem is not None:
+                self.rejected[topic] = self.rejected.get(topic, 0) + 1
+                self.report(DiagnosticStatus.ERROR, f"step {k}: rejected {topic}: {problem}")
+                if self.experiment.on_invalid_input == "stop" or topic not in self._last_valid:
+                    raise RunError(f"{self.name}: step {k}: rejected {topic}: {problem}")
+                msg = self._last_valid[topic]
+            else:
+                self._last_valid[topic] = msg
+            inputs[topic] = msg
+        return inputs
+
+    def report(self, level, message: str, values: dict | None = None):
+        """Publish one status of this node on /diagnostics (and log it)."""
+        status = DiagnosticStatus(level=level, name=self.name, message=message, hardware_id="contouring_ros")
+        status.values = [KeyValue(key=str(k), value=str(v)) for k, v in (values or {}).items()]
+        array = DiagnosticArray(status=[status])
+        array.header.stamp.sec, array.header.stamp.nanosec = self.stamp(self.next_step)
+        self._diagnostics.publish(array)
+        if level >= DiagnosticStatus.WARN:
+            self.node.get_logger().warning(message)
 
     def missing_inputs(self) -> list:
         have = self._pending.get(self.next_step, {})
@@ -154,7 +191,8 @@ class LockstepNode:
         """Wait on the inputs' persistent wait set and take what arrives until ``done()``.
 
         ``take_progress()`` takes the ready messages and says whether anything moved on; after
-        STALL_TIMEOUT seconds without progress the node gives up with ``describe_stall()`` as the reason.
+        ``stall_timeout`` seconds (an experiment key) without progress the node gives up with
+        ``describe_stall()`` as the reason.
         """
         wait_set = _rclpy.WaitSet(len(self._inputs), 0, 0, 0, 0, 0, self.node.context.handle)
         handles = [sub.handle for _, sub, _, _ in self._inputs]
@@ -168,8 +206,8 @@ class LockstepNode:
                 raise ExternalShutdownException()
             if take_progress():
                 last_progress = time.monotonic()
-            elif time.monotonic() - last_progress > STALL_TIMEOUT:
-                raise RunError(f"{self.name}: stalled: {describe_stall()} for {STALL_TIMEOUT:.0f} s")
+            elif time.monotonic() - last_progress > self.experiment.stall_timeout:
+                raise RunError(f"{self.name}: stalled: {describe_stall()} for {self.experiment.stall_timeout:g} s")
 
     def spin(self):
         """Run the lockstep loop until the last step has been handled."""
@@ -192,6 +230,9 @@ class LockstepNode:
         Polling matters: acknowledgements otherwise arrive with the writers' next periodic heartbeat,
         seconds later, and two nodes waiting on each other's acknowledgements would wait that long.
         """
+        self.report(DiagnosticStatus.OK if not self.rejected else DiagnosticStatus.WARN,
+                    f"completed {self.next_step} steps", {"steps": self.next_step, **{
+                        f"rejected {topic}": count for topic, count in self.rejected.items()}})
         deadline = time.monotonic() + ACK_TIMEOUT
         for topic, pub in self._outputs.items():
             expected = len(self._topics[topic].subscribers)

@@ -13,7 +13,9 @@ from pathlib import Path
 from .. import __version__, cdr, graph
 from ..bag import EXPERIMENT_METADATA, RUN_METADATA, BagWriter
 from ..errors import ConfigError
-from .lockstep import LockstepNode, run_node
+from .lockstep import DIAGNOSTICS_QOS, GRAPH_QOS, LockstepNode, run_node
+
+DIAGNOSTICS_LINGER = 0.3   # s the recorder keeps taking /diagnostics after the last lockstep message
 
 class RecorderNode(LockstepNode):
     role = "recorder"
@@ -24,10 +26,11 @@ class RecorderNode(LockstepNode):
         if not options["bag"]:
             raise ConfigError(f"{self.name}: parameter 'bag' (the .mcap file to write) is required")
         text = Path(options["experiment_file"]).read_text() if options["experiment_file"] else ""
-        self.topic_list = graph.topics(self.axes)
+        self.topic_list = graph.recorded_topics(self.axes)
         for topic in self.topic_list:
-            self.add_input(topic.name)
+            self.add_input(topic.name, GRAPH_QOS if topic.name != graph.DIAGNOSTICS else DIAGNOSTICS_QOS)
         self.counts = {topic.name: 0 for topic in self.topic_list}
+        self.lockstep_topics = [topic.name for topic in self.topic_list if topic.every_step]
         self.first_receive = self.last_receive = None
         self.writer = BagWriter(options["bag"], [(t.name, t.type) for t in self.topic_list], metadata={
             EXPERIMENT_METADATA: {"yaml": text, "axes": ",".join(self.axes), "steps": str(self.n_steps),
@@ -49,9 +52,14 @@ class RecorderNode(LockstepNode):
             self._take_all()
             return sum(self.counts.values()) > before
 
-        self.wait_loop(lambda: min(self.counts.values()) >= self.n_steps, take,
-                       lambda: "incomplete topics " + ", ".join(t for t, n in self.counts.items() if n < self.n_steps))
+        self.wait_loop(lambda: min(self.counts[t] for t in self.lockstep_topics) >= self.n_steps, take,
+                       lambda: "incomplete topics " + ", ".join(t for t in self.lockstep_topics
+                                                                 if self.counts[t] < self.n_steps))
         self.finished = True
+        deadline = time.monotonic() + DIAGNOSTICS_LINGER      # the nodes' end-of-run summaries
+        while time.monotonic() < deadline:
+            self._take_all()
+            time.sleep(0.01)
 
     def destroy(self):
         if self.first_receive is not None:
