@@ -145,12 +145,15 @@ class RecordedRun:
         The per-step signals of every step for which each topic was recorded.
     payloads : dict
         topic -> list of raw CDR payloads (only when asked for).
+    warnings : list of str
+        What the reader had to make do with (a bag cut off before its summary).
     """
 
     experiment_text: str
     axes: list
     result: SimulationResult
     payloads: dict
+    warnings: list
 
     @property
     def complete_steps(self) -> int:
@@ -176,32 +179,71 @@ def _step_times(stamps_ns, sample_time) -> np.ndarray:
     return np.array([step_time(stamp // ts_ns, sample_time) for stamp in stamps_ns])
 
 
+def _iter_records(path, warnings: list):
+    """(schema, channel, message, metadata) events of a bag read front to back.
+
+    A bag whose writer died has no summary: everything up to its last complete record (chunk) is still
+    read, and a warning says where the file ends.
+    """
+    from mcap.records import Channel, Footer, Message, Metadata, Schema
+    from mcap.stream_reader import StreamReader
+    with open(path, "rb") as stream:
+        records = StreamReader(stream).records
+        complete = False
+        try:
+            for record in records:
+                if isinstance(record, (Schema, Channel, Message, Metadata)):
+                    yield record
+                elif isinstance(record, Footer):
+                    complete = True
+        except Exception as error:   # the mcap reader raises several kinds at a cut-off record
+            warnings.append(f"{path}: the bag ends early ({type(error).__name__}: it has no summary, its writer "
+                            "was stopped); read up to its last complete chunk")
+            return
+        if not complete:
+            warnings.append(f"{path}: the bag has no footer; read up to its last complete chunk")
+
+
 def read_run(path, keep_payloads: bool = False) -> RecordedRun:
-    """Decode a bag of the graph into per-step arrays (steps where every topic was recorded)."""
-    from mcap.reader import make_reader
+    """Decode a bag of the graph into per-step arrays (steps where every topic was recorded).
+
+    Works on complete bags and on bags whose writer died (see :func:`_iter_records`); the warnings
+    are in the result's ``warnings``.
+    """
+    from mcap.records import Channel, Metadata, Schema
     from mcap_ros2.decoder import DecoderFactory
     path = Path(path)
     if not path.is_file():
         raise BagError(f"{path}: no such bag")
     by_topic: dict = {}
     payloads: dict = {}
+    warnings: list = []
+    schemas, channels, decoders = {}, {}, {}
+    factory = DecoderFactory()
+    experiment_text, sample_time = None, None
     try:
-        with open(path, "rb") as stream:
-            reader = make_reader(stream, decoder_factories=[DecoderFactory()])
-            experiment_text, sample_time = None, None
-            for record in reader.iter_metadata():
+        for record in _iter_records(path, warnings):
+            if isinstance(record, Schema):
+                schemas[record.id] = record
+            elif isinstance(record, Channel):
+                channels[record.id] = record
+            elif isinstance(record, Metadata):
                 if record.name == EXPERIMENT_METADATA:
                     experiment_text = record.metadata.get("yaml")
                     sample_time = float(record.metadata.get("sample_time", "nan"))
-            for schema, channel, message, decoded in reader.iter_decoded_messages(log_time_order=False):
-                if channel.topic == graph.CLOCK:
+            else:
+                channel = channels[record.channel_id]
+                if channel.topic in (graph.CLOCK, graph.DIAGNOSTICS):
                     continue
+                decode = decoders.get(channel.id)
+                if decode is None:
+                    decode = decoders[channel.id] = factory.decoder_for(channel.message_encoding,
+                                                                        schemas[channel.schema_id])
+                decoded = decode(record.data)
                 by_topic.setdefault(channel.topic, {})[_stamp_ns(decoded)] = decoded
                 if keep_payloads:
-                    payloads.setdefault(channel.topic, []).append(bytes(message.data))
-    except BagError:
-        raise
-    except Exception as error:  # the mcap reader raises many kinds on a damaged file
+                    payloads.setdefault(channel.topic, []).append(bytes(record.data))
+    except Exception as error:  # a damaged file, not just a cut-off one
         raise BagError(f"{path}: cannot read the bag ({type(error).__name__}: {error})") from None
     if experiment_text is None:
         raise BagError(f"{path}: the bag has no '{EXPERIMENT_METADATA}' metadata (not written by contouring_ros?)")
@@ -233,4 +275,5 @@ def read_run(path, keep_payloads: bool = False) -> RecordedRun:
         estimate_signed=np.array([e.signed for e in ests]),
         correction=np.array([by_topic[graph.CORRECTION][s].effort for s in stamps]).reshape(-1, n),
         command=per_axis(graph.command_topic, "effort"))
-    return RecordedRun(experiment_text=experiment_text, axes=axes, result=result, payloads=payloads)
+    return RecordedRun(experiment_text=experiment_text, axes=axes, result=result, payloads=payloads,
+                       warnings=warnings)

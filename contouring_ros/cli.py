@@ -23,12 +23,32 @@ def _experiment_path(name: str) -> Path:
     return path
 
 
+def _warn(run):
+    for warning in run.warnings:
+        print(f"warning: {warning}", file=sys.stderr)
+
+
 def _run(args):
+    from .errors import BagError, RunError
     from .runner import run_graph
     from .scoring import format_scores, score_bag
     config = _experiment_path(args.config)
-    bag = run_graph(config, args.bag, progress=lambda m: print(m, flush=True))
+    try:
+        bag = run_graph(config, args.bag, progress=lambda m: print(m, flush=True))
+    except RunError as error:
+        print(f"error: {error}", file=sys.stderr)
+        if error.bag is not None and Path(error.bag).is_file():
+            try:
+                scores, run = score_bag(error.bag)
+            except BagError as bag_error:
+                print(f"the partial bag {error.bag} cannot be scored: {bag_error}", file=sys.stderr)
+            else:
+                _warn(run)
+                print(f"partial bag: {error.bag} ({run.complete_steps} complete steps)")
+                print(format_scores([(config.stem, scores)], run.axes))
+        raise SystemExit(1)
     scores, run = score_bag(bag)
+    _warn(run)
     print(f"bag: {bag}")
     print(format_scores([(config.stem, scores)], run.axes))
 
@@ -45,6 +65,8 @@ def _simulate(args):
 def _score(args):
     from .scoring import format_scores, score_bag
     results = [(Path(bag).stem, *score_bag(bag)) for bag in args.bags]
+    for _, _, run in results:
+        _warn(run)
     if args.json:
         print(json.dumps({name: scores.as_dict() for name, scores, _ in results}, indent=2))
     else:
