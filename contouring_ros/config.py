@@ -48,8 +48,12 @@ class Param:
     help: str = ""
 
 
+LIMIT = Param("float", 0.0, "nonnegative", help="output limit in command units, 0: none (anti-windup when hit)")
+
+
 def _gains(**defaults):
-    return {name: Param("float", defaults.get(name, REQUIRED), "nonnegative") for name in ("kp", "ki", "kd")}
+    gains = {name: Param("float", defaults.get(name, REQUIRED), "nonnegative") for name in ("kp", "ki", "kd")}
+    return {**gains, "output_limit": LIMIT}
 
 
 # Registries: type name -> expected parameters. Defaults live here and nowhere else.
@@ -71,7 +75,8 @@ SCHEDULES = {
 PLANTS = {
     "first_order_velocity": {"gain": Param("float", check="positive"),
                              "time_constant": Param("float", check="positive"),
-                             "disturbance": Param("dict", {"type": "none"}, choices=DISTURBANCES)},
+                             "disturbance": Param("dict", {"type": "none"}, choices=DISTURBANCES),
+                             "saturation": LIMIT},
 }
 SERVOS = {
     "pid_feedforward": {**_gains(), "gain": Param("float", check="positive"),
@@ -80,13 +85,15 @@ SERVOS = {
              "mu": Param("float", check="positive"), "kappa": Param("float", check="positive"),
              "gain": Param("float", check="positive"), "time_constant": Param("float", check="positive"),
              "observer": Param("bool", False), "c": Param("float", 1.0, "positive"),
-             "d": Param("float", 1.0, "positive")},
+             "d": Param("float", 1.0, "positive"), "output_limit": LIMIT},
 }
 ESTIMATORS = {
     "tangent_line": {},
     "newton": {"k_prime": Param("float", check="positive"), "c_prime": Param("float", check="positive"),
                "iterations": Param("int", 20, "positive"), "inner_step": Param("float", 0.0, "nonnegative"),
-               "theta0": Param("float", None)},
+               "theta0": Param("float", None),
+               "branch_check_samples": Param("int", 256, "nonnegative"),      # 0: no global check
+               "branch_check_tolerance": Param("float", 1e-4, "positive")},   # m
 }
 CONTROLLERS = {
     "none": {},
@@ -424,18 +431,20 @@ def initial_state(experiment: Experiment, curve=None, schedule=None):
 def build_plant(experiment: Experiment, axis: str, position: float, velocity: float):
     section = experiment.plants[axis]
     return plants.FirstOrderVelocityAxis(section["gain"], section["time_constant"], experiment.sample_time,
-                                         build_disturbance(section["disturbance"]), position, velocity)
+                                         build_disturbance(section["disturbance"]), position, velocity,
+                                         section["saturation"])
 
 
 def build_servo(experiment: Experiment, axis: str, velocity: float, acceleration: float):
     s, ts = experiment.servos[axis], experiment.sample_time
     if s["law"] == "pid_feedforward":
-        return servo.PIDFeedforwardServo(s["kp"], s["ki"], s["kd"], s["gain"], s["time_constant"], ts)
+        return servo.PIDFeedforwardServo(s["kp"], s["ki"], s["kd"], s["gain"], s["time_constant"], ts,
+                                         s["output_limit"])
     observer = servo.DisturbanceObserver(s["c"], s["d"], s["gain"], s["time_constant"], ts, velocity,
                                           acceleration) \
         if s["observer"] else None
     return servo.IntegralSlidingModeServo(s["a"], s["b"], s["mu"], s["kappa"], s["gain"], s["time_constant"],
-                                          ts, observer)
+                                          ts, observer, s["output_limit"])
 
 
 def build_estimator(experiment: Experiment, curve):
@@ -444,7 +453,9 @@ def build_estimator(experiment: Experiment, curve):
         return estimators.TangentLineEstimator(curve)
     theta0 = s["theta0"] if s["theta0"] is not None else experiment.schedule["theta_start"]
     inner = s["inner_step"] or experiment.sample_time
-    return estimators.NewtonEstimator(curve, s["k_prime"], s["c_prime"], theta0, s["iterations"], inner)
+    check = estimators.BranchCheck(curve, s["branch_check_samples"], s["branch_check_tolerance"]) \
+        if s["branch_check_samples"] else None
+    return estimators.NewtonEstimator(curve, s["k_prime"], s["c_prime"], theta0, s["iterations"], inner, check)
 
 
 def build_controller(experiment: Experiment, curve):
@@ -452,8 +463,8 @@ def build_controller(experiment: Experiment, curve):
     if s["type"] == "none":
         return contouring.NoCoupling(len(experiment.axes))
     if s["type"] == "variable_gain":
-        return contouring.VariableGainCCC(curve, s["kp"], s["ki"], s["kd"], ts)
-    return contouring.UnitVectorCCC(len(experiment.axes), s["kp"], s["ki"], s["kd"], ts)
+        return contouring.VariableGainCCC(curve, s["kp"], s["ki"], s["kd"], ts, s["output_limit"])
+    return contouring.UnitVectorCCC(len(experiment.axes), s["kp"], s["ki"], s["kd"], ts, s["output_limit"])
 
 
 def build_loop(experiment: Experiment) -> ControlLoop:

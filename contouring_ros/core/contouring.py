@@ -34,18 +34,20 @@ class VariableGainCCC:
     Planar contours only.
     """
 
-    def __init__(self, curve: Curve, kp: float, ki: float, kd: float, sample_time: float):
+    def __init__(self, curve: Curve, kp: float, ki: float, kd: float, sample_time: float,
+                 output_limit: float = 0.0):
         if curve.dimension != 2:
             raise ValueError("the variable-gain CCC is defined for planar (2-axis) contours")
         self.curve = curve
         self.pid = DiscretePID(kp, ki, kd, sample_time)
+        self.output_limit = float(output_limit)
 
     def step(self, estimate) -> np.ndarray:
         if abs(estimate.signed) > 1e-12:
             gains = np.asarray(estimate.vector, dtype=float) / estimate.signed
         else:
             gains = left_normal(unit_tangent(self.curve, estimate.theta))
-        return gains * self.pid.step(estimate.signed)
+        return gains * self.pid.clamp(self.pid.step(estimate.signed), self.output_limit)
 
 
 class UnitVectorCCC:
@@ -53,12 +55,16 @@ class UnitVectorCCC:
 
     The contour error vector E* = |E*| epsilon, epsilon the unit contour error vector, is resolved along
     the axes and each component E*_i drives its own PID G_i^c(s) = kp + ki/s + kd s; thanks to the
-    normalisation all axes share the same gains. u_i = G_i^c(E*_i).
+    normalisation all axes share the same gains. u_i = G_i^c(E*_i). An ``output_limit`` saturates each
+    correction, with anti-windup (see :meth:`DiscretePID.clamp`); the variable-gain CCC limits G_c's output.
     """
 
-    def __init__(self, n_axes: int, kp: float, ki: float, kd: float, sample_time: float):
+    def __init__(self, n_axes: int, kp: float, ki: float, kd: float, sample_time: float,
+                 output_limit: float = 0.0):
         self.n_axes = int(n_axes)
         self.pid = DiscretePID(kp, ki, kd, sample_time)
+        self.output_limit = float(output_limit)
 
     def step(self, estimate) -> np.ndarray:
-        return np.asarray(self.pid.step(np.asarray(estimate.vector, dtype=float)), dtype=float)
+        output = self.pid.step(np.asarray(estimate.vector, dtype=float))
+        return np.asarray(self.pid.clamp(output, self.output_limit), dtype=float)

@@ -13,7 +13,7 @@ import numpy as np
 from .curves import Curve
 from .geometry import signed_error
 
-__all__ = ["ContourEstimate", "TangentLineEstimator", "NewtonEstimator"]
+__all__ = ["ContourEstimate", "TangentLineEstimator", "NewtonEstimator", "BranchCheck"]
 
 
 @dataclass(frozen=True)
@@ -58,6 +58,30 @@ class TangentLineEstimator:
                                signed=float(signed_error(vector, tangent)))
 
 
+class BranchCheck:
+    """Bounded global check of a local foot-point estimate (paper 000, Remark 3 and Fig. 3).
+
+    A local estimate iterated from the previous step's foot point can settle on the wrong branch near a
+    cusp or a tight curve. The check compares the estimate's distance |R(theta_hat) - P| with the distance
+    to the nearest of ``samples`` points spread over the whole curve; if the estimate is farther by more
+    than ``tolerance``, it returns that sample's parameter to restart from.
+    """
+
+    def __init__(self, curve: Curve, samples: int, tolerance: float):
+        lo, hi = curve.domain
+        self.grid = np.linspace(lo, hi, int(samples))
+        self.points = curve.point(self.grid)
+        self.tolerance = float(tolerance)
+
+    def restart(self, distance: float, position) -> float | None:
+        """The parameter to restart from, or None when the estimate is on the nearest branch."""
+        squared = np.sum((self.points - position) ** 2, axis=1)
+        nearest = int(np.argmin(squared))
+        if distance > math.sqrt(squared[nearest]) + self.tolerance:
+            return float(self.grid[nearest])
+        return None
+
+
 class NewtonEstimator:
     """Newton-based dynamic contour error estimate (paper 000 eq. 8-14).
 
@@ -81,10 +105,13 @@ class NewtonEstimator:
         Inner Newton iterations per control step.
     inner_step : float
         Time step of one inner iteration [s].
+    branch_check : BranchCheck, optional
+        Global check after each step; when it finds a nearer branch the estimate restarts there
+        (counted in ``recoveries``).
     """
 
     def __init__(self, curve: Curve, k_prime: float, c_prime: float, theta0: float, iterations: int,
-                 inner_step: float):
+                 inner_step: float, branch_check: BranchCheck | None = None):
         self.curve = curve
         self.k_prime, self.c_prime = float(k_prime), float(c_prime)
         self.iterations = int(iterations)
@@ -93,8 +120,26 @@ class NewtonEstimator:
         self._gain = self.k_prime * self.inner_step
         self.theta = float(theta0)
         self.filtered = 0.0
+        self.branch_check = branch_check
+        self.recoveries = 0
 
     def step(self, reference, position) -> ContourEstimate:
+        self._iterate(position)
+        d = self.curve.derivatives(self.theta, order=1)
+        vector = d[0] - np.asarray(position)
+        if self.branch_check is not None:
+            restart = self.branch_check.restart(math.sqrt(float(vector @ vector)), position)
+            if restart is not None:
+                self.recoveries += 1
+                self.theta, self.filtered = restart, 0.0
+                self._iterate(position)
+                d = self.curve.derivatives(self.theta, order=1)
+                vector = d[0] - np.asarray(position)
+        tangent = d[1] / math.sqrt(float(d[1] @ d[1]))
+        return ContourEstimate(theta=self.theta, vector=vector, signed=float(signed_error(vector, tangent)))
+
+    def _iterate(self, position):
+        """Advance the filtered Newton flow ``iterations`` inner steps from the current estimate."""
         curve, theta, filtered = self.curve, self.theta, self.filtered
         decay, gain = self._filter_decay, self._gain
         coordinates = [float(p) for p in position]

@@ -26,12 +26,27 @@ class DiscretePID:
         self.sample_time = float(sample_time)
         self.integral = 0.0
         self._previous = None
+        self._increment = 0.0
 
     def step(self, error, error_rate=None):
         """Controller output for this step's ``error`` (scalar or array)."""
-        self.integral = self.integral + self.sample_time * error
+        self._increment = self.sample_time * error
+        self.integral = self.integral + self._increment
         if error_rate is None:
             error_rate = (error - self._previous) / self.sample_time if self._previous is not None \
                 else np.zeros_like(error)
         self._previous = error
         return self.kp * error + self.ki * self.integral + self.kd * error_rate
+
+    def clamp(self, output, limit: float):
+        """Saturate ``output`` to +-limit (limit 0: no limit) with anti-windup by conditional integration.
+
+        Where the output saturates and this step's integration pushed it further out, that integration
+        is taken back, so the integral does not wind up while the actuator is at its limit.
+        """
+        if not limit:
+            return output
+        clipped = np.clip(output, -limit, limit)
+        pushing = (output != clipped) & (np.sign(self.ki * self._increment) == np.sign(output - clipped))
+        self.integral = self.integral - np.where(pushing, self._increment, 0.0)
+        return clipped if np.ndim(clipped) else float(clipped)

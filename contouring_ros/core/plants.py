@@ -35,10 +35,12 @@ class FirstOrderVelocityAxis:
         D(t) in command units.
     position, velocity : float
         Initial state [m], [m/s].
+    saturation : float
+        Actuator limit: the command is clipped to +-saturation before the disturbance adds (0: none).
     """
 
     def __init__(self, gain: float, time_constant: float, sample_time: float, disturbance=None,
-                 position: float = 0.0, velocity: float = 0.0):
+                 position: float = 0.0, velocity: float = 0.0, saturation: float = 0.0):
         if gain <= 0.0 or time_constant <= 0.0 or sample_time <= 0.0:
             raise ValueError("gain, time constant and sample time must be positive")
         self.gain = float(gain)
@@ -52,9 +54,12 @@ class FirstOrderVelocityAxis:
         self._pu = self.gain * (self.sample_time - self._pv)
         self.position = float(position)
         self.velocity = float(velocity)
+        self.saturation = float(saturation)
 
     def step(self, command: float, t: float) -> tuple[float, float]:
         """Apply ``command`` over [t, t + Ts) and return the (position, velocity) at t + Ts."""
+        if self.saturation:
+            command = max(-self.saturation, min(self.saturation, command))
         u = command + self.disturbance(t)
         p, v = self.position, self.velocity
         self.position = p + self._pv * v + self._pu * u

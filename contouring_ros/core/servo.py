@@ -38,14 +38,16 @@ class PIDFeedforwardServo:
         Ts [s].
     """
 
-    def __init__(self, kp, ki, kd, gain, time_constant, sample_time):
+    def __init__(self, kp, ki, kd, gain, time_constant, sample_time, output_limit: float = 0.0):
         self.pid = DiscretePID(kp, ki, kd, sample_time)
         self.gain = float(gain)
         self.time_constant = float(time_constant)
+        self.output_limit = float(output_limit)
 
     def step(self, ref_pos, ref_vel, ref_acc, position, velocity, correction) -> float:
         feedback = self.pid.step(ref_pos - position, ref_vel - velocity)
-        return feedback + _inverse_first_order(ref_vel, ref_acc, self.gain, self.time_constant) + correction
+        command = feedback + _inverse_first_order(ref_vel, ref_acc, self.gain, self.time_constant) + correction
+        return self.pid.clamp(command, self.output_limit)
 
 
 class DisturbanceObserver:
@@ -89,13 +91,15 @@ class IntegralSlidingModeServo:
     T     = T' - Delta + correction
 
     with P~ = R - P, V~ = R' - V (16-17). q is advanced by the exact zero-order-hold discretisation of (20).
-    Stability needs kappa >= M / mu + b tau / k for |D| <= M (23).
+    Stability needs kappa >= M / mu + b tau / k for |D| <= M (23). With an ``output_limit`` the command
+    is saturated and q is held while the command is at the limit (anti-windup).
     """
 
-    def __init__(self, a, b, mu, kappa, gain, time_constant, sample_time, observer=None):
+    def __init__(self, a, b, mu, kappa, gain, time_constant, sample_time, observer=None, output_limit=0.0):
         self.a, self.b, self.mu, self.kappa = float(a), float(b), float(mu), float(kappa)
         self.gain, self.time_constant = float(gain), float(time_constant)
         self.observer = observer
+        self.output_limit = float(output_limit)
         self.q = 0.0
         self._q_decay = math.exp(-self.b * sample_time)
         self._q_input = (1.0 - self._q_decay) / self.b
@@ -107,10 +111,14 @@ class IntegralSlidingModeServo:
         switch = self.mu * saturation((v_err + a * p_err + b * self.q) / self.mu)
         command = (((a + b) * tau - 1.0) / k) * v_err + (a * b * tau / k) * p_err \
             + _inverse_first_order(ref_vel, ref_acc, k, tau) + self.kappa * switch
-        self.q = self._q_decay * self.q + self._q_input * switch
+        q = self.q
+        self.q = self._q_decay * q + self._q_input * switch
         if self.observer is not None:
             command -= self.observer.update(velocity)
         command += correction
+        if self.output_limit and abs(command) > self.output_limit:
+            command = math.copysign(self.output_limit, command)
+            self.q = q
         if self.observer is not None:
             self.observer.previous_command = command
         return command

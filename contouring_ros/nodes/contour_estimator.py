@@ -21,6 +21,9 @@ class ContourEstimatorNode(LockstepNode):
         self.publisher = self.add_output(graph.CONTOUR_ERROR)
         self.names = graph.estimate_names(self.axes)
 
+    def counters(self) -> dict:
+        return {"branch recoveries": getattr(self.estimator, "recoveries", 0)}
+
     def on_step(self, k, inputs):
         ref = graph.reference_from_msg(inputs[graph.REFERENCE], len(self.axes))
         position = np.array([inputs[topic].position[0] for topic in self.state_topics])

@@ -107,6 +107,10 @@ class LockstepNode:
     def on_step(self, k: int, inputs: dict):
         raise NotImplementedError
 
+    def counters(self) -> dict:
+        """Node-specific counts for the end-of-run diagnostics (default: none)."""
+        return {}
+
     # -- the loop ---------------------------------------------------------------------------------
     def wait_for_graph(self):
         """Block until every expected subscriber of our outputs and a publisher of every input matched."""
@@ -231,7 +235,7 @@ class LockstepNode:
         seconds later, and two nodes waiting on each other's acknowledgements would wait that long.
         """
         self.report(DiagnosticStatus.OK if not self.rejected else DiagnosticStatus.WARN,
-                    f"completed {self.next_step} steps", {"steps": self.next_step, **{
+                    f"completed {self.next_step} steps", {"steps": self.next_step, **self.counters(), **{
                         f"rejected {topic}": count for topic, count in self.rejected.items()}})
         deadline = time.monotonic() + ACK_TIMEOUT
         for topic, pub in self._outputs.items():
