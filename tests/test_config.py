@@ -54,3 +54,56 @@ def test_every_shipped_scenario_is_valid():
     for path in CONFIG.glob("*.yaml"):
         experiment = load_experiment(path)
         assert experiment.n_steps > 1
+
+
+MORE_CASES = [
+    ("curve: {type: parabola", "curve: {type: spiral", "curve.type: unknown name 'spiral'"),
+    ("model: first_order_velocity", "model: second_order", "/x/plant.model: unknown name 'second_order'"),
+    ("disturbance: {type: constant, value: 1.5e-4}", "disturbance: {type: gusts}", "/x/plant.disturbance.type: unknown name 'gusts'"),
+    ("    kp: 1.0\n", "    kp: -1.0\n", "/ccc.kp: expected a value >= 0"),
+    ("    kappa: 0.2985\n", "    kappa: 0.0\n", "/x/servo.kappa: expected a positive value"),
+    ('axes: ["x", "y"]', 'axes: ["x", "x"]', "axes: axis names must be unique"),
+    ('axes: ["x", "y"]', "axes: []", "axes: expected a non-empty list of names"),
+    ("    sample_time: 0.001", '    sample_time: "fast"', "sample_time: expected a number"),
+    ("    initial_state: on_reference", "    initial_state: somewhere", "initial_state: expected one of"),
+    ("    iterations: 20\n", "    iterations: 2.5\n", "/contour_estimator.iterations: expected an integer"),
+    ("/ccc:\n  ros__parameters:", "/ccc:\n  parameters:", "/ccc: expected a mapping with the single key 'ros__parameters'"),
+    ("    sample_time: 0.001", "    sample_time: 0.001\n    duration: -1.0", "duration: expected a value >= 0"),
+    ("    sample_time: 0.001", "    sample_time: 0.001\n    on_invalid_input: ignore", "on_invalid_input: expected one of"),
+    ("    observer: true\n    c: 25.0", "    observer: yes please\n    c: 25.0", "/x/servo.observer: expected true or false"),
+    ("theta_end: 0.02, duration: 2.0}", "theta_end: 0.02, duration: 0.0}", "schedule.duration: expected a positive value"),
+    ("    time_constant: 0.045\n    observer", "    time_constant: .nan\n    observer", "/y/servo.time_constant: expected"),
+]
+
+
+@pytest.mark.parametrize("old,new,expected", MORE_CASES)
+def test_more_malformed_experiments(old, new, expected):
+    assert old in BASE, old
+    with pytest.raises(ConfigError) as info:
+        parse_experiment(BASE.replace(old, new, 1), "exp.yaml")
+    assert expected in str(info.value) and "\n" not in str(info.value)
+
+
+def test_axis_count_disagreeing_with_node_sections():
+    with pytest.raises(ConfigError, match="/z/servo: unknown node section"):
+        parse_experiment(BASE.replace("/y/servo:", "/z/servo:"), "exp.yaml")
+    start = BASE.index("/y/servo:")
+    without_y_servo = BASE[:start] + BASE[BASE.index("/contour_estimator:"):]
+    with pytest.raises(ConfigError, match="/y/servo: missing required node section"):
+        parse_experiment(without_y_servo, "exp.yaml")
+
+
+def test_cli_refuses_every_malformed_file_in_one_line_before_any_node(tmp_path, capsys):
+    """Every malformed file of this module through `contouring-ros run`: exit 2, one line, no traceback."""
+    from contouring_ros.cli import main
+    texts = [BASE.replace(old, new, 1) for old, new, _ in
+             test_malformed_experiment_names_the_key.pytestmark[0].args[1] + MORE_CASES]
+    texts += ["", "\x00\x01binary", "a: &a [1]\nb: [*a, *a]\n", "key: [unclosed"]
+    assert len(texts) >= 25
+    for i, text in enumerate(texts):
+        path = tmp_path / f"bad{i}.yaml"
+        path.write_text(text)
+        assert main(["run", str(path), "--bag", str(tmp_path / f"bad{i}.mcap")]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and err.startswith(f"error: {path}: ") and "Traceback" not in err
+        assert not (tmp_path / f"bad{i}.mcap").exists()

@@ -1,0 +1,245 @@
+"""Faults: dead, frozen or killed nodes, signals to the runner, bad values, divergence, windup, cross-talk."""
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+
+import numpy as np
+import pytest
+
+from contouring_ros.bag import read_run
+from contouring_ros.config import build_loop, load_experiment, parse_experiment
+from contouring_ros.core.curves import Circle
+from contouring_ros.core.estimators import BranchCheck, NewtonEstimator
+from contouring_ros.core.interpolation import UniformSchedule, reference
+from contouring_ros.core.simulation import simulate
+from contouring_ros.errors import RunError
+from contouring_ros.runner import DomainLease, run_graph
+from contouring_ros.scoring import score_bag, score_run
+from conftest import DEFAULT, ROOT, shortened
+
+graph = pytest.mark.graph
+
+
+def _node_processes(marker: str) -> list:
+    out = subprocess.run(["pgrep", "-f", marker], capture_output=True, text=True)
+    return [int(pid) for pid in out.stdout.split()]
+
+
+def _run_and_signal(experiment, bag, node_name, sig, after: float):
+    """Run the graph; ``after`` seconds into the lockstep send ``sig`` to ``node_name``. Returns the
+    RunError and the seconds from the signal to the runner's report."""
+    sent = {}
+
+    def started(nodes):
+        target = next(node for node in nodes if node.name == node_name)
+
+        def send():
+            deadline = time.monotonic() + 30
+            while not bag.exists() or bag.stat().st_size < 2000:     # lockstep under way
+                if time.monotonic() > deadline:
+                    return
+                time.sleep(0.05)
+            time.sleep(after)
+            sent["time"] = time.monotonic()
+            target.process.send_signal(sig)
+        threading.Thread(target=send, daemon=True).start()
+
+    with pytest.raises(RunError) as info:
+        run_graph(experiment, bag, on_started=started)
+    return info.value, time.monotonic() - sent["time"]
+
+
+@graph
+def test_killed_node_stops_the_run_and_the_bag_scores_up_to_the_failure(tmp_path):
+    bag = tmp_path / "killed.mcap"
+    error, delay = _run_and_signal(DEFAULT, bag, "/y/servo", signal.SIGKILL, 0.5)
+    assert "/y/servo was killed by SIGKILL" in str(error)
+    assert delay < 1.0 + 5.5        # noticed within a second; the rest get SIGINT and up to 5 s to close
+    run = read_run(bag)
+    assert not run.warnings                          # the recorder closed the bag with its summary
+    assert 0 < run.complete_steps < load_experiment(DEFAULT).n_steps
+    scores, _ = score_bag(bag)
+    assert np.isfinite(scores.mce)
+
+
+@graph
+def test_killed_recorder_leaves_a_readable_bag(tmp_path):
+    bag = tmp_path / "recorder.mcap"
+    error, _ = _run_and_signal(DEFAULT, bag, "/recorder", signal.SIGKILL, 1.0)
+    assert "/recorder was killed by SIGKILL" in str(error)
+    assert "readable up to its last complete chunk" in str(error)
+    run = read_run(bag)
+    assert run.warnings and "last complete chunk" in run.warnings[0]
+    assert run.complete_steps > 0
+    assert np.isfinite(score_bag(bag)[0].mce)
+
+
+@graph
+def test_frozen_node_gives_a_stall_error_naming_node_and_topic(tmp_path, write_experiment):
+    path = write_experiment(shortened(DEFAULT, 2.0).replace("    sample_time: 0.001\n",
+                                                            "    sample_time: 0.001\n    stall_timeout: 2.0\n", 1))
+    error, delay = _run_and_signal(path, tmp_path / "stall.mcap", "/x/servo", signal.SIGSTOP, 0.3)
+    # the nodes downstream of the frozen servo stall first: its plant (no /x/command), then the estimator
+    assert "stalled" in str(error) and ("/x/command" in str(error) or "/x/state" in str(error))
+    assert delay < 2.0 + 5.0 + 2.0   # stall timeout, then up to 5 s for the frozen node to take SIGKILL
+
+
+@graph
+@pytest.mark.parametrize("sig,name", [(signal.SIGTERM, "SIGTERM"), (signal.SIGINT, "SIGINT")])
+def test_signal_to_the_runner_stops_every_node_and_closes_the_bag(tmp_path, write_experiment, sig, name):
+    from mcap.reader import make_reader
+    path = write_experiment(DEFAULT.read_text(), f"signal_{name}.yaml")
+    bag = tmp_path / "signal.mcap"
+    runner = subprocess.Popen([sys.executable, "-m", "contouring_ros.cli", "run", str(path), "--bag", str(bag)],
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
+    deadline = time.monotonic() + 30
+    while (not bag.exists() or bag.stat().st_size < 2000) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    runner.send_signal(sig)
+    _, err = runner.communicate(timeout=30)
+    assert runner.returncode != 0
+    assert f"interrupted by {name}" in err and "Traceback" not in err
+    assert _node_processes(str(path)) == []
+    with open(bag, "rb") as stream:
+        assert make_reader(stream).get_summary() is not None
+
+
+UNSTABLE = DEFAULT.read_text().replace("    a: 12.5\n    b: 12.5\n", "    a: 1.0e+9\n    b: 12.5\n", 1)
+
+
+@graph
+def test_non_finite_values_are_rejected_and_stop_the_run(tmp_path, write_experiment):
+    path = write_experiment(shortened_text(UNSTABLE, 1.0))
+    with pytest.raises(RunError, match="rejected .* non-finite value") as info:
+        run_graph(path, tmp_path / "nan.mcap")
+    assert "step" in str(info.value)
+
+
+@graph
+def test_non_finite_values_held_when_configured(tmp_path, write_experiment):
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+    text = shortened_text(UNSTABLE, 1.0).replace("    sample_time: 0.001\n",
+                                                 "    sample_time: 0.001\n    on_invalid_input: hold\n", 1)
+    bag = run_graph(write_experiment(text), tmp_path / "hold.mcap")
+    rejected = 0
+    with open(bag, "rb") as stream:
+        reader = make_reader(stream, decoder_factories=[DecoderFactory()])
+        for _, _, _, msg in reader.iter_decoded_messages(topics=["/diagnostics"]):
+            rejected += sum(int(v.value) for v in msg.status[0].values if v.key.startswith("rejected"))
+    assert rejected > 0
+
+
+def shortened_text(text: str, duration: float) -> str:
+    return text.replace("    sample_time: 0.001\n", f"    sample_time: 0.001\n    duration: {duration}\n", 1)
+
+
+def test_newton_branch_check_recovers_from_the_far_side_of_a_circle():
+    # Paper 000 Fig. 3: from theta_hat = 0 a point on the opposite side of the circle sees theta = 0 as a
+    # stationary point (the farthest one); the local Newton flow stays there.
+    circle = Circle(0.05)
+    ref = reference(circle, UniformSchedule(0.0, 1.0, 1.0), 0.0)
+    far_point = np.array([-0.0501, 0.0])
+    plain = NewtonEstimator(circle, 500.0, 500.0, 0.0, 20, 0.001)
+    checked = NewtonEstimator(circle, 500.0, 500.0, 0.0, 20, 0.001, BranchCheck(circle, 256, 1e-4))
+    assert np.linalg.norm(plain.step(ref, far_point).vector) > 0.09
+    estimate = checked.step(ref, far_point)
+    assert np.linalg.norm(estimate.vector) == pytest.approx(1e-4, abs=1e-7)
+    assert checked.recoveries == 1
+    checked.step(ref, far_point)
+    assert checked.recoveries == 1      # on the right branch now: no further restarts
+
+
+def test_saturated_servo_does_not_wind_up():
+    text = shortened_text(DEFAULT.read_text(), 0.6).replace("    initial_state: on_reference",
+                                                           "    initial_state: at_rest")
+    pid_x = ("    law: pid_feedforward\n    kp: 8.08\n    ki: 93.2\n    kd: 0.24\n    gain: 10.3\n"
+             "    time_constant: 0.040\n    output_limit: 2.0e-3\n")
+    start = text.index("/x/servo:\n  ros__parameters:\n") + len("/x/servo:\n  ros__parameters:\n")
+    text = text[:start] + pid_x + text[text.index("\n/y/servo:"):]
+    text = text.replace("    disturbance: {type: constant, value: 1.5e-4}\n",
+                        "    disturbance: {type: constant, value: 1.5e-4}\n    saturation: 2.0e-3\n", 1)
+    loop = build_loop(parse_experiment(text, "saturated"))
+    servo = loop.servos[0]
+    integrals, commands = [], []
+    original = servo.step
+
+    def recording_step(*args):
+        command = original(*args)
+        integrals.append(servo.pid.integral)
+        commands.append(command)
+        return command
+    servo.step = recording_step
+    result = simulate(loop)
+    commands, integrals = np.array(commands), np.array(integrals)
+    saturated = np.abs(commands) >= 2.0e-3
+    assert saturated.sum() > 10                       # the limit is hit from rest
+    growth = np.diff(np.abs(integrals))[saturated[1:]]
+    assert np.all(growth <= 1e-15)                    # no integration into the limit
+    assert np.all(np.isfinite(result.position))
+
+
+def test_domain_leases_are_exclusive():
+    with DomainLease(77) as first:
+        with pytest.raises(RunError, match="no free ROS domain"):
+            DomainLease(77)
+        with DomainLease() as other:
+            assert other.domain_id != first.domain_id
+    with DomainLease(77):
+        pass
+
+
+@graph
+def test_two_experiments_at_once_do_not_hear_each_other(tmp_path, write_experiment):
+    paths = [write_experiment(shortened(DEFAULT, 0.5), "a.yaml"),
+             write_experiment(shortened(DEFAULT.parent / "paper000_b_ismc_h50_vgccc.yaml", 0.5), "b.yaml")]
+    bags, errors = {}, []
+
+    def run(path):
+        try:
+            bags[path] = run_graph(path, tmp_path / f"{path.stem}.mcap")
+        except Exception as error:  # reported below
+            errors.append(error)
+    threads = [threading.Thread(target=run, args=(path,)) for path in paths]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    assert not errors
+    for path in paths:
+        loop = build_loop(load_experiment(path))
+        expected = simulate(loop)
+        recorded = read_run(bags[path]).result
+        np.testing.assert_array_equal(recorded.position, expected.position)
+
+
+def _shared_memory_files() -> set:
+    return {name for name in os.listdir("/dev/shm") if "fastrtps" in name or "fastdds" in name} \
+        if os.path.isdir("/dev/shm") else set()
+
+
+def test_soak_in_process_50_runs_identical():
+    experiment = load_experiment(DEFAULT)
+    scores = set()
+    for _ in range(50):
+        loop = build_loop(experiment)
+        scores.add(score_run(loop.curve, simulate(loop)))
+    assert len(scores) == 1
+
+
+@graph
+@pytest.mark.slow
+def test_soak_graph_10_runs_identical_and_nothing_leaked(tmp_path, write_experiment):
+    path = write_experiment(shortened(DEFAULT, 1.0), "soak.yaml")
+    before_shm = _shared_memory_files()
+    scores = set()
+    for i in range(10):
+        bag = run_graph(path, tmp_path / f"soak{i}.mcap")
+        scores.add(score_bag(bag)[0])
+    assert len(scores) == 1
+    assert _node_processes(str(path)) == []
+    assert _shared_memory_files() <= before_shm | set()
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["soak.yaml"] + [f"soak{i}.mcap" for i in range(10)])
