@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ["Topic", "topics", "node_names", "CONTOUR_ERROR_NAME", "FOOT_POINT_NAME", "THETA_NAME",
-           "LOOKAHEAD", "stamp_to_step", "step_to_stamp", "reference_from_msg",
+           "LOOKAHEAD", "step_to_stamp", "reference_from_msg",
            "estimate_from_msg", "estimate_names", "estimate_values", "state_topic", "command_topic",
            "message_problem", "recorded_topics"]
 
@@ -103,11 +103,6 @@ def message_problem(topic: Topic, msg) -> str | None:
         if not all(math.isfinite(v) for v in values):
             return f"{name} holds a non-finite value {list(values)}"
     return None
-
-
-def stamp_to_step(sec: int, nanosec: int, sample_time_ns: int) -> int:
-    """Step index k of a header stamp (stamps are exactly k * Ts)."""
-    return (sec * 1_000_000_000 + nanosec) // sample_time_ns
 
 
 def step_to_stamp(k: int, sample_time_ns: int) -> tuple:

@@ -8,7 +8,7 @@ reproduces this loop to floating-point identity.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -79,7 +79,6 @@ class SimulationResult:
     estimate_signed: np.ndarray
     correction: np.ndarray
     command: np.ndarray
-    metadata: dict = field(default_factory=dict)
 
 
 def simulate(loop: ControlLoop) -> SimulationResult:
