@@ -12,6 +12,7 @@ Topic table (N axes named in the experiment's ``axes``; every message stamped t_
 | /contour_error      | sensor_msgs/msg/JointState       | /contour_estimator | name = axes + [contour_error, foot_point_parameter]; position = error vector [m], signed error [m], theta_hat |
 | /ccc/correction     | sensor_msgs/msg/JointState       | /ccc               | name = axes; effort = correction per axis [command units] |
 | /<axis>/command     | sensor_msgs/msg/JointState       | /<axis>/servo      | name [axis]; effort = actuator command [command units] |
+| /diagnostics        | diagnostic_msgs/msg/DiagnosticArray | every node      | rejected inputs; end-of-run counts (not every step) |
 """
 from __future__ import annotations
 
