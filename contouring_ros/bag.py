@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import graph
+from . import cdr, graph
 from .core.simulation import SimulationResult, step_time
 from .errors import BagError
 
@@ -167,10 +167,6 @@ def read_metadata(path) -> dict:
         return {record.name: dict(record.metadata) for record in make_reader(stream).iter_metadata()}
 
 
-def _stamp_ns(msg) -> int:
-    return msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
-
-
 def _step_times(stamps_ns, sample_time) -> np.ndarray:
     """Times of the recorded steps, computed as the simulation computes them (k Ts) when Ts is known."""
     if sample_time is None or not np.isfinite(sample_time):
@@ -179,101 +175,123 @@ def _step_times(stamps_ns, sample_time) -> np.ndarray:
     return np.array([step_time(stamp // ts_ns, sample_time) for stamp in stamps_ns])
 
 
-def _iter_records(path, warnings: list):
-    """(schema, channel, message, metadata) events of a bag read front to back.
+def _iter_records(path, warnings: list, progress: bool = False):
+    """(schema, channel, message, metadata) records of a bag read front to back, streaming.
 
     A bag whose writer died has no summary: everything up to its last complete record (chunk) is still
-    read, and a warning says where the file ends.
+    read, and a warning says where the file ends. ``progress`` shows a bar over the file's bytes.
     """
     from mcap.records import Channel, Footer, Message, Metadata, Schema
     from mcap.stream_reader import StreamReader
-    with open(path, "rb") as stream:
-        records = StreamReader(stream).records
-        complete = False
-        try:
-            for record in records:
-                if isinstance(record, (Schema, Channel, Message, Metadata)):
-                    yield record
-                elif isinstance(record, Footer):
-                    complete = True
-        except Exception as error:   # the mcap reader raises several kinds at a cut-off record
-            warnings.append(f"{path}: the bag ends early ({type(error).__name__}: it has no summary, its writer "
-                            "was stopped); read up to its last complete chunk")
-            return
-        if not complete:
-            warnings.append(f"{path}: the bag has no footer; read up to its last complete chunk")
+    from tqdm import tqdm
+    with open(path, "rb") as raw:
+        with tqdm.wrapattr(raw, "read", total=Path(path).stat().st_size, desc=f"reading {Path(path).name}",
+                           disable=not progress, leave=False) as stream:
+            records = StreamReader(stream).records
+            complete = False
+            try:
+                for record in records:
+                    if isinstance(record, (Schema, Channel, Message, Metadata)):
+                        yield record
+                    elif isinstance(record, Footer):
+                        complete = True
+            except Exception as error:   # the mcap reader raises several kinds at a cut-off record
+                warnings.append(f"{path}: the bag ends early ({type(error).__name__}: it has no summary, its "
+                                "writer was stopped); read up to its last complete chunk")
+                return
+    if not complete:
+        warnings.append(f"{path}: the bag has no footer; read up to its last complete chunk")
 
 
-def read_run(path, keep_payloads: bool = False) -> RecordedRun:
-    """Decode a bag of the graph into per-step arrays (steps where every topic was recorded).
+def _keep_joint_state(data: bytes):
+    msg = cdr.decode_joint_state(data)
+    return msg.position, msg.velocity, msg.effort
 
-    Works on complete bags and on bags whose writer died (see :func:`_iter_records`); the warnings
-    are in the result's ``warnings``.
+
+def _keep_trajectory(data: bytes):
+    msg = cdr.decode_joint_trajectory(data)
+    point = msg.points[0]
+    return tuple(msg.joint_names), point.positions, point.velocities, point.accelerations
+
+
+_KEEP = {"sensor_msgs/msg/JointState": _keep_joint_state, "trajectory_msgs/msg/JointTrajectory": _keep_trajectory}
+
+
+def read_run(path, keep_payloads: bool = False, experiment_text: str | None = None,
+             progress: bool = False) -> RecordedRun:
+    """Decode a bag of the graph into per-step arrays (the steps for which every topic was recorded).
+
+    Streams the file and keeps only the numbers scoring needs, so long bags read in bounded memory.
+    Works on bags of the recorder, on rosbag2 MCAP bags with the same topics and types (pass the
+    experiment's YAML as ``experiment_text`` when the bag does not hold it), and on bags whose writer died
+    (see :func:`_iter_records`); what the reader had to make do with is in the result's ``warnings``.
     """
     from mcap.records import Channel, Metadata, Schema
-    from mcap_ros2.decoder import DecoderFactory
     path = Path(path)
     if not path.is_file():
         raise BagError(f"{path}: no such bag")
-    by_topic: dict = {}
+    kept: dict = {}
     payloads: dict = {}
     warnings: list = []
-    schemas, channels, decoders = {}, {}, {}
-    factory = DecoderFactory()
-    experiment_text, sample_time = None, None
+    schemas, keepers = {}, {}
+    sample_time = None
     try:
-        for record in _iter_records(path, warnings):
+        for record in _iter_records(path, warnings, progress):
             if isinstance(record, Schema):
                 schemas[record.id] = record
             elif isinstance(record, Channel):
-                channels[record.id] = record
+                keepers[record.id] = (record.topic, _KEEP.get(schemas[record.schema_id].name)
+                                      if record.schema_id in schemas else None)
             elif isinstance(record, Metadata):
                 if record.name == EXPERIMENT_METADATA:
-                    experiment_text = record.metadata.get("yaml")
+                    experiment_text = experiment_text or record.metadata.get("yaml")
                     sample_time = float(record.metadata.get("sample_time", "nan"))
             else:
-                channel = channels[record.channel_id]
-                if channel.topic in (graph.CLOCK, graph.DIAGNOSTICS):
+                topic, keep = keepers[record.channel_id]
+                if keep is None or topic == graph.DIAGNOSTICS:
                     continue
-                decode = decoders.get(channel.id)
-                if decode is None:
-                    decode = decoders[channel.id] = factory.decoder_for(channel.message_encoding,
-                                                                        schemas[channel.schema_id])
-                decoded = decode(record.data)
-                by_topic.setdefault(channel.topic, {})[_stamp_ns(decoded)] = decoded
+                kept.setdefault(topic, {})[cdr.stamp_ns(record.data)] = keep(record.data)
                 if keep_payloads:
-                    payloads.setdefault(channel.topic, []).append(bytes(record.data))
+                    payloads.setdefault(topic, []).append(bytes(record.data))
     except Exception as error:  # a damaged file, not just a cut-off one
         raise BagError(f"{path}: cannot read the bag ({type(error).__name__}: {error})") from None
-    if experiment_text is None:
-        raise BagError(f"{path}: the bag has no '{EXPERIMENT_METADATA}' metadata (not written by contouring_ros?)")
-    if graph.REFERENCE not in by_topic:
+    if not experiment_text:
+        raise BagError(f"{path}: the bag holds no experiment ('{EXPERIMENT_METADATA}' metadata); give the "
+                       "experiment file that produced it")
+    if graph.REFERENCE not in kept:
         raise BagError(f"{path}: the bag has no {graph.REFERENCE} messages")
-    names = list(by_topic[graph.REFERENCE].values())[0].joint_names
-    axes = list(names[:-1])
+    axes = list(next(iter(kept[graph.REFERENCE].values()))[0][:-1])
     needed = [graph.REFERENCE, graph.CONTOUR_ERROR, graph.CORRECTION] + \
         [graph.state_topic(a) for a in axes] + [graph.command_topic(a) for a in axes]
     for topic in needed:
-        if topic not in by_topic:
+        if topic not in kept:
             raise BagError(f"{path}: the bag has no {topic} messages")
-    stamps = sorted(set.intersection(*(set(by_topic[t]) for t in needed)))
+    stamps = sorted(set.intersection(*(set(kept[t]) for t in needed)))
+    if sample_time is None or not np.isfinite(sample_time):
+        sample_time = _sample_time_of(experiment_text)
     n = len(axes)
-    refs = [graph.reference_from_msg(by_topic[graph.REFERENCE][s], n) for s in stamps]
-    ests = [graph.estimate_from_msg(by_topic[graph.CONTOUR_ERROR][s], n) for s in stamps]
 
-    def per_axis(topic_of, field):
-        return np.array([[getattr(by_topic[topic_of(a)][s], field)[0] for a in axes] for s in stamps]).reshape(-1, n)
+    def column(topic, index, count=None):
+        values = kept[topic]
+        rows = [values[s][index] for s in stamps]
+        return np.array(rows, dtype=float).reshape(len(stamps), -1)[:, :count]
 
+    def per_axis(topic_of, index):
+        return np.hstack([column(topic_of(a), index, 1) for a in axes]) if stamps else np.empty((0, n))
+
+    reference_pos, reference_vel, reference_acc = (column(graph.REFERENCE, i) for i in (1, 2, 3))
+    estimate = column(graph.CONTOUR_ERROR, 0)
     result = SimulationResult(
-        time=_step_times(stamps, sample_time), theta=np.array([r.theta for r in refs]),
-        reference_position=np.array([r.position for r in refs]).reshape(-1, n),
-        reference_velocity=np.array([r.velocity for r in refs]).reshape(-1, n),
-        reference_acceleration=np.array([r.acceleration for r in refs]).reshape(-1, n),
-        position=per_axis(graph.state_topic, "position"), velocity=per_axis(graph.state_topic, "velocity"),
-        estimate_theta=np.array([e.theta for e in ests]),
-        estimate_vector=np.array([e.vector for e in ests]).reshape(-1, n),
-        estimate_signed=np.array([e.signed for e in ests]),
-        correction=np.array([by_topic[graph.CORRECTION][s].effort for s in stamps]).reshape(-1, n),
-        command=per_axis(graph.command_topic, "effort"))
+        time=_step_times(stamps, sample_time), theta=reference_pos[:, n],
+        reference_position=reference_pos[:, :n], reference_velocity=reference_vel[:, :n],
+        reference_acceleration=reference_acc[:, :n],
+        position=per_axis(graph.state_topic, 0), velocity=per_axis(graph.state_topic, 1),
+        estimate_theta=estimate[:, n + 1], estimate_vector=estimate[:, :n], estimate_signed=estimate[:, n],
+        correction=column(graph.CORRECTION, 2), command=per_axis(graph.command_topic, 2))
     return RecordedRun(experiment_text=experiment_text, axes=axes, result=result, payloads=payloads,
                        warnings=warnings)
+
+
+def _sample_time_of(experiment_text: str) -> float | None:
+    from .config import parse_experiment
+    return parse_experiment(experiment_text, "stored experiment").sample_time
