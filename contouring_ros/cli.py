@@ -62,15 +62,66 @@ def _simulate(args):
     print(format_scores([(experiment.name, score_run(loop.curve, simulate(loop)))], list(experiment.axes)))
 
 
-def _score(args):
-    from .scoring import format_scores, score_bag
-    results = [(Path(bag).stem, *score_bag(bag)) for bag in args.bags]
+def _experiment_text(args):
+    if getattr(args, "experiment", None) is None:
+        return None
+    from .config import load_experiment
+    return load_experiment(args.experiment).text
+
+
+def _scored(args):
+    from .scoring import score_bag
+    text = _experiment_text(args)
+    results = [(Path(bag).stem, *score_bag(bag, text, progress=sys.stderr.isatty())) for bag in args.bags]
     for _, _, run in results:
         _warn(run)
+    return results
+
+
+def _score(args):
+    from .scoring import format_scores
+    results = _scored(args)
     if args.json:
         print(json.dumps({name: scores.as_dict() for name, scores, _ in results}, indent=2))
     else:
         print(format_scores([(name, scores) for name, scores, _ in results], results[0][2].axes))
+
+
+def _compare(args):
+    from .analysis import compare_table
+    if args.baseline:
+        args.bags = [args.baseline] + [bag for bag in args.bags if bag != args.baseline]
+    results = _scored(args)
+    print(compare_table([(name, scores) for name, scores, _ in results], 0, results[0][2].axes))
+
+
+def _replay(args):
+    if args.play:
+        from .playback import play_bag
+        play_bag(args.bag, rate=args.rate, progress=sys.stderr.isatty())
+        return
+    from .analysis import parse_estimator_spec, replay_estimators
+    from .bag import read_run
+    if not args.estimator:
+        raise SystemExit("error: replay needs --estimator NAME[:key=value,...] (or --play)")
+    run = read_run(args.bag, experiment_text=_experiment_text(args), progress=sys.stderr.isatty())
+    _warn(run)
+    exact, replays = replay_estimators(run, [parse_estimator_spec(spec) for spec in args.estimator])
+    width = max(len(r.name) for r in replays)
+    print(f"{'estimator'.ljust(width)}  deviation from exact: max [um]  RMS [um]")
+    for replay in replays:
+        print(f"{replay.name.ljust(width)}  {replay.deviation_max * 1e6:>28.4g}  {replay.deviation_rms * 1e6:>8.4g}")
+
+
+def _plot(args):
+    from .analysis import html_report, write_figures
+    results = _scored(args)
+    runs = [(name, run) for name, _, run in results]
+    out = Path(args.out or (Path(args.bags[0]).with_suffix("")))
+    for path in write_figures(runs, out, args.magnification):
+        print(path)
+    if args.html:
+        print(html_report(runs, [scores for _, scores, _ in results], out / "report.html", args.magnification))
 
 
 def _paper(args):
@@ -88,10 +139,31 @@ def main(argv=None):
     p = sub.add_parser("simulate", help="run an experiment in-process (no ROS) and print its scores")
     p.add_argument("config")
     p.set_defaults(func=_simulate)
+    experiment_help = "experiment YAML, for bags recorded without one (e.g. by ros2 bag record)"
     p = sub.add_parser("score", help="score bags from their contents alone")
     p.add_argument("bags", nargs="+")
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    p.add_argument("--experiment", help=experiment_help)
     p.set_defaults(func=_score)
+    p = sub.add_parser("compare", help="score runs side by side, with ratios to a baseline")
+    p.add_argument("bags", nargs="+")
+    p.add_argument("--baseline", help="the bag the ratios refer to (default: the first)")
+    p.add_argument("--experiment", help=experiment_help)
+    p.set_defaults(func=_compare)
+    p = sub.add_parser("replay", help="run other estimators over a recorded run, or republish a bag")
+    p.add_argument("bag")
+    p.add_argument("--estimator", action="append", help="NAME[:key=value,...], repeatable (e.g. newton:k_prime=800)")
+    p.add_argument("--play", action="store_true", help="republish the bag on ROS topics with /clock")
+    p.add_argument("--rate", type=float, default=1.0, help="with --play: speed factor, 0 = as fast as possible")
+    p.add_argument("--experiment", help=experiment_help)
+    p.set_defaults(func=_replay)
+    p = sub.add_parser("plot", help="PNG figures of one run or a comparison, and an HTML report")
+    p.add_argument("bags", nargs="+")
+    p.add_argument("--out", help="directory for the figures (default: next to the first bag)")
+    p.add_argument("--html", action="store_true", help="also write a self-contained report.html")
+    p.add_argument("--magnification", type=float, help="contour error magnification in the path plot")
+    p.add_argument("--experiment", help=experiment_help)
+    p.set_defaults(func=_plot)
     p = sub.add_parser("paper", help="run a paper's scenarios and print our numbers beside the paper's")
     p.add_argument("paper", choices=["000"], help="paper number (see ../shared/seeds/README.md)")
     p.add_argument("--graph", action="store_true", help="run each scenario through the node graph too")

@@ -5,7 +5,7 @@ from .bag import RecordedRun, read_run
 from .config import build_curve, parse_experiment
 from .core.metrics import Scores, score
 
-__all__ = ["score_run", "score_bag", "format_scores"]
+__all__ = ["score_run", "score_bag", "curve_of", "format_scores"]
 
 
 def score_run(curve, run) -> Scores:
@@ -13,11 +13,16 @@ def score_run(curve, run) -> Scores:
     return score(curve, run.time, run.position, run.reference_position, run.estimate_vector, run.command)[0]
 
 
-def score_bag(path) -> tuple[Scores, RecordedRun]:
-    """Score a bag from its contents alone: the curve comes from the experiment stored in it."""
-    run = read_run(path)
-    experiment = parse_experiment(run.experiment_text, f"{path} (stored experiment)")
-    return score_run(build_curve(experiment), run.result), run
+def score_bag(path, experiment_text: str | None = None, progress: bool = False) -> tuple[Scores, RecordedRun]:
+    """Score a bag from its contents alone: the curve comes from the experiment stored in it (or from
+    ``experiment_text`` for a bag recorded without one)."""
+    run = read_run(path, experiment_text=experiment_text, progress=progress)
+    return score_run(curve_of(run), run.result), run
+
+
+def curve_of(run: RecordedRun):
+    """The reference curve of a recorded run, rebuilt from its experiment."""
+    return build_curve(parse_experiment(run.experiment_text, "the bag's experiment"))
 
 
 _ROWS = [("MCE [um]", lambda s: s.mce * 1e6), ("TACE [um]", lambda s: s.tace * 1e6),
