@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import os
 import re
+import struct
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -22,8 +23,8 @@ from . import cdr, graph
 from .core.simulation import SimulationResult, step_time
 from .errors import BagError
 
-__all__ = ["message_definition", "BagWriter", "RecordedRun", "read_run", "read_metadata", "EXPERIMENT_METADATA",
-           "RUN_METADATA"]
+__all__ = ["message_definition", "BagWriter", "RecordedRun", "read_run", "read_metadata", "write_simulation",
+           "EXPERIMENT_METADATA", "RUN_METADATA"]
 
 EXPERIMENT_METADATA = "contouring_ros.experiment"
 RUN_METADATA = "contouring_ros.run"      # wall-clock figures of the recording
@@ -203,18 +204,43 @@ def _iter_records(path, warnings: list, progress: bool = False):
         warnings.append(f"{path}: the bag has no footer; read up to its last complete chunk")
 
 
-def _keep_joint_state(data: bytes):
-    msg = cdr.decode_joint_state(data)
-    return msg.position, msg.velocity, msg.effort
+class _FastLayout:
+    """Decode the float arrays of one topic's messages with a single precompiled struct.
+
+    A topic's messages share their layout (same names, same array lengths): the first message's array
+    offsets (:func:`cdr.array_layout`) give one format for all of them, checked by the message length;
+    a message of another length is decoded field by field.
+    """
+
+    def __init__(self, type_name: str):
+        self.type_name = type_name
+        self.size = None
+
+    def __call__(self, data: bytes):
+        if len(data) != self.size:
+            layout = cdr.array_layout(self.type_name, data)
+            self.size = len(data)
+            self.struct = _layout_struct(layout)
+            self.split = []
+            start = 0
+            for _, count in layout:
+                self.split.append((start, start + count))
+                start += count
+        values = self.struct.unpack_from(data, 0)
+        return tuple(values[a:b] for a, b in self.split)
 
 
-def _keep_trajectory(data: bytes):
-    msg = cdr.decode_joint_trajectory(data)
-    point = msg.points[0]
-    return tuple(msg.joint_names), point.positions, point.velocities, point.accelerations
+def _layout_struct(layout) -> struct.Struct:
+    """A struct reading the float64 arrays at ``layout`` [(offset, count)] and skipping the bytes between."""
+    fmt, position = ["<"], 0
+    for offset, count in layout:
+        if count:
+            fmt.append(f"{offset - position}x{count}d")
+            position = offset + 8 * count
+    return struct.Struct("".join(fmt))
 
 
-_KEEP = {"sensor_msgs/msg/JointState": _keep_joint_state, "trajectory_msgs/msg/JointTrajectory": _keep_trajectory}
+_KEEP = {"sensor_msgs/msg/JointState", "trajectory_msgs/msg/JointTrajectory"}
 
 
 def read_run(path, keep_payloads: bool = False, experiment_text: str | None = None,
@@ -234,14 +260,14 @@ def read_run(path, keep_payloads: bool = False, experiment_text: str | None = No
     payloads: dict = {}
     warnings: list = []
     schemas, keepers = {}, {}
-    sample_time = None
+    sample_time = joint_names = None
     try:
         for record in _iter_records(path, warnings, progress):
             if isinstance(record, Schema):
                 schemas[record.id] = record
             elif isinstance(record, Channel):
-                keepers[record.id] = (record.topic, _KEEP.get(schemas[record.schema_id].name)
-                                      if record.schema_id in schemas else None)
+                type_name = schemas[record.schema_id].name if record.schema_id in schemas else None
+                keepers[record.id] = (record.topic, _FastLayout(type_name) if type_name in _KEEP else None)
             elif isinstance(record, Metadata):
                 if record.name == EXPERIMENT_METADATA:
                     experiment_text = experiment_text or record.metadata.get("yaml")
@@ -251,6 +277,8 @@ def read_run(path, keep_payloads: bool = False, experiment_text: str | None = No
                 if keep is None or topic == graph.DIAGNOSTICS:
                     continue
                 kept.setdefault(topic, {})[cdr.stamp_ns(record.data)] = keep(record.data)
+                if joint_names is None and topic == graph.REFERENCE:
+                    joint_names = cdr.decode_joint_trajectory(record.data).joint_names
                 if keep_payloads:
                     payloads.setdefault(topic, []).append(bytes(record.data))
     except Exception as error:  # a damaged file, not just a cut-off one
@@ -260,7 +288,7 @@ def read_run(path, keep_payloads: bool = False, experiment_text: str | None = No
                        "experiment file that produced it")
     if graph.REFERENCE not in kept:
         raise BagError(f"{path}: the bag has no {graph.REFERENCE} messages")
-    axes = list(next(iter(kept[graph.REFERENCE].values()))[0][:-1])
+    axes = list(joint_names[:-1])
     needed = [graph.REFERENCE, graph.CONTOUR_ERROR, graph.CORRECTION] + \
         [graph.state_topic(a) for a in axes] + [graph.command_topic(a) for a in axes]
     for topic in needed:
@@ -279,7 +307,7 @@ def read_run(path, keep_payloads: bool = False, experiment_text: str | None = No
     def per_axis(topic_of, index):
         return np.hstack([column(topic_of(a), index, 1) for a in axes]) if stamps else np.empty((0, n))
 
-    reference_pos, reference_vel, reference_acc = (column(graph.REFERENCE, i) for i in (1, 2, 3))
+    reference_pos, reference_vel, reference_acc = (column(graph.REFERENCE, i) for i in (0, 1, 2))
     estimate = column(graph.CONTOUR_ERROR, 0)
     result = SimulationResult(
         time=_step_times(stamps, sample_time), theta=reference_pos[:, n],
@@ -295,3 +323,34 @@ def read_run(path, keep_payloads: bool = False, experiment_text: str | None = No
 def _sample_time_of(experiment_text: str) -> float | None:
     from .config import parse_experiment
     return parse_experiment(experiment_text, "stored experiment").sample_time
+
+
+def write_simulation(path, experiment, result) -> Path:
+    """Write an in-process run as the recorder would have recorded it (same topics, types and payloads).
+
+    Used to record long runs without the node graph (benchmarks, sweeps) and as a second writer in tests.
+    """
+    axes = list(experiment.axes)
+    ts_ns = int(round(experiment.sample_time * 1e9))
+    names = axes + [graph.THETA_NAME]
+    metadata = {EXPERIMENT_METADATA: {"yaml": experiment.text, "axes": ",".join(axes),
+                                      "steps": str(len(result.time)), "sample_time": repr(experiment.sample_time)}}
+    with BagWriter(path, [(t.name, t.type) for t in graph.topics(axes)], metadata=metadata) as writer:
+        for k in range(len(result.time)):
+            stamp = graph.step_to_stamp(k, ts_ns)
+            ns = k * ts_ns
+            writer.write(graph.CLOCK, ns, cdr.encode_clock(*stamp))
+            writer.write(graph.REFERENCE, ns, cdr.encode_joint_trajectory(
+                *stamp, names, [*result.reference_position[k], result.theta[k]],
+                [*result.reference_velocity[k], 0.0], [*result.reference_acceleration[k], 0.0], stamp))
+            for i, axis in enumerate(axes):
+                writer.write(graph.state_topic(axis), ns, cdr.encode_joint_state(
+                    *stamp, [axis], [result.position[k, i]], [result.velocity[k, i]]))
+            writer.write(graph.CONTOUR_ERROR, ns, cdr.encode_joint_state(
+                *stamp, graph.estimate_names(axes),
+                [*result.estimate_vector[k], result.estimate_signed[k], result.estimate_theta[k]]))
+            writer.write(graph.CORRECTION, ns, cdr.encode_joint_state(*stamp, axes, effort=result.correction[k]))
+            for i, axis in enumerate(axes):
+                writer.write(graph.command_topic(axis), ns, cdr.encode_joint_state(
+                    *stamp, [axis], effort=[result.command[k, i]]))
+    return Path(path)

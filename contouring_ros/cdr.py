@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 
 __all__ = ["Stamp", "Header", "JointStateData", "TrajectoryPointData", "JointTrajectoryData", "stamp_ns",
            "encode_joint_state", "decode_joint_state", "encode_joint_trajectory", "decode_joint_trajectory",
-           "encode_clock"]
+           "encode_clock", "array_layout"]
 
 _ENCAPSULATION = b"\x00\x01\x00\x00"   # CDR, little endian
 _STAMP = struct.Struct("<iI")
@@ -96,7 +96,7 @@ class _Writer:
 
     def doubles(self, values):
         self.pack("I", 4, len(values))
-        if values:
+        if len(values):
             self.pack(f"{len(values)}d", 8, *values)
 
     def header(self, sec: int, nanosec: int):
@@ -111,6 +111,7 @@ class _Reader:
     def __init__(self, data: bytes):
         self.data = data
         self.offset = 0   # after the encapsulation header
+        self.arrays = []  # (byte offset in data, count) of every float64 array read
 
     def _align(self, n: int):
         self.offset += -self.offset % n
@@ -135,7 +136,12 @@ class _Reader:
 
     def doubles(self) -> tuple:
         n = self.u32()
-        return self.unpack(f"{n}d", 8, 8 * n) if n else ()
+        if not n:
+            self.arrays.append((4 + self.offset, 0))
+            return ()
+        self._align(8)
+        self.arrays.append((4 + self.offset, n))
+        return self.unpack(f"{n}d", 8, 8 * n)
 
     def header(self) -> Header:
         sec, nanosec = self.unpack("iI", 4, 8)
@@ -152,11 +158,14 @@ def encode_joint_state(sec: int, nanosec: int, names, position=(), velocity=(), 
     return w.bytes()
 
 
-def decode_joint_state(data: bytes) -> JointStateData:
-    r = _Reader(data)
+def _read_joint_state(r: _Reader) -> JointStateData:
     header = r.header()
     names = r.strings()
     return JointStateData(header, names, r.doubles(), r.doubles(), r.doubles())
+
+
+def decode_joint_state(data: bytes) -> JointStateData:
+    return _read_joint_state(_Reader(data))
 
 
 def encode_joint_trajectory(sec: int, nanosec: int, joint_names, positions, velocities, accelerations,
@@ -173,7 +182,10 @@ def encode_joint_trajectory(sec: int, nanosec: int, joint_names, positions, velo
 
 
 def decode_joint_trajectory(data: bytes) -> JointTrajectoryData:
-    r = _Reader(data)
+    return _read_joint_trajectory(_Reader(data))
+
+
+def _read_joint_trajectory(r: _Reader) -> JointTrajectoryData:
     header = r.header()
     names = r.strings()
     points = []
@@ -181,6 +193,14 @@ def decode_joint_trajectory(data: bytes) -> JointTrajectoryData:
         arrays = [r.doubles() for _ in range(4)]
         points.append(TrajectoryPointData(*arrays, Stamp(*r.unpack("iI", 4, 8))))
     return JointTrajectoryData(header, names, points)
+
+
+def array_layout(type_name: str, data: bytes) -> list:
+    """(byte offset, count) of every float64 array of a serialised message, in the order they are read."""
+    reader = _Reader(data)
+    {"sensor_msgs/msg/JointState": _read_joint_state,
+     "trajectory_msgs/msg/JointTrajectory": _read_joint_trajectory}[type_name](reader)
+    return reader.arrays
 
 
 def encode_clock(sec: int, nanosec: int) -> bytes:
