@@ -17,6 +17,8 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
+from array import array
+
 import numpy as np
 
 from . import cdr, graph
@@ -204,30 +206,35 @@ def _iter_records(path, warnings: list, progress: bool = False):
         warnings.append(f"{path}: the bag has no footer; read up to its last complete chunk")
 
 
-class _FastLayout:
-    """Decode the float arrays of one topic's messages with a single precompiled struct.
+class _TopicColumns:
+    """The float arrays of one topic's messages, kept flat in typed arrays (8 bytes a value).
 
     A topic's messages share their layout (same names, same array lengths): the first message's array
-    offsets (:func:`cdr.array_layout`) give one format for all of them, checked by the message length;
-    a message of another length is decoded field by field.
+    offsets (:func:`cdr.array_layout`) give one precompiled struct for all of them, checked by the message
+    length; a message of another length gets its layout worked out again.
     """
 
-    def __init__(self, type_name: str):
-        self.type_name = type_name
-        self.size = None
+    def __init__(self, topic: str, type_name: str):
+        self.topic, self.type_name = topic, type_name
+        self.size = self.width = None
+        self.stamps, self.values = array("q"), array("d")
 
-    def __call__(self, data: bytes):
+    def add(self, data: bytes):
         if len(data) != self.size:
             layout = cdr.array_layout(self.type_name, data)
-            self.size = len(data)
+            width = sum(count for _, count in layout)
+            if self.width is not None and width != self.width:
+                raise BagError(f"{self.topic}: messages with {width} values after messages with {self.width}")
+            self.size, self.width, self.counts = len(data), width, [count for _, count in layout]
             self.struct = _layout_struct(layout)
-            self.split = []
-            start = 0
-            for _, count in layout:
-                self.split.append((start, start + count))
-                start += count
-        values = self.struct.unpack_from(data, 0)
-        return tuple(values[a:b] for a, b in self.split)
+        self.stamps.append(cdr.stamp_ns(data))
+        self.values.extend(self.struct.unpack_from(data, 0))
+
+    def array(self, index: int, rows: np.ndarray) -> np.ndarray:
+        """Field ``index`` (the index-th float array of the message) at the message rows ``rows``."""
+        table = np.frombuffer(self.values, dtype=float).reshape(-1, self.width)
+        start = sum(self.counts[:index])
+        return table[rows, start:start + self.counts[index]]
 
 
 def _layout_struct(layout) -> struct.Struct:
@@ -240,7 +247,7 @@ def _layout_struct(layout) -> struct.Struct:
     return struct.Struct("".join(fmt))
 
 
-_KEEP = {"sensor_msgs/msg/JointState", "trajectory_msgs/msg/JointTrajectory"}
+_KEPT_TYPES = {"sensor_msgs/msg/JointState", "trajectory_msgs/msg/JointTrajectory"}
 
 
 def read_run(path, keep_payloads: bool = False, experiment_text: str | None = None,
@@ -259,7 +266,7 @@ def read_run(path, keep_payloads: bool = False, experiment_text: str | None = No
     kept: dict = {}
     payloads: dict = {}
     warnings: list = []
-    schemas, keepers = {}, {}
+    schemas, keepers = {}, {}     # channel id -> _TopicColumns of the topics scoring needs
     sample_time = joint_names = None
     try:
         for record in _iter_records(path, warnings, progress):
@@ -267,20 +274,21 @@ def read_run(path, keep_payloads: bool = False, experiment_text: str | None = No
                 schemas[record.id] = record
             elif isinstance(record, Channel):
                 type_name = schemas[record.schema_id].name if record.schema_id in schemas else None
-                keepers[record.id] = (record.topic, _FastLayout(type_name) if type_name in _KEEP else None)
+                if type_name in _KEPT_TYPES and record.topic != graph.DIAGNOSTICS:
+                    keepers[record.id] = kept.setdefault(record.topic, _TopicColumns(record.topic, type_name))
             elif isinstance(record, Metadata):
                 if record.name == EXPERIMENT_METADATA:
                     experiment_text = experiment_text or record.metadata.get("yaml")
                     sample_time = float(record.metadata.get("sample_time", "nan"))
             else:
-                topic, keep = keepers[record.channel_id]
-                if keep is None or topic == graph.DIAGNOSTICS:
+                columns = keepers.get(record.channel_id)
+                if columns is None:
                     continue
-                kept.setdefault(topic, {})[cdr.stamp_ns(record.data)] = keep(record.data)
-                if joint_names is None and topic == graph.REFERENCE:
+                columns.add(record.data)
+                if joint_names is None and columns.topic == graph.REFERENCE:
                     joint_names = cdr.decode_joint_trajectory(record.data).joint_names
                 if keep_payloads:
-                    payloads.setdefault(topic, []).append(bytes(record.data))
+                    payloads.setdefault(columns.topic, []).append(bytes(record.data))
     except Exception as error:  # a damaged file, not just a cut-off one
         raise BagError(f"{path}: cannot read the bag ({type(error).__name__}: {error})") from None
     if not experiment_text:
@@ -294,23 +302,29 @@ def read_run(path, keep_payloads: bool = False, experiment_text: str | None = No
     for topic in needed:
         if topic not in kept:
             raise BagError(f"{path}: the bag has no {topic} messages")
-    stamps = sorted(set.intersection(*(set(kept[t]) for t in needed)))
+    stamps = np.asarray(kept[needed[0]].stamps)
+    for topic in needed[1:]:
+        stamps = np.intersect1d(stamps, np.asarray(kept[topic].stamps))
+    rows = {}
+    for topic in needed:   # the row of each step's message (the last one where a stamp repeats)
+        own = np.asarray(kept[topic].stamps)
+        order = np.argsort(own, kind="stable")
+        last = order[np.searchsorted(own[order], stamps, side="right") - 1]
+        rows[topic] = last
     if sample_time is None or not np.isfinite(sample_time):
         sample_time = _sample_time_of(experiment_text)
     n = len(axes)
 
     def column(topic, index, count=None):
-        values = kept[topic]
-        rows = [values[s][index] for s in stamps]
-        return np.array(rows, dtype=float).reshape(len(stamps), -1)[:, :count]
+        return kept[topic].array(index, rows[topic])[:, :count]
 
     def per_axis(topic_of, index):
-        return np.hstack([column(topic_of(a), index, 1) for a in axes]) if stamps else np.empty((0, n))
+        return np.hstack([column(topic_of(a), index, 1) for a in axes])
 
     reference_pos, reference_vel, reference_acc = (column(graph.REFERENCE, i) for i in (0, 1, 2))
     estimate = column(graph.CONTOUR_ERROR, 0)
     result = SimulationResult(
-        time=_step_times(stamps, sample_time), theta=reference_pos[:, n],
+        time=_step_times(stamps.tolist(), sample_time), theta=reference_pos[:, n],
         reference_position=reference_pos[:, :n], reference_velocity=reference_vel[:, :n],
         reference_acceleration=reference_acc[:, :n],
         position=per_axis(graph.state_topic, 0), velocity=per_axis(graph.state_topic, 1),
