@@ -15,7 +15,7 @@ setup(
         (f"share/{package_name}", ["package.xml"]),
         (f"share/{package_name}/config", glob("config/*.yaml")),
     ],
-    install_requires=["setuptools", "numpy", "scipy", "PyYAML", "mcap", "mcap-ros2-support"],
+    install_requires=["setuptools", "numpy", "scipy", "PyYAML", "mcap", "mcap-ros2-support", "tqdm", "matplotlib"],
     extras_require={"test": ["pytest"]},
     zip_safe=True,
     maintainer="contouring_ros maintainers",
