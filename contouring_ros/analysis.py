@@ -11,6 +11,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from tqdm import tqdm
 
 from .bag import RecordedRun
 from .config import ESTIMATORS, _typed, build_estimator, parse_experiment
@@ -68,7 +69,7 @@ class EstimatorReplay:
     deviation_rms: float
 
 
-def replay_estimators(run: RecordedRun, specs: list) -> tuple[np.ndarray, list]:
+def replay_estimators(run: RecordedRun, specs: list, progress: bool = False) -> tuple[np.ndarray, list]:
     """Run each estimator of ``specs`` over the recorded reference and positions.
 
     Returns the exact contour error per step and, first for the recorded estimate and then for each spec,
@@ -85,7 +86,8 @@ def replay_estimators(run: RecordedRun, specs: list) -> tuple[np.ndarray, list]:
         section = _typed("--estimator", spec["type"], "type", ESTIMATORS, spec)
         estimator = build_estimator(_with_estimator(experiment, section), curve)
         norms = np.empty(len(result.time))
-        for k in range(len(result.time)):
+        for k in tqdm(range(len(result.time)), desc=f"replaying {spec['type']}", disable=not progress,
+                      leave=False, mininterval=0.5):
             ref = Reference(theta=result.theta[k], theta_dot=0.0, theta_ddot=0.0,
                             position=result.reference_position[k, :n], velocity=result.reference_velocity[k, :n],
                             acceleration=result.reference_acceleration[k, :n])

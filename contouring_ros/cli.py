@@ -106,7 +106,8 @@ def _replay(args):
         raise SystemExit("error: replay needs --estimator NAME[:key=value,...] (or --play)")
     run = read_run(args.bag, experiment_text=_experiment_text(args), progress=sys.stderr.isatty())
     _warn(run)
-    exact, replays = replay_estimators(run, [parse_estimator_spec(spec) for spec in args.estimator])
+    exact, replays = replay_estimators(run, [parse_estimator_spec(spec) for spec in args.estimator],
+                                       progress=sys.stderr.isatty())
     width = max(len(r.name) for r in replays)
     print(f"{'estimator'.ljust(width)}  deviation from exact: max [um]  RMS [um]")
     for replay in replays:

@@ -1,6 +1,7 @@
 """Paper reproduction reports: our numbers beside the papers' for every scenario file of a paper."""
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 from .config import build_loop, load_experiment
@@ -20,7 +21,8 @@ def paper_rows(paper: str, graph: bool = False, progress=None) -> list:
     """(scenario, description, paper MCE/TACE, our in-process MCE/TACE, graph MCE/TACE or None) per file."""
     say = progress or (lambda message: None)
     rows = []
-    for path in scenario_files(paper):
+    from tqdm import tqdm
+    for path in tqdm(scenario_files(paper), desc=f"paper {paper}", disable=not sys.stderr.isatty(), leave=False):
         experiment = load_experiment(path)
         loop = build_loop(experiment)
         ours = score_run(loop.curve, simulate(loop))
