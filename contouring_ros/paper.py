@@ -10,7 +10,20 @@ from .scoring import score_run
 
 __all__ = ["CONFIG_DIR", "scenario_files", "paper_rows", "paper_report"]
 
-CONFIG_DIR = Path(__file__).resolve().parent.parent / "config"
+def _config_dir() -> Path:
+    """config/ of the source tree, else share/contouring_ros/config of an installed (colcon) package."""
+    source = Path(__file__).resolve().parent.parent / "config"
+    if source.is_dir():
+        return source
+    import os
+    for prefix in filter(None, os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep)):
+        installed = Path(prefix) / "share" / "contouring_ros" / "config"
+        if installed.is_dir():
+            return installed
+    return source
+
+
+CONFIG_DIR = _config_dir()
 
 
 def scenario_files(paper: str, config_dir=CONFIG_DIR) -> list:
