@@ -29,6 +29,7 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("config", nargs="?", default=str(ROOT / "config" / "paper000_b_ismc_h50_newton.yaml"))
     parser.add_argument("--runs", type=int, default=3)
+    parser.add_argument("--layout", choices=["process", "composed"], default="process")
     args = parser.parse_args()
     experiment = load_experiment(args.config)
     steps = experiment.n_steps
@@ -42,14 +43,14 @@ def main():
         for i in range(args.runs):
             bag = Path(tmp) / f"run{i}.mcap"
             start = time.perf_counter()
-            run_graph(args.config, bag)
+            run_graph(args.config, bag, layout=args.layout)
             totals.append(time.perf_counter() - start)
             lockstep = float(read_metadata(bag)[RUN_METADATA]["wall_seconds_first_to_last_message"])
             rates.append((steps - 1) / lockstep)
             print(f"run {i + 1}: {steps} steps, {totals[-1]:.2f} s launch to exit ({steps / totals[-1]:.0f} steps/s "
                   f"overall), lockstep {lockstep:.2f} s = {rates[-1]:.0f} steps/s ({1e6 / rates[-1]:.0f} us/step)")
     rate = statistics.median(rates)
-    print(f"process graph, lockstep, median of {args.runs}: {rate:.0f} control steps per wall second "
+    print(f"{args.layout} graph, lockstep, median of {args.runs}: {rate:.0f} control steps per wall second "
           f"(real-time factor {rate * experiment.sample_time:.2f}); overall incl. start-up "
           f"{steps / statistics.median(totals):.0f} steps/s")
     print(f"ratio in-process / graph lockstep: {sim_rate / rate:.1f}")

@@ -34,7 +34,8 @@ def _run(args):
     from .scoring import format_scores, score_bag
     config = _experiment_path(args.config)
     try:
-        bag = run_graph(config, args.bag, progress=lambda m: print(m, flush=True))
+        bag = run_graph(config, args.bag, progress=lambda m: print(m, flush=True),
+                        layout="composed" if args.composed else "process")
     except RunError as error:
         print(f"error: {error}", file=sys.stderr)
         if error.bag is not None and Path(error.bag).is_file():
@@ -136,6 +137,7 @@ def main(argv=None):
     p = sub.add_parser("run", help="run an experiment through the node graph, record a bag, print its scores")
     p.add_argument("config", nargs="?", default=DEFAULT_EXPERIMENT, help=f"experiment YAML (default {DEFAULT_EXPERIMENT})")
     p.add_argument("--bag", help="bag to write (default bags/<experiment>_<time>.mcap)")
+    p.add_argument("--composed", action="store_true", help="run every node in one process under one executor")
     p.set_defaults(func=_run)
     p = sub.add_parser("simulate", help="run an experiment in-process (no ROS) and print its scores")
     p.add_argument("config")

@@ -156,8 +156,14 @@ def _raise_terminated(signum, frame):
     raise _Terminated()
 
 
+def composed_command(experiment_path, bag: Path) -> list:
+    """The composed layout: one process running every node under one executor."""
+    return [NodeProcess("/composed", [sys.executable, "-m", "contouring_ros.composed", str(experiment_path),
+                                      str(bag)])]
+
+
 def run_graph(experiment_path, bag=None, *, timeout: float | None = None, domain_id: int | None = None,
-              progress=None, on_started=None) -> Path:
+              progress=None, on_started=None, layout: str = "process") -> Path:
     """Run the experiment through the process graph and return the bag's path.
 
     On any failure (a node dying, a stall, a timeout, SIGINT or SIGTERM) every node is stopped, the
@@ -177,6 +183,8 @@ def run_graph(experiment_path, bag=None, *, timeout: float | None = None, domain
         Receives one-line status messages.
     on_started : callable(list of NodeProcess), optional
         Called once every node process has been started.
+    layout : str
+        ``process`` (every node its own process) or ``composed`` (all nodes in one process).
     """
     experiment_path = Path(experiment_path)
     experiment = load_experiment(experiment_path)
@@ -185,7 +193,10 @@ def run_graph(experiment_path, bag=None, *, timeout: float | None = None, domain
     if bag.exists():
         bag.unlink()
     timeout = timeout if timeout is not None else 60.0 + experiment.n_steps / 50.0
-    nodes = graph_commands(experiment_path.resolve(), experiment, bag.resolve())
+    if layout not in ("process", "composed"):
+        raise RunError(f"unknown layout {layout!r} (expected process or composed)")
+    nodes = graph_commands(experiment_path.resolve(), experiment, bag.resolve()) if layout == "process" \
+        else composed_command(experiment_path.resolve(), bag.resolve())
     say = progress or (lambda message: None)
     in_main_thread = threading.current_thread() is threading.main_thread()
     previous_handler = signal.signal(signal.SIGTERM, _raise_terminated) if in_main_thread else None
@@ -235,13 +246,13 @@ def _watch(nodes, timeout, started, say):
                 detail = node.last_error_line()
                 reasons.append(f"node {node.name} {_exit_description(node.process.poll())}"
                                + (f": {detail}" if detail and node.process.poll() > 0 else ""))
-            if codes["/recorder"] is not None and codes["/recorder"] < 0:
+            if (codes.get("/recorder") or 0) < 0:
                 reasons.append("the recorder could not close the bag: it has no summary and is readable up to "
                                "its last complete chunk")
             raise RunError("; ".join(reasons))
         if all(code == 0 for code in codes.values()):
             return
-        if codes["/recorder"] == 0:
+        if codes.get("/recorder") == 0:
             # The bag is complete; a node still shutting down after its last step is stopped by the caller.
             recorder_done = recorder_done or time.monotonic()
             if time.monotonic() - recorder_done > SHUTDOWN_GRACE:

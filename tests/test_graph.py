@@ -73,3 +73,29 @@ def test_bag_opens_with_plain_mcap_and_ros2_decoder(default_runs):
         assert count == 401
         metadata = {m.name: m.metadata for m in reader.iter_metadata()}
         assert "curve" in metadata["contouring_ros.experiment"]["yaml"]
+
+
+def test_composed_layout_records_the_same_payloads(default_runs, tmp_path):
+    """All nodes in one process (lean loop over every subscription): the same bag as the process layout."""
+    path, bags = default_runs
+    composed = run_graph(path, tmp_path / "composed.mcap", layout="composed")
+    _assert_identical(path, composed)
+    first, second = (read_run(bag, keep_payloads=True).payloads for bag in (bags[0], composed))
+    assert all(sorted(first[topic]) == sorted(second[topic]) for topic in first)
+
+
+def test_stock_executor_path_reproduces_simulation(tmp_path):
+    """The nodes' subscription callbacks under rclpy's SingleThreadedExecutor (how users embed them)."""
+    import os
+    import subprocess
+    import sys
+    from contouring_ros.runner import DomainLease, private_environment
+    path = tmp_path / "stock.yaml"
+    path.write_text(shortened(DEFAULT, 0.2))
+    bag = tmp_path / "stock.mcap"
+    with DomainLease() as lease:
+        done = subprocess.run([sys.executable, "-m", "contouring_ros.composed", str(path), str(bag), "stock"],
+                              env=private_environment(lease.domain_id), capture_output=True, text=True, timeout=120,
+                              cwd=os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    assert done.returncode == 0, done.stderr
+    _assert_identical(path, bag)

@@ -54,8 +54,15 @@ class LockstepNode:
     role = ""
     default_name = ""
 
-    def __init__(self, args=None):
-        self.node = rclpy.create_node(self.default_name, automatically_declare_parameters_from_overrides=True)
+    def __init__(self, args=None, *, name: str | None = None, namespace: str | None = None,
+                 parameter_overrides=None, callbacks: bool = False):
+        """Create the node. ``callbacks`` selects the stock path: inputs arrive through subscription
+        callbacks of whatever executor spins ``self.node`` (for embedding and the composed layout)
+        instead of the node's own wait-set loop (:meth:`spin`)."""
+        self.callbacks = callbacks
+        self.node = rclpy.create_node(name or self.default_name, namespace=namespace,
+                                      parameter_overrides=parameter_overrides or [],
+                                      automatically_declare_parameters_from_overrides=True)
         self.name = self.node.get_fully_qualified_name()
         parameters = {name: p.value for name, p in self.node.get_parameters_by_prefix("").items()}
         self.experiment = experiment_for_node(parameters, self.name, self.role)
@@ -78,7 +85,8 @@ class LockstepNode:
         """Subscribe to ``topic``; its messages reach :meth:`on_step` decoded by the cdr codec."""
         type_name = self._topics[topic].type
         cls = message_class(type_name)
-        sub = self.node.create_subscription(cls, topic, lambda _msg: None, qos, raw=True)
+        callback = (lambda data, topic=topic: self.on_message(topic, data)) if self.callbacks else (lambda _: None)
+        sub = self.node.create_subscription(cls, topic, callback, qos, raw=True)
         self._inputs.append((topic, sub, cls, _DECODERS.get(type_name)))
 
     def add_output(self, topic: str):
@@ -141,6 +149,11 @@ class LockstepNode:
         k = cdr.stamp_ns(data) // self.sample_time_ns
         if k >= self.next_step:
             self._pending.setdefault(k, {})[topic] = data
+
+    def on_message(self, topic: str, data: bytes):
+        """Subscription callback of the stock executor path: file the message, run the steps it completes."""
+        self.file_message(topic, data)
+        self._fire_ready_steps()
 
     def _fire_ready_steps(self):
         n_inputs = len(self._inputs)

@@ -43,6 +43,14 @@ class RecorderNode(LockstepNode):
         self.last_receive = time.monotonic()
         if self.first_receive is None:
             self.first_receive = self.last_receive
+        if not self.finished and self.complete():
+            self.finished = True
+
+    def complete(self) -> bool:
+        return min(self.counts[t] for t in self.lockstep_topics) >= self.n_steps
+
+    def on_message(self, topic, data):
+        self.file_message(topic, data)
 
     def spin(self):
         self.wait_for_graph()
@@ -52,7 +60,7 @@ class RecorderNode(LockstepNode):
             self._take_all()
             return sum(self.counts.values()) > before
 
-        self.wait_loop(lambda: min(self.counts[t] for t in self.lockstep_topics) >= self.n_steps, take,
+        self.wait_loop(self.complete, take,
                        lambda: "incomplete topics " + ", ".join(t for t in self.lockstep_topics
                                                                  if self.counts[t] < self.n_steps))
         self.finished = True

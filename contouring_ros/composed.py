@@ -1,0 +1,121 @@
+"""The composed layout: every node of the graph as its own rclpy node, all in one process under one
+SingleThreadedExecutor (the stock callback path of :class:`~contouring_ros.nodes.lockstep.LockstepNode`).
+
+Same nodes, same topics, same step semantics as the process layout, hence the same bag payloads.
+Usage (the runner does this): python -m contouring_ros.composed EXPERIMENT.yaml BAG.mcap [lean|stock]
+"""
+from __future__ import annotations
+
+import sys
+import time
+
+from . import graph
+from .config import load_experiment
+from .errors import ContouringError, RunError
+
+__all__ = ["main"]
+
+
+def _node_classes():
+    from .nodes.ccc import CCCNode
+    from .nodes.contour_estimator import ContourEstimatorNode
+    from .nodes.interpolator import InterpolatorNode
+    from .nodes.plant import PlantNode
+    from .nodes.recorder import RecorderNode
+    from .nodes.servo import ServoNode
+    return {"interpolator": InterpolatorNode, "plant": PlantNode, "servo": ServoNode,
+            "contour_estimator": ContourEstimatorNode, "ccc": CCCNode, "recorder": RecorderNode}
+
+
+def _lean_spin_once(nodes, wait_set, handles, timeout_ns: int):
+    """One turn of the lean loop over every node's subscriptions: wait, take, dispatch."""
+    wait_set.clear_entities()
+    for handle in handles:
+        wait_set.add_subscription(handle)
+    wait_set.wait(timeout_ns)
+    for node in nodes:
+        for topic, sub, cls, _ in node._inputs:
+            while True:
+                taken = sub.handle.take_message(cls, True)
+                if taken is None:
+                    break
+                node.on_message(topic, taken[0])
+
+
+def run_composed(experiment_path: str, bag: str, executor_kind: str = "lean"):
+    """Create every node in this process, run the lockstep to the end, close the bag.
+
+    ``executor_kind`` ``lean`` waits on one wait set holding every node's subscriptions and dispatches
+    serialised messages directly; ``stock`` spins rclpy's SingleThreadedExecutor over the same nodes'
+    subscription callbacks (the path for users who embed the nodes in their own executor).
+    """
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.parameter import Parameter
+    experiment = load_experiment(experiment_path)
+    rclpy.init(args=["--ros-args", "--params-file", str(experiment_path)])
+    classes, nodes = _node_classes(), []
+    executor = SingleThreadedExecutor()
+    try:
+        for full_name in graph.node_names(experiment.axes):
+            parts = full_name.strip("/").split("/")
+            namespace, name = ("/" + parts[0], parts[1]) if len(parts) == 2 else ("/", parts[0])
+            overrides = [Parameter("bag", value=str(bag)), Parameter("experiment_file", value=str(experiment_path))] \
+                if name == "recorder" else []
+            node = classes[name](name=name, namespace=namespace, parameter_overrides=overrides, callbacks=True)
+            nodes.append(node)
+            executor.add_node(node.node)
+        for node in nodes:
+            node.wait_for_graph()
+        for node in nodes:
+            node.start()
+        if executor_kind == "lean":
+            from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+            handles = [sub.handle for node in nodes for _, sub, _, _ in node._inputs]
+            wait_set = _rclpy.WaitSet(len(handles), 0, 0, 0, 0, 0, nodes[0].node.context.handle)
+
+            def spin_once(timeout_sec):
+                _lean_spin_once(nodes, wait_set, handles, int(timeout_sec * 1e9))
+        else:
+            spin_once = executor.spin_once
+        last, last_progress = -1, time.monotonic()
+        while not all(node.finished for node in nodes):
+            spin_once(timeout_sec=0.2)
+            progress = sum(node.next_step for node in nodes) + sum(getattr(node, "counts", {}).values())
+            if progress != last:
+                last, last_progress = progress, time.monotonic()
+            elif time.monotonic() - last_progress > experiment.stall_timeout:
+                stuck = [node for node in nodes if not node.finished]
+                raise RunError(f"composed graph stalled for {experiment.stall_timeout:g} s: "
+                               + "; ".join(f"{n.name} at step {n.next_step}, no message on "
+                                           f"{', '.join(n.missing_inputs())}" for n in stuck if n.missing_inputs()))
+        recorder = nodes[-1]
+        for node in nodes[:-1]:
+            node.finish()
+        deadline = time.monotonic() + 0.3            # let the recorder take the end-of-run diagnostics
+        while time.monotonic() < deadline:
+            spin_once(timeout_sec=0.02)
+        recorder.finish()
+    finally:
+        for node in reversed(nodes):
+            node.destroy()
+        rclpy.try_shutdown()
+
+
+def main(argv=None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    if len(argv) not in (2, 3) or (len(argv) == 3 and argv[2] not in ("lean", "stock")):
+        print("usage: python -m contouring_ros.composed EXPERIMENT.yaml BAG.mcap [lean|stock]", file=sys.stderr)
+        return 2
+    try:
+        run_composed(*argv)
+    except KeyboardInterrupt:
+        return 130
+    except ContouringError as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
