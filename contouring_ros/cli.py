@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from pathlib import Path
 
@@ -126,6 +127,19 @@ def _plot(args):
         print(html_report(runs, [scores for _, scores, _ in results], out / "report.html", args.magnification))
 
 
+def _sweep(args):
+    from datetime import datetime
+    from .config import load_experiment
+    from .sweep import format_sweep, parse_grid, run_sweep, write_sweep_csv
+    experiment = load_experiment(_experiment_path(args.config))
+    rows = run_sweep(experiment.text, parse_grid(args.grid), args.workers, progress=sys.stderr.isatty())
+    print(format_sweep(rows))
+    out = Path(args.out or f"bags/{experiment.name}_sweep_{datetime.now():%Y%m%d_%H%M%S}.csv")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    write_sweep_csv(rows, out)
+    print(f"ranked results: {out}")
+
+
 def _paper(args):
     from .paper import paper_report
     print(paper_report(args.paper, graph=args.graph, progress=lambda m: print(m, file=sys.stderr, flush=True)))
@@ -167,6 +181,13 @@ def main(argv=None):
     p.add_argument("--magnification", type=float, help="contour error magnification in the path plot")
     p.add_argument("--experiment", help=experiment_help)
     p.set_defaults(func=_plot)
+    p = sub.add_parser("sweep", help="in-process runs over a parameter grid, ranked by MCE and TACE")
+    p.add_argument("config")
+    p.add_argument("--grid", action="append", required=True,
+                   help="KEY=V1,V2,... (repeatable), e.g. ccc.kp=0.5,1,2 or curve.h=50,100")
+    p.add_argument("--workers", type=int, help="processes (default: one per core)")
+    p.add_argument("--out", help="CSV of the ranked results (default bags/<experiment>_sweep_<time>.csv)")
+    p.set_defaults(func=_sweep)
     p = sub.add_parser("paper", help="run a paper's scenarios and print our numbers beside the paper's")
     p.add_argument("paper", choices=["000"], help="paper number (see ../shared/seeds/README.md)")
     p.add_argument("--graph", action="store_true", help="run each scenario through the node graph too")
@@ -180,6 +201,9 @@ def main(argv=None):
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:        # output piped into head and the like
+        sys.stdout = open(os.devnull, "w")
+        return 0
     return 0
 
 

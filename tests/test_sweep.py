@@ -1,0 +1,38 @@
+"""Parameter sweeps over the in-process simulation."""
+import csv
+
+import pytest
+
+from contouring_ros.config import build_loop, parse_experiment
+from contouring_ros.core.simulation import simulate
+from contouring_ros.errors import ConfigError
+from contouring_ros.scoring import score_run
+from contouring_ros.sweep import combinations, parse_grid, run_sweep, write_sweep_csv
+from conftest import DEFAULT, shortened
+
+
+def test_sweep_ranks_every_combination_and_matches_single_runs(tmp_path):
+    text = shortened(DEFAULT, 0.3)
+    grid = parse_grid(["ccc.kp=0.5,4", "x/servo.kappa=0.2985,0.5"])
+    rows = run_sweep(text, grid, workers=2)
+    assert len(rows) == 4
+    assert [r.scores.mce for r in rows] == sorted(r.scores.mce for r in rows)
+    best = rows[0]
+    settings, combo = next(c for c in combinations(text, grid) if c[0] == best.settings)
+    loop = build_loop(parse_experiment(combo, "one"))
+    assert score_run(loop.curve, simulate(loop)) == best.scores
+    path = tmp_path / "sweep.csv"
+    write_sweep_csv(rows, path)
+    table = list(csv.reader(path.open()))
+    assert table[0][:3] == ["rank", "ccc.kp", "x/servo.kappa"] and len(table) == 5
+
+
+def test_sweep_refuses_an_invalid_combination_naming_it():
+    with pytest.raises(ConfigError, match=r"ccc.kp.*-1.*expected a value >= 0"):
+        run_sweep(shortened(DEFAULT, 0.1), parse_grid(["ccc.kp=1,-1"]), workers=1)
+
+
+@pytest.mark.parametrize("spec", ["ccc.kp", "=1,2", "ccc.kp="])
+def test_malformed_grid(spec):
+    with pytest.raises(ConfigError, match="expected key=value1,value2"):
+        parse_grid([spec])
