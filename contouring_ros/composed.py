@@ -34,12 +34,7 @@ def _lean_spin_once(nodes, wait_set, handles, timeout_ns: int):
         wait_set.add_subscription(handle)
     wait_set.wait(timeout_ns)
     for node in nodes:
-        for topic, sub, cls, _ in node._inputs:
-            while True:
-                taken = sub.handle.take_message(cls, True)
-                if taken is None:
-                    break
-                node.on_message(topic, taken[0])
+        node.take_all(node.on_message)
 
 
 def run_composed(experiment_path: str, bag: str, executor_kind: str = "lean"):

@@ -136,13 +136,16 @@ class LockstepNode:
                                f"(still waiting for {missing[0]})")
             time.sleep(0.01)
 
-    def _take_all(self):
+    def take_all(self, handle=None):
+        """Take every message waiting on the inputs and pass each to ``handle(topic, data)``
+        (default :meth:`file_message`; the composed layout passes :meth:`on_message`)."""
+        handle = handle or self.file_message
         for topic, sub, cls, _ in self._inputs:
             while True:
                 taken = sub.handle.take_message(cls, True)
                 if taken is None:
                     break
-                self.file_message(topic, taken[0])
+                handle(topic, taken[0])
 
     def file_message(self, topic: str, data: bytes):
         """File a serialised input under the step its stamp names."""
@@ -234,7 +237,7 @@ class LockstepNode:
             return
 
         def take_and_fire():
-            self._take_all()
+            self.take_all()
             return self._fire_ready_steps()
 
         self.wait_loop(lambda: self.finished, take_and_fire,

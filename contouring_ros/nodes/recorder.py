@@ -57,7 +57,7 @@ class RecorderNode(LockstepNode):
 
         def take():
             before = sum(self.counts.values())
-            self._take_all()
+            self.take_all()
             return sum(self.counts.values()) > before
 
         self.wait_loop(self.complete, take,
@@ -66,7 +66,7 @@ class RecorderNode(LockstepNode):
         self.finished = True
         deadline = time.monotonic() + DIAGNOSTICS_LINGER      # the nodes' end-of-run summaries
         while time.monotonic() < deadline:
-            self._take_all()
+            self.take_all()
             time.sleep(0.01)
 
     def destroy(self):
