@@ -45,6 +45,14 @@ def test_variable_gain_graph_reproduces_simulation_exactly(tmp_path):
     _assert_identical(path, run_graph(path, tmp_path / "vg.mcap"))
 
 
+def test_run_longer_than_the_stall_timeout_completes(tmp_path):
+    """The stall timer measures time without progress, not time since the start: a run whose lockstep
+    lasts several stall timeouts completes, identical to the simulation."""
+    path = tmp_path / "long.yaml"
+    path.write_text(shortened(DEFAULT, 2.5).replace("    duration: 2.5\n", "    duration: 2.5\n    stall_timeout: 1.0\n"))
+    _assert_identical(path, run_graph(path, tmp_path / "long.mcap"))
+
+
 def test_two_runs_record_identical_payloads(default_runs):
     _, bags = default_runs
     first, second = (read_run(bag, keep_payloads=True).payloads for bag in bags)

@@ -158,18 +158,20 @@ class LockstepNode:
         self.file_message(topic, data)
         self._fire_ready_steps()
 
-    def _fire_ready_steps(self):
+    def _fire_ready_steps(self) -> bool:
+        """Handle every step whose inputs are complete; say whether at least one was handled."""
         n_inputs = len(self._inputs)
+        first = self.next_step
         while not self.finished:
             ready = self._pending.get(self.next_step)
             if ready is None or len(ready) < n_inputs:
-                return False
+                break
             del self._pending[self.next_step]
             self.on_step(self.next_step, self._checked_inputs(self.next_step, ready))
             self.next_step += 1
             if self.next_step >= self.n_steps:
                 self.finished = True
-        return True
+        return self.next_step > first
 
     def _checked_inputs(self, k: int, ready: dict) -> dict:
         """Decode step k's inputs and check each against its topic's layout.
