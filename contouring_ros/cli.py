@@ -7,7 +7,7 @@ import os
 import sys
 from pathlib import Path
 
-from .errors import ContouringError
+from .errors import ConfigError, ContouringError
 
 DEFAULT_EXPERIMENT = "config/paper000_b_ismc_h50_newton.yaml"
 
@@ -141,8 +141,16 @@ def _sweep(args):
 
 
 def _paper(args):
-    from .paper import paper_report
-    print(paper_report(args.paper, graph=args.graph, progress=lambda m: print(m, file=sys.stderr, flush=True)))
+    from .paper import available_papers, paper_report, write_report
+    papers = available_papers()
+    if args.paper != "all" and args.paper not in papers:
+        raise ConfigError(f"paper {args.paper!r}: no scenario files config/paper{args.paper}_*.yaml "
+                          f"(papers with scenarios: {', '.join(papers)}, or all)")
+    say = lambda m: print(m, file=sys.stderr, flush=True)  # noqa: E731
+    text = "\n\n".join(paper_report(p, graph=args.graph, progress=say)
+                        for p in (papers if args.paper == "all" else [args.paper]))
+    print(text)
+    print(f"wrote {write_report(text, args.paper, args.out)}", file=sys.stderr)
 
 
 def main(argv=None):
@@ -189,7 +197,8 @@ def main(argv=None):
     p.add_argument("--out", help="CSV of the ranked results (default bags/<experiment>_sweep_<time>.csv)")
     p.set_defaults(func=_sweep)
     p = sub.add_parser("paper", help="run a paper's scenarios and print our numbers beside the paper's")
-    p.add_argument("paper", choices=["000"], help="paper number (see ../shared/seeds/README.md)")
+    p.add_argument("paper", help="paper number with scenario files in config/ (e.g. 000, 003) or 'all'")
+    p.add_argument("--out", default="reports", help="folder for the Markdown report (default: reports/)")
     p.add_argument("--graph", action="store_true", help="run each scenario through the node graph too")
     p.set_defaults(func=_paper)
     args = parser.parse_args(argv)

@@ -67,6 +67,12 @@ CURVES = {
     "parabola": {"a": Param("float", check="positive"), "h": Param("float")},
     "circle": {"radius": Param("float", check="positive"), "center": Param("floats", [0.0, 0.0])},
     "line": {"start": Param("floats"), "end": Param("floats")},
+    "ellipse": {"a": Param("float", check="positive"), "b": Param("float", check="positive"),
+                "center": Param("floats", [0.0, 0.0])},
+    "figure_eight": {"a": Param("float", check="positive"), "b": Param("float", check="positive"),
+                     "center": Param("floats", [0.0, 0.0])},
+    "helix": {"a": Param("float", check="positive"), "b": Param("float", check="positive"), "c": Param("float"),
+              "omega": Param("float"), "length": Param("float", check="positive")},
 }
 SCHEDULES = {
     "uniform": {"theta_start": Param("float"), "theta_end": Param("float"),
@@ -77,6 +83,12 @@ PLANTS = {
                              "time_constant": Param("float", check="positive"),
                              "disturbance": Param("dict", {"type": "none"}, choices=DISTURBANCES),
                              "saturation": LIMIT},
+    "mass_damper": {"mass": Param("float", check="positive"), "damping": Param("float", check="nonnegative"),
+                    "gain": Param("float", check="positive"),
+                    "coulomb_positive": Param("float", 0.0, "nonnegative"),
+                    "coulomb_negative": Param("float", 0.0, "nonnegative"),
+                    "disturbance": Param("dict", {"type": "none"}, choices=DISTURBANCES),
+                    "saturation": LIMIT},
 }
 SERVOS = {
     "pid_feedforward": {**_gains(), "gain": Param("float", check="positive"),
@@ -86,9 +98,11 @@ SERVOS = {
              "gain": Param("float", check="positive"), "time_constant": Param("float", check="positive"),
              "observer": Param("bool", False), "c": Param("float", 1.0, "positive"),
              "d": Param("float", 1.0, "positive"), "output_limit": LIMIT},
+    "direct": {"output_limit": LIMIT},
 }
 ESTIMATORS = {
     "tangent_line": {},
+    "natural_local": {},
     "newton": {"k_prime": Param("float", check="positive"), "c_prime": Param("float", check="positive"),
                "iterations": Param("int", 20, "positive"), "inner_step": Param("float", 0.0, "nonnegative"),
                "theta0": Param("float", None),
@@ -99,7 +113,16 @@ CONTROLLERS = {
     "none": {},
     "variable_gain": _gains(),
     "unit_vector": _gains(),
+    "task_frame_pd": {"approximation": Param("str"), "mass": Param("floats"), "damping": Param("floats"),
+                      "gain": Param("floats"), "coulomb_positive": Param("floats", None),
+                      "coulomb_negative": Param("floats", None), "f_t": Param("float", check="positive"),
+                      "f_n": Param("float", check="positive"), "f_b": Param("float", None, "positive"),
+                      "zeta": Param("float", 1.0, "positive")},
 }
+# task-frame controllers: the local approximation they act on -> the estimator that reports its errors
+APPROXIMATIONS = {"first_order": "tangent_line", "natural_local": "natural_local"}
+# controllers that compute every axis' whole command (their servos must be 'direct', and only theirs)
+WHOLE_COMMAND_CONTROLLERS = {"task_frame_pd"}
 GLOBALS = {
     "experiment": Param("dict", {}),
     "paper": Param("dict", {}),
@@ -288,7 +311,38 @@ def _validate_role(where, node: str, role: str, given: dict, globals_: dict) -> 
     section = _typed(where, node, type_key, registry, given)
     if role == "ccc" and section["type"] == "variable_gain" and len(globals_["axes"]) != 2:
         _fail(where, f"{node}.type", "the variable_gain CCC needs exactly 2 axes")
+    if role == "ccc" and section["type"] == "task_frame_pd":
+        if section["approximation"] not in APPROXIMATIONS:
+            _fail(where, f"{node}.approximation", f"expected one of {', '.join(APPROXIMATIONS)}, "
+                                                  f"got {section['approximation']!r}")
+        if len(globals_["axes"]) not in (2, 3):
+            _fail(where, f"{node}.type", "the task_frame_pd controller needs 2 or 3 axes (a Frenet frame)")
+        if len(globals_["axes"]) == 3 and section["f_b"] is None:
+            _fail(where, f"{node}.f_b", "missing required key (the binormal bandwidth, for 3 axes)")
+        for key in ("mass", "damping", "gain", "coulomb_positive", "coulomb_negative"):
+            if section[key] is not None and len(section[key]) != len(globals_["axes"]):
+                _fail(where, f"{node}.{key}", f"expected one value per axis ({len(globals_['axes'])}), "
+                                              f"got {len(section[key])}")
     return section
+
+
+def _validate_combination(where, estimator: dict, controller: dict, servos: dict):
+    """Refuse estimator / controller / servo combinations whose maths does not fit together."""
+    whole = controller["type"] in WHOLE_COMMAND_CONTROLLERS
+    for axis, section in servos.items():
+        if whole and section["law"] != "direct":
+            _fail(where, f"/{axis}/servo.law", f"the {controller['type']} controller computes the whole command: "
+                                               "every servo law must be 'direct'")
+        if not whole and section["law"] == "direct":
+            _fail(where, f"/{axis}/servo.law", f"'direct' passes the contour controller's output through, but the "
+                                               f"{controller['type']} controller only adds corrections: the axis "
+                                               "would run open loop")
+    if controller["type"] == "task_frame_pd":
+        expected = APPROXIMATIONS[controller["approximation"]]
+        if estimator["type"] != expected:
+            _fail(where, "/contour_estimator.type",
+                  f"the task_frame_pd controller with approximation {controller['approximation']!r} acts on the "
+                  f"errors of the {expected!r} estimator, got {estimator['type']!r}")
 
 
 def parse_experiment(text: str, where: str = "<experiment>") -> Experiment:
@@ -319,6 +373,8 @@ def parse_experiment(text: str, where: str = "<experiment>") -> Experiment:
         if node not in parsed and role not in OPTIONAL_NODES:
             _fail(where, node, "missing required node section")
     axes = globals_["axes"]
+    _validate_combination(where, parsed["/contour_estimator"], parsed["/ccc"],
+                          {a: parsed[f"/{a}/servo"] for a in axes})
     return Experiment(
         path=where, text=text, sample_time=globals_["sample_time"], duration=globals_["duration"],
         axes=tuple(axes), curve=globals_["curve"], schedule=globals_["schedule"],
@@ -395,6 +451,12 @@ def build_curve_from(section: dict, where: str = "curve") -> curves.Curve:
             return curves.Circle(section["radius"], section["center"])
         if kind == "line":
             return curves.Line(section["start"], section["end"])
+        if kind == "ellipse":
+            return curves.Ellipse(section["a"], section["b"], section["center"])
+        if kind == "figure_eight":
+            return curves.FigureEight(section["a"], section["b"], section["center"])
+        if kind == "helix":
+            return curves.Helix(section["a"], section["b"], section["c"], section["omega"], section["length"])
     except ValueError as error:
         raise ConfigError(f"{where}: curve: {error}") from None
     raise ConfigError(f"{where}: curve.type: unknown name {kind!r}")
@@ -430,6 +492,11 @@ def initial_state(experiment: Experiment, curve=None, schedule=None):
 
 def build_plant(experiment: Experiment, axis: str, position: float, velocity: float):
     section = experiment.plants[axis]
+    if section["model"] == "mass_damper":
+        return plants.MassDamperAxis(section["mass"], section["damping"], section["gain"], experiment.sample_time,
+                                     build_disturbance(section["disturbance"]), position, velocity,
+                                     section["saturation"], section["coulomb_positive"],
+                                     section["coulomb_negative"])
     return plants.FirstOrderVelocityAxis(section["gain"], section["time_constant"], experiment.sample_time,
                                          build_disturbance(section["disturbance"]), position, velocity,
                                          section["saturation"])
@@ -437,6 +504,8 @@ def build_plant(experiment: Experiment, axis: str, position: float, velocity: fl
 
 def build_servo(experiment: Experiment, axis: str, velocity: float, acceleration: float):
     s, ts = experiment.servos[axis], experiment.sample_time
+    if s["law"] == "direct":
+        return servo.DirectServo(s["output_limit"])
     if s["law"] == "pid_feedforward":
         return servo.PIDFeedforwardServo(s["kp"], s["ki"], s["kd"], s["gain"], s["time_constant"], ts,
                                          s["output_limit"])
@@ -451,6 +520,8 @@ def build_estimator(experiment: Experiment, curve):
     s = experiment.estimator
     if s["type"] == "tangent_line":
         return estimators.TangentLineEstimator(curve)
+    if s["type"] == "natural_local":
+        return estimators.NaturalLocalEstimator(curve)
     theta0 = s["theta0"] if s["theta0"] is not None else experiment.schedule["theta_start"]
     inner = s["inner_step"] or experiment.sample_time
     check = estimators.BranchCheck(curve, s["branch_check_samples"], s["branch_check_tolerance"]) \
@@ -462,6 +533,12 @@ def build_controller(experiment: Experiment, curve):
     s, ts = experiment.controller, experiment.sample_time
     if s["type"] == "none":
         return contouring.NoCoupling(len(experiment.axes))
+    if s["type"] == "task_frame_pd":
+        approximation = {"first_order": estimators.first_order_terms,
+                         "natural_local": estimators.natural_local_terms}[s["approximation"]]
+        return contouring.TaskFramePD(curve, approximation, s["mass"], s["damping"], s["gain"],
+                                      [s["f_t"], s["f_n"]] + ([s["f_b"]] if s["f_b"] is not None else []), s["zeta"], s["coulomb_positive"],
+                                      s["coulomb_negative"])
     if s["type"] == "variable_gain":
         return contouring.VariableGainCCC(curve, s["kp"], s["ki"], s["kd"], ts, s["output_limit"])
     return contouring.UnitVectorCCC(len(experiment.axes), s["kp"], s["ki"], s["kd"], ts, s["output_limit"])

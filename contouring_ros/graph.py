@@ -69,11 +69,11 @@ def topics(axes) -> list:
     axis_state = (("position", 1), ("velocity", 1))
     out = [Topic(CLOCK, "rosgraph_msgs/msg/Clock", "/interpolator", ("/recorder",)),
            Topic(REFERENCE, "trajectory_msgs/msg/JointTrajectory", "/interpolator",
-                 ("/contour_estimator",) + tuple(f"/{a}/servo" for a in axes) + ("/recorder",),
+                 ("/contour_estimator", "/ccc") + tuple(f"/{a}/servo" for a in axes) + ("/recorder",),
                  (("positions", n + 1), ("velocities", n + 1), ("accelerations", n + 1)))]
     for a in axes:
         out.append(Topic(state_topic(a), "sensor_msgs/msg/JointState", f"/{a}/plant",
-                         ("/contour_estimator", f"/{a}/servo", "/recorder"), axis_state))
+                         ("/contour_estimator", "/ccc", f"/{a}/servo", "/recorder"), axis_state))
     out.append(Topic(CONTOUR_ERROR, "sensor_msgs/msg/JointState", "/contour_estimator",
                      ("/ccc", "/interpolator", "/recorder"), (("position", n + 2),)))
     out.append(Topic(CORRECTION, "sensor_msgs/msg/JointState", "/ccc",

@@ -3,7 +3,7 @@ import pytest
 
 from contouring_ros.config import load_experiment, parse_experiment
 from contouring_ros.errors import ConfigError
-from conftest import DEFAULT
+from conftest import CONFIG, DEFAULT
 
 BASE = DEFAULT.read_text()
 
@@ -107,3 +107,35 @@ def test_cli_refuses_every_malformed_file_in_one_line_before_any_node(tmp_path, 
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and err.startswith(f"error: {path}: ") and "Traceback" not in err
         assert not (tmp_path / f"bad{i}.mcap").exists()
+
+
+HELIX = (CONFIG / "paper003_helix_natural_local_f15_10.yaml").read_text()
+
+
+@pytest.mark.parametrize("old,new,expected", [
+    ("{type: natural_local}", "{type: newton, k_prime: 500.0, c_prime: 500.0}",
+     "/contour_estimator.type: the task_frame_pd controller with approximation 'natural_local' acts on the "
+     "errors of the 'natural_local' estimator, got 'newton'"),
+    ("approximation: natural_local", "approximation: osculating",
+     "/ccc.approximation: expected one of first_order, natural_local, got 'osculating'"),
+    ("/x/servo:\n  ros__parameters: {law: direct}",
+     "/x/servo:\n  ros__parameters: {law: pid_feedforward, kp: 1.0, ki: 0.0, kd: 0.0, gain: 1.0, time_constant: 0.1}",
+     "/x/servo.law: the task_frame_pd controller computes the whole command: every servo law must be 'direct'"),
+    ("    f_b: 10.0\n", "", "/ccc.f_b: missing required key (the binormal bandwidth, for 3 axes)"),
+    ("mass: [1.0, 1.0, 1.0]", "mass: [1.0, 1.0]", "/ccc.mass: expected one value per axis (3), got 2"),
+    ("damping: 225.0", "damping: -1.0", "/y/plant.damping: expected a value >= 0"),
+    ("length: 4.5", "length: 0.0", "curve.length: expected a positive value"),
+])
+def test_refused_combinations_and_task_frame_keys(old, new, expected):
+    assert old in HELIX
+    with pytest.raises(ConfigError) as info:
+        parse_experiment(HELIX.replace(old, new, 1), "helix.yaml")
+    assert expected in str(info.value) and "\n" not in str(info.value)
+
+
+def test_direct_servo_needs_a_whole_command_controller():
+    text = BASE.replace("/x/servo:\n  ros__parameters:\n    law: ismc", "/x/servo:\n  ros__parameters:\n    law: direct", 1)
+    text = text.replace("    a: 12.5\n    b: 12.5\n    mu: 1.0e-3\n    kappa: 0.2985\n    gain: 10.3\n"
+                        "    time_constant: 0.040\n    observer: true\n    c: 25.0\n    d: 25.0\n", "", 1)
+    with pytest.raises(ConfigError, match="/x/servo.law: 'direct' passes the contour controller's output through"):
+        parse_experiment(text, "exp.yaml")

@@ -3,11 +3,13 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from contouring_ros.core.curves import Circle, Line, Parabola
-from contouring_ros.core.geometry import ExactContourError, curvature
+from contouring_ros.core.curves import Circle, Ellipse, FigureEight, Helix, Line, Parabola
+from contouring_ros.core.geometry import ExactContourError, curvature, frenet_frame
 
 
-@pytest.mark.parametrize("curve", [Parabola(0.02, 50.0), Circle(0.1, (0.01, -0.02)), Line([0, 0, 0], [0.3, 0.1, -0.2])])
+@pytest.mark.parametrize("curve", [Parabola(0.02, 50.0), Circle(0.1, (0.01, -0.02)), Line([0, 0, 0], [0.3, 0.1, -0.2]),
+                                   Ellipse(0.03, 0.01, (0.03, 0.0)), FigureEight(0.03, 0.03),
+                                   Helix(0.03, 0.01, 0.1, 2 * np.pi, 4.0)])
 def test_derivatives_match_finite_differences(curve):
     lo, hi = curve.domain
     theta = np.linspace(lo + 0.1 * (hi - lo), hi - 0.1 * (hi - lo), 7)
@@ -56,3 +58,28 @@ def test_points_on_the_curve_have_zero_error():
 def test_curvature_of_circle_and_parabola_vertex():
     assert_allclose(curvature(Circle(0.25), np.linspace(0, 6, 5)), 4.0)
     assert_allclose(curvature(Parabola(0.02, 50.0), 0.0), 100.0)
+
+
+def test_frenet_frame_of_a_circular_helix_has_the_textbook_curvature_and_torsion():
+    """Helix (r cos phi, r sin phi, c phi): kappa = r / (r^2 + c^2), tau = c / (r^2 + c^2) (paper 003 eq. 4-5).
+    Helix(a=b=r, c=0.1, omega=2 pi) rises 0.1 per turn: c = 0.1 / (2 pi) per radian."""
+    r, c = 0.03, 0.1 / (2 * np.pi)
+    helix = Helix(r, r, 0.1, 2 * np.pi, 4.0)
+    frame = frenet_frame(helix, 0.37, 1.0)
+    assert_allclose(frame.curvature, r / (r * r + c * c), rtol=1e-12)
+    assert_allclose(frame.torsion, c / (r * r + c * c), rtol=1e-12)
+    assert_allclose(frame.rotation.T @ frame.rotation, np.eye(3), atol=1e-14)
+    assert_allclose(np.linalg.det(frame.rotation), 1.0, rtol=1e-14)
+
+
+@pytest.mark.parametrize("curve,theta_dot", [(Helix(0.03, 0.01, 0.1, 2 * np.pi, 4.0), 1.0),
+                                             (Ellipse(0.03, 0.01), 1.8 * np.pi), (FigureEight(0.03, 0.03), np.pi)])
+def test_frenet_frame_rates_match_finite_differences(curve, theta_dot):
+    """dR/dt = -v R G and d2R/dt2 (paper 003, after eq. 19) against differences of R along the motion."""
+    theta, step = 1.1, 1e-6
+    frames = [frenet_frame(curve, theta + d * step, theta_dot) for d in (-1, 0, 1)]
+    rate = (frames[2].rotation - frames[0].rotation) / (2 * step / theta_dot)
+    acceleration = (frames[2].rotation_rate - frames[0].rotation_rate) / (2 * step / theta_dot)
+    scale = np.abs(frames[1].rotation_acceleration).max()
+    assert_allclose(frames[1].rotation_rate, rate, atol=1e-7 * np.abs(rate).max())
+    assert_allclose(frames[1].rotation_acceleration, acceleration, atol=1e-5 * scale)

@@ -3,10 +3,11 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from contouring_ros.core.curves import Line, Parabola
-from contouring_ros.core.estimators import NewtonEstimator, TangentLineEstimator
+from contouring_ros.core.curves import Circle, Helix, Line, Parabola
+from contouring_ros.core.estimators import (LocalApproximationEstimator, NaturalLocalEstimator, NewtonEstimator,
+                                            TangentLineEstimator, first_order_terms)
 from contouring_ros.core.geometry import ExactContourError
-from contouring_ros.core.interpolation import UniformSchedule, reference
+from contouring_ros.core.interpolation import Reference, UniformSchedule, reference
 
 
 def test_tangent_line_is_exact_on_a_line():
@@ -61,3 +62,53 @@ def test_newton_tracks_exact_error_10x_closer_than_tangent_line_on_deep_parabola
     tangent_dev = np.abs([np.linalg.norm(tangent.step(r, p).vector) for r, p in zip(refs, points)] - truth)
     assert tangent_dev.max() > 10 * newton_dev.max()
     assert newton_dev.max() < 1e-6
+
+
+def _reference_at(curve, theta):
+    d = curve.derivatives(theta, order=2)
+    return Reference(theta, 1.0, 0.0, d[0], d[1], d[2])
+
+
+def test_first_order_local_approximation_is_the_tangent_line():
+    helix = Helix(0.03, 0.01, 0.1, 2 * np.pi, 4.0)
+    rng = np.random.default_rng(5)
+    for theta in np.linspace(0.2, 3.8, 9):
+        ref = _reference_at(helix, theta)
+        point = ref.position + rng.uniform(-1e-3, 1e-3, 3)
+        first = LocalApproximationEstimator(helix, first_order_terms).step(ref, point)
+        tangent = TangentLineEstimator(helix).step(ref, point)
+        assert_allclose(first.vector, tangent.vector, atol=1e-15)
+        assert_allclose(first.theta, tangent.theta, atol=1e-14)
+
+
+@pytest.mark.parametrize("curve,theta", [(Parabola(0.02, 100.0), 0.0), (Helix(0.03, 0.01, 0.1, 2 * np.pi, 4.0), 0.5),
+                                         (Helix(0.03, 0.01, 0.1, 2 * np.pi, 4.0), 0.25), (Circle(0.01), 1.0)])
+def test_natural_local_beats_the_tangent_line_near_high_curvature(curve, theta):
+    """Paper 003 section II-C: with a tangential lag t the tangent line misses kappa t^2 / 2 (eq. 11, 13);
+    the natural local cubic (eq. 10, 15-17) leaves an O(t^3) error."""
+    exact = ExactContourError(curve)
+    ref = _reference_at(curve, theta)
+    rng = np.random.default_rng(11)
+    worst_tangent = worst_natural = 0.0
+    for lag in (2e-4, 5e-4, 1e-3):          # metres behind the reference, along the curve
+        for _ in range(5):
+            behind = curve.point(theta - lag / np.linalg.norm(curve.derivatives(theta, 1)[1]))
+            point = behind + rng.normal(0.0, 2e-5, curve.dimension)
+            truth = exact(point).distance[0]
+            worst_tangent = max(worst_tangent, abs(np.linalg.norm(TangentLineEstimator(curve).step(ref, point).vector) - truth))
+            natural = NaturalLocalEstimator(curve).step(ref, point)
+            worst_natural = max(worst_natural, abs(np.linalg.norm(natural.vector) - truth))
+    assert worst_natural < 0.2 * worst_tangent
+    assert worst_natural < 2e-6
+
+
+def test_natural_local_is_exact_for_points_on_its_own_cubic():
+    """A point on the approximation curve plus an offset along the normal: the estimate is that offset."""
+    helix = Helix(0.03, 0.01, 0.1, 2 * np.pi, 4.0)
+    ref = _reference_at(helix, 1.3)
+    estimator = NaturalLocalEstimator(helix)
+    f, _, rotation, kappa, tau, _ = estimator.task_errors(ref, ref.position)
+    t, offset = 4e-4, np.array([3e-6, -2e-6])
+    local = np.array([t, kappa * t * t / 2 + offset[0], kappa * tau * t**3 / 6 + offset[1]])
+    estimate = estimator.step(ref, ref.position + rotation @ local)
+    assert_allclose(estimate.vector, -(rotation[:, 1:] @ offset), atol=1e-17)

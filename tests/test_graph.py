@@ -45,6 +45,13 @@ def test_variable_gain_graph_reproduces_simulation_exactly(tmp_path):
     _assert_identical(path, run_graph(path, tmp_path / "vg.mcap"))
 
 
+def test_task_frame_helix_graph_reproduces_simulation_exactly(tmp_path):
+    """Paper 003's three-axis helix: the CCC node also takes the reference and the states."""
+    path = tmp_path / "helix.yaml"
+    path.write_text(shortened(CONFIG / "paper003_helix_natural_local_f15_10.yaml", 0.3))
+    _assert_identical(path, run_graph(path, tmp_path / "helix.mcap"))
+
+
 def test_run_longer_than_the_stall_timeout_completes(tmp_path):
     """The stall timer measures time without progress, not time since the start: a run whose lockstep
     lasts several stall timeouts completes, identical to the simulation."""

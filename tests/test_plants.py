@@ -1,9 +1,9 @@
-"""The first-order velocity axis against its analytic step response."""
+"""The axis models against their analytic responses."""
 import numpy as np
 from numpy.testing import assert_allclose
 
 from contouring_ros.core.disturbances import ConstantDisturbance
-from contouring_ros.core.plants import FirstOrderVelocityAxis
+from contouring_ros.core.plants import FirstOrderVelocityAxis, MassDamperAxis
 
 
 def test_step_response_is_exact():
@@ -30,3 +30,35 @@ def test_discrete_pole_is_exp_of_continuous_pole():
     axis = FirstOrderVelocityAxis(1.0, 0.05, 0.002, velocity=1.0)
     axis.step(0.0, 0.0)
     assert_allclose(axis.velocity, np.exp(-0.002 / 0.05), rtol=1e-15)
+
+
+def test_mass_damper_step_response_is_exact():
+    # K / (M s^2 + B s) with a constant command u from rest, a = B / M:
+    # V(t) = K u / B (1 - exp(-a t)),  P(t) = K u / B (t - (1 - exp(-a t)) / a).
+    m, b, k, ts, u = 2.0, 400.0, 16.23, 0.001, 0.3
+    axis = MassDamperAxis(m, b, k, ts)
+    states = np.array([axis.step(u, i * ts) for i in range(300)])
+    t, a = ts * np.arange(1, 301), b / m
+    assert_allclose(states[:, 1], k * u / b * (1 - np.exp(-a * t)), rtol=1e-12)
+    assert_allclose(states[:, 0], k * u / b * (t - (1 - np.exp(-a * t)) / a), rtol=1e-11)
+
+
+def test_pure_mass_is_the_limit_of_no_damping():
+    axis = MassDamperAxis(0.5, 0.0, 1.0, 0.001)
+    for i in range(100):
+        axis.step(0.2, i * 0.001)
+    t = 0.1
+    assert_allclose([axis.position, axis.velocity], [0.2 / 0.5 * t * t / 2, 0.2 / 0.5 * t], rtol=1e-12)
+
+
+def test_coulomb_friction_and_saturation_in_steady_state():
+    # Moving forward, friction F+ opposes: steady velocity K (sat(u) - F+) / B; backward, -K (sat(u) - F-)/B.
+    forward = MassDamperAxis(1.0, 800.0, 16.0, 0.001, saturation=10.0, coulomb_positive=0.12,
+                             coulomb_negative=0.11, velocity=0.01)
+    backward = MassDamperAxis(1.0, 800.0, 16.0, 0.001, saturation=10.0, coulomb_positive=0.12,
+                              coulomb_negative=0.11, velocity=-0.01)
+    for i in range(200):
+        forward.step(25.0, i * 0.001)
+        backward.step(-3.0, i * 0.001)
+    assert_allclose(forward.velocity, 16.0 * (10.0 - 0.12) / 800.0, rtol=1e-9)
+    assert_allclose(backward.velocity, 16.0 * (-3.0 + 0.11) / 800.0, rtol=1e-9)

@@ -1,16 +1,19 @@
 """Cross-coupled contour controllers: a contour error estimate in, one correction per axis out.
 
-The corrections add to the axes' actuator commands (see :mod:`contouring_ros.core.servo`).
+The corrections add to the axes' actuator commands (see :mod:`contouring_ros.core.servo`). Every
+controller's ``step`` also receives the step's reference and axis positions and velocities; those that use
+them say so with ``needs_state = True`` (the CCC node then subscribes to the reference and the states).
 """
 from __future__ import annotations
 
 import numpy as np
 
 from .curves import Curve
-from .geometry import left_normal, unit_tangent
+from .geometry import frenet_frame, left_normal, unit_tangent
+from .plants import coulomb_friction
 from .pid import DiscretePID
 
-__all__ = ["NoCoupling", "VariableGainCCC", "UnitVectorCCC"]
+__all__ = ["NoCoupling", "VariableGainCCC", "UnitVectorCCC", "TaskFramePD"]
 
 
 class NoCoupling:
@@ -19,7 +22,7 @@ class NoCoupling:
     def __init__(self, n_axes: int):
         self.n_axes = int(n_axes)
 
-    def step(self, estimate) -> np.ndarray:
+    def step(self, estimate, reference=None, position=None, velocity=None) -> np.ndarray:
         return np.zeros(self.n_axes)
 
 
@@ -42,7 +45,7 @@ class VariableGainCCC:
         self.pid = DiscretePID(kp, ki, kd, sample_time)
         self.output_limit = float(output_limit)
 
-    def step(self, estimate) -> np.ndarray:
+    def step(self, estimate, reference=None, position=None, velocity=None) -> np.ndarray:
         if abs(estimate.signed) > 1e-12:
             gains = np.asarray(estimate.vector, dtype=float) / estimate.signed
         else:
@@ -65,6 +68,75 @@ class UnitVectorCCC:
         self.pid = DiscretePID(kp, ki, kd, sample_time)
         self.output_limit = float(output_limit)
 
-    def step(self, estimate) -> np.ndarray:
+    def step(self, estimate, reference=None, position=None, velocity=None) -> np.ndarray:
         output = self.pid.step(np.asarray(estimate.vector, dtype=float))
         return np.asarray(self.pid.clamp(output, self.output_limit), dtype=float)
+
+
+class TaskFramePD:
+    """Task-frame PD contour controller with feedback linearization and feedforward (paper 003 eq. 18-25).
+
+    The axes M w'' + B w' + K F_c(w') = K u (eq. 18, friction in command units) are written in the Frenet
+    frame of the reference point, f = R^T (w - w_d) (eq. 3, 19-20):
+    M_F f'' + C_F f' + K_F f = K (u - u_d) - K F_c, with M_F = M R, C_F = 2 M R' + B R, K_F = M R'' + B R'
+    and u_d = K^-1 (M w_d'' + B w_d'). The error states are the tangential error and the errors the
+    local approximation h(t) of the contour leaves, Z1 = (t, (n, b) - h(t)), Z2 = Z1' (eq. 21). With the
+    approximation's slope J = [[1, 0], [h'(t), I]] and curvature term g = (0, h''(t) t'^2),
+    f' = J Z2 and f'' = J Z2' + g, so (eq. 22-23)
+
+    u = K^-1 (M_F J V + M_F g + C_F f' + K_F f) + F_c(w') + u_d,     V = -K_P Z1 - K_D Z2      (25)
+
+    gives the decoupled error dynamics Z1'' = V (eq. 24); K_P = diag((2 pi f)^2), K_D = diag(4 pi zeta f)
+    with f = (f_t, f_n[, f_b]). ``approximation`` is the local approximation of the contour estimator
+    (:func:`~contouring_ros.core.estimators.natural_local_terms` or
+    :func:`~contouring_ros.core.estimators.first_order_terms`): the controller acts on the errors that
+    estimator reports. M, B, K and F_c are the controller's (identified) model of the axes. The output is
+    every axis' whole command: pair it with :class:`~contouring_ros.core.servo.DirectServo`.
+    """
+
+    needs_state = True
+
+    def __init__(self, curve: Curve, approximation, mass, damping, gain, bandwidths, zeta: float = 1.0,
+                 coulomb_positive=None, coulomb_negative=None):
+        n = curve.dimension
+        self.curve, self.approximation = curve, approximation
+        self.mass, self.damping, self.gain = (self._per_axis(v, n, name) for v, name in (
+            (mass, "mass"), (damping, "damping"), (gain, "gain")))
+        self.coulomb_positive = self._per_axis(coulomb_positive or [0.0] * n, n, "coulomb_positive")
+        self.coulomb_negative = self._per_axis(coulomb_negative or [0.0] * n, n, "coulomb_negative")
+        if np.any(self.gain == 0.0):
+            raise ValueError("the axis gains K must be non-zero (eq. 25 needs K^-1)")
+        bandwidths = np.asarray(bandwidths, dtype=float)[:n]
+        if bandwidths.size != n or np.any(bandwidths <= 0.0):
+            raise ValueError(f"{n} positive bandwidths (f_t, f_n{', f_b' if n == 3 else ''}) are needed")
+        omega = 2.0 * np.pi * bandwidths
+        self.kp, self.kd = omega**2, 2.0 * float(zeta) * omega
+
+    @staticmethod
+    def _per_axis(values, n: int, name: str) -> np.ndarray:
+        values = np.atleast_1d(np.asarray(values, dtype=float))
+        if values.size != n:
+            raise ValueError(f"{name} needs one value per axis ({n}), got {values.size}")
+        return values
+
+    def step(self, estimate, reference=None, position=None, velocity=None) -> np.ndarray:
+        frame = frenet_frame(self.curve, float(reference.theta), float(reference.theta_dot),
+                             float(reference.theta_ddot))
+        r, r_dot, r_ddot = frame.rotation, frame.rotation_rate, frame.rotation_acceleration
+        n = r.shape[0]
+        f = r.T @ (np.asarray(position, dtype=float) - reference.position)
+        f_dot = r.T @ (np.asarray(velocity, dtype=float) - reference.velocity - r_dot @ f)
+        h, dh, ddh = self.approximation(frame.curvature, frame.torsion, f[0], n)
+        z1 = np.concatenate([[f[0]], f[1:] - h])
+        z2 = np.concatenate([[f_dot[0]], f_dot[1:] - dh * f_dot[0]])
+        slope = np.eye(n)
+        slope[1:, 0] = dh
+        curvature_term = np.concatenate([[0.0], ddh * f_dot[0] ** 2])
+        m, b = self.mass[:, None], self.damping[:, None]
+        m_f, c_f, k_f = m * r, 2.0 * m * r_dot + b * r, m * r_ddot + b * r_dot
+        v = -self.kp * z1 - self.kd * z2
+        u_z = m_f @ (slope @ v + curvature_term) + c_f @ f_dot + k_f @ f
+        feedforward = (self.mass * reference.acceleration + self.damping * reference.velocity) / self.gain
+        friction = np.array([coulomb_friction(w, p, q) for w, p, q in zip(
+            np.asarray(velocity, dtype=float), self.coulomb_positive, self.coulomb_negative)])
+        return u_z / self.gain + friction + feedforward

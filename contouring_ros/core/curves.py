@@ -9,7 +9,7 @@ from abc import ABC, abstractmethod
 
 import numpy as np
 
-__all__ = ["Curve", "Parabola", "Line", "Circle"]
+__all__ = ["Curve", "Parabola", "Line", "Circle", "Ellipse", "FigureEight", "Helix"]
 
 
 class Curve(ABC):
@@ -143,3 +143,70 @@ class Circle(Curve):
         r, (cx, cy) = self.radius, self._center
         c, s = r * np.cos(t), r * np.sin(t)
         return [(cx + c, cy + s), (-s, c), (-c, -s), (s, -c)]
+
+
+class Ellipse(Curve):
+    """Ellipse R = c + [a cos theta, b sin theta], theta in [0, 2 pi), counter-clockwise.
+
+    Paper 003's XY-stage ellipse x = 0.03 (1 - cos wt), y = 0.01 sin wt is a = 0.03, b = 0.01,
+    center (0.03, 0) with theta = w t + pi (the start point (0, 0) is theta = pi).
+    """
+
+    dimension = 2
+    closed = True
+
+    def __init__(self, a: float, b: float, center=(0.0, 0.0)):
+        self.a, self.b = float(a), float(b)
+        if self.a <= 0.0 or self.b <= 0.0:
+            raise ValueError("ellipse semi-axes a and b must be positive")
+        self.center = np.asarray(center, dtype=float)
+        self._center = tuple(self.center.tolist())
+        self.domain = (0.0, 2.0 * np.pi)
+
+    def columns(self, t) -> list:
+        (cx, cy), ca, sb = self._center, self.a * np.cos(t), self.b * np.sin(t)
+        sa, cb = self.a * np.sin(t), self.b * np.cos(t)
+        return [(cx + ca, cy + sb), (-sa, cb), (-ca, -sb), (sa, -cb)]
+
+
+class FigureEight(Curve):
+    """Figure-8 of paper 003, section IV-B: R = c + [a (1 - cos theta), b sin 2 theta], theta in [0, 2 pi)."""
+
+    dimension = 2
+    closed = True
+
+    def __init__(self, a: float, b: float, center=(0.0, 0.0)):
+        self.a, self.b = float(a), float(b)
+        if self.a <= 0.0 or self.b <= 0.0:
+            raise ValueError("figure-8 sizes a and b must be positive")
+        self.center = np.asarray(center, dtype=float)
+        self._center = tuple(self.center.tolist())
+        self.domain = (0.0, 2.0 * np.pi)
+
+    def columns(self, t) -> list:
+        (cx, cy), a, b = self._center, self.a, self.b
+        c1, s1, c2, s2 = np.cos(t), np.sin(t), np.cos(2.0 * t), np.sin(2.0 * t)
+        return [(cx + a * (1.0 - c1), cy + b * s2), (a * s1, 2.0 * b * c2), (a * c1, -4.0 * b * s2),
+                (-a * s1, -8.0 * b * c2)]
+
+
+class Helix(Curve):
+    """Elliptical helix R = [a cos(w theta), b sin(w theta), c theta], theta in [0, length] (paper 003 eq. 26).
+
+    With theta the time in seconds this is the paper's reference x = a cos wt, y = b sin wt, z = ct.
+    """
+
+    dimension = 3
+
+    def __init__(self, a: float, b: float, c: float, omega: float, length: float):
+        self.a, self.b, self.c, self.omega = float(a), float(b), float(c), float(omega)
+        if self.a <= 0.0 or self.b <= 0.0 or self.omega == 0.0 or length <= 0.0:
+            raise ValueError("helix a, b and length must be positive and omega non-zero")
+        self.domain = (0.0, float(length))
+
+    def columns(self, t) -> list:
+        a, b, c, w = self.a, self.b, self.c, self.omega
+        cw, sw = np.cos(w * t), np.sin(w * t)
+        zero = 0.0 * t
+        return [(a * cw, b * sw, c * t), (-a * w * sw, b * w * cw, c + zero),
+                (-a * w * w * cw, -b * w * w * sw, zero), (a * w**3 * sw, -b * w**3 * cw, zero)]

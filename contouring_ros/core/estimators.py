@@ -11,9 +11,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from .curves import Curve
-from .geometry import signed_error
+from .geometry import frenet_axes, signed_error
 
-__all__ = ["ContourEstimate", "TangentLineEstimator", "NewtonEstimator", "BranchCheck"]
+__all__ = ["ContourEstimate", "TangentLineEstimator", "NewtonEstimator", "BranchCheck", "LocalApproximationEstimator",
+           "NaturalLocalEstimator", "first_order_terms", "natural_local_terms"]
 
 
 @dataclass(frozen=True)
@@ -157,3 +158,58 @@ class NewtonEstimator:
         vector = d[0] - position
         tangent = d[1] / math.sqrt(float(d[1] @ d[1]))
         return ContourEstimate(theta=theta, vector=vector, signed=float(signed_error(vector, tangent)))
+
+
+def first_order_terms(kappa: float, tau: float, t: float, n: int) -> tuple:
+    """The tangent line in Frenet coordinates (paper 003 eq. 11): h(t) = 0, so the estimated contour error is
+    the normal (and binormal) part of the tracking error. Returns (h, dh/dt, d2h/dt2), each of length n - 1."""
+    zero = np.zeros(n - 1)
+    return zero, zero, zero
+
+
+def natural_local_terms(kappa: float, tau: float, t: float, n: int) -> tuple:
+    """The natural local (cubic) approximation in Frenet coordinates (paper 003 eq. 10, 13-14):
+    n = kappa t^2 / 2 and, in 3-D, b = kappa tau t^3 / 6. Returns (h, dh/dt, d2h/dt2) at t."""
+    if n == 2:
+        return np.array([0.5 * kappa * t * t]), np.array([kappa * t]), np.array([kappa])
+    return (np.array([0.5 * kappa * t * t, kappa * tau * t**3 / 6.0]),
+            np.array([kappa * t, 0.5 * kappa * tau * t * t]), np.array([kappa, kappa * tau * t]))
+
+
+class LocalApproximationEstimator:
+    """Contour error from a local approximation of the contour in the Frenet frame at the reference point.
+
+    With f = R^T (P - w_d) = (t, n[, b]) the actual position in the Frenet frame of the reference point
+    (paper 003 eq. 3) and the approximation h(t) of the contour there, the estimated errors are
+    z = (n, b) - h(t) (eq. 15-16) and the estimate's error vector is E = -(beta z_n + gamma z_b), from the
+    actual position to the point of the approximation with the same tangential coordinate. That point's
+    parameter is reported as theta_r + t / |R'(theta_r)|.
+
+    ``approximation`` is :func:`first_order_terms` (the tangent line: the estimate is the tracking error's
+    normal part, identical to :class:`TangentLineEstimator`) or :func:`natural_local_terms` (paper 003).
+    """
+
+    def __init__(self, curve: Curve, approximation=None):
+        self.curve = curve
+        self.approximation = approximation or natural_local_terms
+
+    def task_errors(self, reference, position) -> tuple:
+        """(f, z, R, kappa, tau, |R'|): Frenet coordinates of the position, the estimated errors z and the frame."""
+        rotation, kappa, tau, speed = frenet_axes(self.curve, reference.theta)
+        f = rotation.T @ (np.asarray(position, dtype=float) - reference.position)
+        h, _, _ = self.approximation(kappa, tau, f[0], rotation.shape[0])
+        return f, f[1:] - h, rotation, kappa, tau, speed
+
+    def step(self, reference, position) -> ContourEstimate:
+        f, z, rotation, _, _, speed = self.task_errors(reference, position)
+        vector = -(rotation[:, 1:] @ z)
+        return ContourEstimate(theta=float(reference.theta) + float(f[0]) / speed, vector=vector,
+                               signed=float(signed_error(vector, rotation[:, 0])))
+
+
+class NaturalLocalEstimator(LocalApproximationEstimator):
+    """Natural local approximation estimate of paper 003 (eq. 10-17): the contour near the reference
+    point replaced by the cubic with its curvature, torsion and Frenet frame."""
+
+    def __init__(self, curve: Curve):
+        super().__init__(curve, natural_local_terms)

@@ -13,7 +13,8 @@ import numpy as np
 
 from .curves import Curve
 
-__all__ = ["unit_tangent", "left_normal", "curvature", "signed_error", "FootPoints", "ExactContourError"]
+__all__ = ["unit_tangent", "left_normal", "curvature", "signed_error", "FrenetFrame", "frenet_axes", "frenet_frame",
+           "FootPoints", "ExactContourError"]
 
 
 def unit_tangent(curve: Curve, theta) -> np.ndarray:
@@ -50,6 +51,95 @@ def signed_error(vector: np.ndarray, tangent: np.ndarray) -> np.ndarray:
     if vector.shape[-1] == 2:
         return np.sum(vector * left_normal(tangent), axis=-1)
     return np.linalg.norm(vector, axis=-1)
+
+
+def frenet_axes(curve: Curve, theta: float) -> tuple:
+    """The Frenet frame of the contour at one parameter: (R, kappa, tau, |R'|).
+
+    R has the unit tangent alpha, normal beta and (in 3-D) binormal gamma as columns, with curvature and
+    torsion from paper 003 eq. 1, 4 and 5: alpha = R'/|R'|, gamma = R' x R'' / |R' x R''|,
+    beta = gamma x alpha, kappa = |R' x R''| / |R'|^3, tau = (R', R'', R''') / |R' x R''|^2.
+    Planar contours use the 2-D frame [alpha, left normal] and the signed ("relative") curvature of
+    paper 003 eq. 27, so the frame never flips where the curve changes its bending direction; tau = 0.
+    On a straight 3-D stretch (R' x R'' = 0) beta is any fixed normal and kappa = tau = 0.
+    """
+    d = curve.derivatives(float(theta), order=3)
+    d1, d2, d3 = d[1], d[2], d[3]
+    speed = float(np.sqrt(d1 @ d1))
+    alpha = d1 / speed
+    if curve.dimension == 2:
+        kappa = float(d1[0] * d2[1] - d1[1] * d2[0]) / speed**3
+        return np.column_stack([alpha, left_normal(alpha)]), kappa, 0.0, speed
+    if curve.dimension != 3:
+        raise ValueError("the Frenet frame is defined for planar and spatial (2-D and 3-D) contours")
+    cross = np.cross(d1, d2)
+    cross_norm = float(np.sqrt(cross @ cross))
+    if cross_norm <= 1e-12 * speed**3:
+        helper = np.eye(3)[int(np.argmin(np.abs(alpha)))]
+        beta = np.cross(np.cross(alpha, helper), alpha)
+        beta /= np.linalg.norm(beta)
+        return np.column_stack([alpha, beta, np.cross(alpha, beta)]), 0.0, 0.0, speed
+    gamma = cross / cross_norm
+    return (np.column_stack([alpha, np.cross(gamma, alpha), gamma]), cross_norm / speed**3,
+            float(cross @ d3) / cross_norm**2, speed)
+
+
+@dataclass(frozen=True)
+class FrenetFrame:
+    """The Frenet frame at the reference point w_d(t) and how it moves (paper 003 eq. 2-5, 19-20).
+
+    Attributes
+    ----------
+    rotation : ndarray (n, n)
+        R = [alpha, beta(, gamma)]: task-frame coordinates f = R^T (w - w_d) (eq. 3).
+    curvature, torsion : float
+        kappa (signed for planar contours) and tau.
+    speed : float
+        v = |dw_d/dt|.
+    rotation_rate, rotation_acceleration : ndarray (n, n)
+        dR/dt = -v R G and d2R/dt2 = -(dv/dt R G + v dR/dt G + v R dG/dt) with
+        G = [[0, kappa, 0], [-kappa, 0, tau], [0, -tau, 0]] (the planar block in 2-D).
+    """
+
+    rotation: np.ndarray
+    curvature: float
+    torsion: float
+    speed: float
+    rotation_rate: np.ndarray
+    rotation_acceleration: np.ndarray
+
+
+def _frenet_generator(n: int, kappa: float, tau: float) -> np.ndarray:
+    g = np.zeros((n, n))
+    g[0, 1], g[1, 0] = kappa, -kappa
+    if n == 3:
+        g[1, 2], g[2, 1] = tau, -tau
+    return g
+
+
+def frenet_frame(curve: Curve, theta: float, theta_dot: float, theta_ddot: float = 0.0,
+                 relative_step: float = 1e-5) -> FrenetFrame:
+    """The moving Frenet frame at R(theta) when theta advances at theta_dot, theta_ddot.
+
+    R and dR/dt are analytic; d2R/dt2 needs d kappa/dt and d tau/dt, which are taken by a central
+    difference of kappa(theta) and tau(theta) over +-``relative_step`` of the parameter range (tau' would
+    need a fourth derivative of the curve; both are exact for the circle and the helix, whose kappa and
+    tau are constant).
+    """
+    rotation, kappa, tau, speed_theta = frenet_axes(curve, theta)
+    n = rotation.shape[0]
+    d = curve.derivatives(float(theta), order=2)
+    speed = speed_theta * theta_dot
+    speed_rate = float(d[1] @ d[2]) / speed_theta * theta_dot**2 + speed_theta * theta_ddot
+    h = relative_step * max(abs(curve.domain[1] - curve.domain[0]), 1e-9)
+    _, kappa_plus, tau_plus, _ = frenet_axes(curve, theta + h)
+    _, kappa_minus, tau_minus, _ = frenet_axes(curve, theta - h)
+    g = _frenet_generator(n, kappa, tau)
+    g_rate = _frenet_generator(n, (kappa_plus - kappa_minus) / (2 * h) * theta_dot,
+                               (tau_plus - tau_minus) / (2 * h) * theta_dot)
+    rate = -speed * rotation @ g
+    acceleration = -(speed_rate * rotation @ g + speed * rate @ g + speed * rotation @ g_rate)
+    return FrenetFrame(rotation, kappa, tau, speed, rate, acceleration)
 
 
 @dataclass(frozen=True)

@@ -9,7 +9,7 @@ import math
 
 from .disturbances import NoDisturbance
 
-__all__ = ["FirstOrderVelocityAxis"]
+__all__ = ["FirstOrderVelocityAxis", "MassDamperAxis", "coulomb_friction"]
 
 
 class FirstOrderVelocityAxis:
@@ -64,4 +64,68 @@ class FirstOrderVelocityAxis:
         p, v = self.position, self.velocity
         self.position = p + self._pv * v + self._pu * u
         self.velocity = self._alpha * v + self._vu * u
+        return self.position, self.velocity
+
+
+def coulomb_friction(velocity: float, positive: float, negative: float) -> float:
+    """Coulomb friction in command units: ``positive`` while moving forward, -``negative`` backward, 0 at rest."""
+    if velocity > 0.0:
+        return positive
+    if velocity < 0.0:
+        return -negative
+    return 0.0
+
+
+class MassDamperAxis:
+    """Mass-damper feed drive with Coulomb friction and actuator saturation (papers 001 eq. 1, 003 eq. 18,
+    004 eq. 12).
+
+    M d2P/dt2 + B dP/dt = K (sat(T) + D - F_c(dP/dt))
+
+    i.e. the transfer function K / (M s^2 + B s) from command to position (paper 003's helix axes
+    1/(s^2 + 200 s) are M = 1, B = 200, K = 1; its XY stage 16.23/(s^2 + 798.5 s) is M = 1, B = 798.5,
+    K = 16.23). The command T is clipped to +-saturation, the disturbance D and the friction F_c (both in
+    command units, like the paper's volts) add to it.
+
+    Discretisation: exact zero-order hold of the linear part. With a = B / M, e = exp(-a Ts) and the
+    held acceleration input w = K u / M,
+
+    V+ = e V + (1 - e) / a w
+    P+ = P + (1 - e) / a V + (Ts - (1 - e) / a) / a w          (a = 0: V+ = V + Ts w, P+ = P + Ts V + Ts^2 w / 2)
+
+    The Coulomb friction is sampled with the velocity at the start of each step and held over it: exact
+    while the axis does not reverse within a step, accurate to one sample at reversals (stick-slip is not
+    modelled).
+    """
+
+    def __init__(self, mass: float, damping: float, gain: float, sample_time: float, disturbance=None,
+                 position: float = 0.0, velocity: float = 0.0, saturation: float = 0.0,
+                 coulomb_positive: float = 0.0, coulomb_negative: float = 0.0):
+        if mass <= 0.0 or gain <= 0.0 or sample_time <= 0.0 or damping < 0.0:
+            raise ValueError("mass, gain and sample time must be positive and damping non-negative")
+        self.mass, self.damping, self.gain = float(mass), float(damping), float(gain)
+        self.sample_time = ts = float(sample_time)
+        self.disturbance = disturbance or NoDisturbance()
+        self.saturation = float(saturation)
+        self.coulomb_positive, self.coulomb_negative = float(coulomb_positive), float(coulomb_negative)
+        a = self.damping / self.mass
+        if a * ts < 1e-9:
+            self._vv, self._vw, self._pv, self._pw = 1.0, ts, ts, 0.5 * ts * ts
+        else:
+            one_minus_e = -math.expm1(-a * ts)
+            self._vv, self._vw = 1.0 - one_minus_e, one_minus_e / a
+            self._pv, self._pw = one_minus_e / a, (ts - one_minus_e / a) / a
+        self._input_scale = self.gain / self.mass
+        self.position = float(position)
+        self.velocity = float(velocity)
+
+    def step(self, command: float, t: float) -> tuple[float, float]:
+        """Apply ``command`` over [t, t + Ts) and return the (position, velocity) at t + Ts."""
+        if self.saturation:
+            command = max(-self.saturation, min(self.saturation, command))
+        p, v = self.position, self.velocity
+        w = self._input_scale * (command + self.disturbance(t)
+                                 - coulomb_friction(v, self.coulomb_positive, self.coulomb_negative))
+        self.position = p + self._pv * v + self._pw * w
+        self.velocity = self._vv * v + self._vw * w
         return self.position, self.velocity

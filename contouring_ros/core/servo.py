@@ -10,7 +10,7 @@ import math
 
 from .pid import DiscretePID
 
-__all__ = ["PIDFeedforwardServo", "IntegralSlidingModeServo", "DisturbanceObserver", "saturation"]
+__all__ = ["PIDFeedforwardServo", "IntegralSlidingModeServo", "DisturbanceObserver", "DirectServo", "saturation"]
 
 
 def saturation(u: float) -> float:
@@ -122,3 +122,17 @@ class IntegralSlidingModeServo:
         if self.observer is not None:
             self.observer.previous_command = command
         return command
+
+
+class DirectServo:
+    """No axis loop of its own: the command is the contour controller's output (clipped to
+    ``output_limit``). For task-frame contour controllers that compute every axis' whole actuator
+    command, such as :class:`contouring_ros.core.contouring.TaskFramePD` (paper 003 eq. 25)."""
+
+    def __init__(self, output_limit: float = 0.0):
+        self.output_limit = float(output_limit)
+
+    def step(self, ref_pos, ref_vel, ref_acc, position, velocity, correction) -> float:
+        if self.output_limit:
+            return max(-self.output_limit, min(self.output_limit, correction))
+        return float(correction)

@@ -95,7 +95,7 @@ def simulate(loop: ControlLoop) -> SimulationResult:
         velocity = np.array([plant.velocity for plant in loop.plants])
         ref = reference(loop.curve, loop.schedule, t)
         estimate = loop.estimator.step(ref, position)
-        correction = loop.controller.step(estimate)
+        correction = loop.controller.step(estimate, ref, position, velocity)
         command = np.array([servo.step(ref.position[i], ref.velocity[i], ref.acceleration[i],
                                        position[i], velocity[i], correction[i])
                             for i, servo in enumerate(loop.servos)])

@@ -1,5 +1,13 @@
-"""Cross-coupled controller node: the contour error estimate of step k in, per-axis corrections out."""
+"""Cross-coupled controller node: the contour error estimate of step k in, per-axis corrections out.
+
+The node also takes /reference and every /<axis>/state of the step, for the controllers that use them
+(``needs_state``, e.g. the task-frame PD of paper 003; the others never decode them). They arrive before
+the estimate, so the critical path stays plant -> estimator -> CCC -> servo. The subscriptions do not
+depend on the controller, so every node knows the graph's topic table from the shared keys alone.
+"""
 from __future__ import annotations
+
+import numpy as np
 
 from .. import cdr, graph
 from ..config import build_controller, build_curve
@@ -12,13 +20,24 @@ class CCCNode(LockstepNode):
 
     def setup(self):
         self.controller = build_controller(self.experiment, build_curve(self.experiment))
+        self.needs_state = getattr(self.controller, "needs_state", False)
         self.add_input(graph.CONTOUR_ERROR)
+        self.add_input(graph.REFERENCE, used=self.needs_state)
+        self.state_topics = [graph.state_topic(a) for a in self.axes]
+        for topic in self.state_topics:
+            self.add_input(topic, used=self.needs_state)
         self.publisher = self.add_output(graph.CORRECTION)
         self.names = list(self.axes)
 
     def on_step(self, k, inputs):
         estimate = graph.estimate_from_msg(inputs[graph.CONTOUR_ERROR], len(self.axes))
-        correction = self.controller.step(estimate)
+        if self.needs_state:
+            ref = graph.reference_from_msg(inputs[graph.REFERENCE], len(self.axes))
+            position = np.array([inputs[topic].position[0] for topic in self.state_topics])
+            velocity = np.array([inputs[topic].velocity[0] for topic in self.state_topics])
+            correction = self.controller.step(estimate, ref, position, velocity)
+        else:
+            correction = self.controller.step(estimate)
         self.publisher.publish(cdr.encode_joint_state(*self.stamp(k), self.names,
                                                       effort=[float(v) for v in correction]))
 

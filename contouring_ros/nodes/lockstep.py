@@ -81,13 +81,17 @@ class LockstepNode:
         self.setup()
 
     # -- wiring -----------------------------------------------------------------------------------
-    def add_input(self, topic: str, qos=GRAPH_QOS):
-        """Subscribe to ``topic``; its messages reach :meth:`on_step` decoded by the cdr codec."""
+    def add_input(self, topic: str, qos=GRAPH_QOS, used: bool = True):
+        """Subscribe to ``topic``; its messages reach :meth:`on_step` decoded by the cdr codec and checked.
+
+        An input that is not ``used`` still paces the steps (a step fires once it is there too) but is
+        neither decoded nor checked: :meth:`on_step` gets its serialised bytes.
+        """
         type_name = self._topics[topic].type
         cls = message_class(type_name)
         callback = (lambda data, topic=topic: self.on_message(topic, data)) if self.callbacks else (lambda _: None)
         sub = self.node.create_subscription(cls, topic, callback, qos, raw=True)
-        self._inputs.append((topic, sub, cls, _DECODERS.get(type_name)))
+        self._inputs.append((topic, sub, cls, _DECODERS.get(type_name) if used else None))
 
     def add_output(self, topic: str):
         pub = self.node.create_publisher(message_class(self._topics[topic].type), topic, GRAPH_QOS)
@@ -182,6 +186,9 @@ class LockstepNode:
         """
         inputs = {}
         for topic, _, _, decode in self._inputs:
+            if decode is None:
+                inputs[topic] = ready[topic]
+                continue
             msg = decode(ready[topic])
             problem = graph.message_problem(self._topics[topic], msg)
             if problem is not None:
