@@ -62,6 +62,8 @@ DISTURBANCES = {
     "constant": {"value": Param("float")},
     "sinusoid": {"amplitude": Param("float"), "frequency": Param("float", check="positive"),
                  "phase": Param("float", 0.0), "offset": Param("float", 0.0)},
+    "random": {"std": Param("float", check="nonnegative"), "seed": Param("int", 0, "nonnegative"),
+               "offset": Param("float", 0.0)},
 }
 CURVES = {
     "parabola": {"a": Param("float", check="positive"), "h": Param("float")},
@@ -71,6 +73,8 @@ CURVES = {
                 "center": Param("floats", [0.0, 0.0])},
     "figure_eight": {"a": Param("float", check="positive"), "b": Param("float", check="positive"),
                      "center": Param("floats", [0.0, 0.0])},
+    "saddle": {"a": Param("float", check="positive"), "b": Param("float", check="positive"),
+               "h": Param("float"), "omega": Param("float", 6.283185307179586)},
     "helix": {"a": Param("float", check="positive"), "b": Param("float", check="positive"), "c": Param("float"),
               "omega": Param("float"), "length": Param("float", check="positive")},
 }
@@ -88,8 +92,10 @@ PLANTS = {
                     "coulomb_positive": Param("float", 0.0, "nonnegative"),
                     "coulomb_negative": Param("float", 0.0, "nonnegative"),
                     "disturbance": Param("dict", {"type": "none"}, choices=DISTURBANCES),
+                    "disturbance_unit": Param("str", "command"),
                     "saturation": LIMIT},
 }
+DISTURBANCE_UNITS = ("command", "acceleration")
 SERVOS = {
     "pid_feedforward": {**_gains(), "gain": Param("float", check="positive"),
                         "time_constant": Param("float", check="positive")},
@@ -99,6 +105,11 @@ SERVOS = {
              "observer": Param("bool", False), "c": Param("float", 1.0, "positive"),
              "d": Param("float", 1.0, "positive"), "output_limit": LIMIT},
     "direct": {"output_limit": LIMIT},
+    "eso_smc": {"mass": Param("float", check="positive"), "damping": Param("float", check="nonnegative"),
+                "gain": Param("float", check="positive"), "c": Param("float", check="positive"),
+                "k": Param("float", check="positive"), "alphas": Param("floats"),
+                "sigma": Param("float", check="positive"), "disturbance_compensation": Param("bool", True),
+                "output_limit": LIMIT},
 }
 ESTIMATORS = {
     "tangent_line": {},
@@ -309,8 +320,11 @@ def _validate_role(where, node: str, role: str, given: dict, globals_: dict) -> 
         return _mapping(where, f"{node}.", OPTIONAL_NODES[role], given)
     type_key, registry = ROLE_TYPES[role]
     section = _typed(where, node, type_key, registry, given)
-    if role == "ccc" and section["type"] == "variable_gain" and len(globals_["axes"]) != 2:
-        _fail(where, f"{node}.type", "the variable_gain CCC needs exactly 2 axes")
+    if role == "plant" and section["model"] == "mass_damper" and section["disturbance_unit"] not in DISTURBANCE_UNITS:
+        _fail(where, f"{node}.disturbance_unit", f"expected one of {', '.join(DISTURBANCE_UNITS)}, "
+                                                 f"got {section['disturbance_unit']!r}")
+    if role == "servo" and section["law"] == "eso_smc" and len(section["alphas"]) != 3:
+        _fail(where, f"{node}.alphas", f"expected the three ESO gains alpha_1..3, got {len(section['alphas'])}")
     if role == "ccc" and section["type"] == "task_frame_pd":
         if section["approximation"] not in APPROXIMATIONS:
             _fail(where, f"{node}.approximation", f"expected one of {', '.join(APPROXIMATIONS)}, "
@@ -455,6 +469,8 @@ def build_curve_from(section: dict, where: str = "curve") -> curves.Curve:
             return curves.Ellipse(section["a"], section["b"], section["center"])
         if kind == "figure_eight":
             return curves.FigureEight(section["a"], section["b"], section["center"])
+        if kind == "saddle":
+            return curves.Saddle(section["a"], section["b"], section["h"], section["omega"])
         if kind == "helix":
             return curves.Helix(section["a"], section["b"], section["c"], section["omega"], section["length"])
     except ValueError as error:
@@ -476,6 +492,8 @@ def build_disturbance(section: dict):
         return disturbances.NoDisturbance()
     if kind == "constant":
         return disturbances.ConstantDisturbance(section["value"])
+    if kind == "random":
+        return disturbances.RandomDisturbance(**_kwargs(section))
     return disturbances.SinusoidalDisturbance(**_kwargs(section))
 
 
@@ -496,14 +514,17 @@ def build_plant(experiment: Experiment, axis: str, position: float, velocity: fl
         return plants.MassDamperAxis(section["mass"], section["damping"], section["gain"], experiment.sample_time,
                                      build_disturbance(section["disturbance"]), position, velocity,
                                      section["saturation"], section["coulomb_positive"],
-                                     section["coulomb_negative"])
+                                     section["coulomb_negative"], section["disturbance_unit"])
     return plants.FirstOrderVelocityAxis(section["gain"], section["time_constant"], experiment.sample_time,
                                          build_disturbance(section["disturbance"]), position, velocity,
                                          section["saturation"])
 
 
-def build_servo(experiment: Experiment, axis: str, velocity: float, acceleration: float):
+def build_servo(experiment: Experiment, axis: str, position: float, velocity: float, acceleration: float):
     s, ts = experiment.servos[axis], experiment.sample_time
+    if s["law"] == "eso_smc":
+        return servo.ESOSlidingModeServo(s["mass"], s["damping"], s["gain"], s["c"], s["k"], s["alphas"], s["sigma"],
+                                         ts, position, velocity, s["disturbance_compensation"], s["output_limit"])
     if s["law"] == "direct":
         return servo.DirectServo(s["output_limit"])
     if s["law"] == "pid_feedforward":
@@ -552,6 +573,7 @@ def build_loop(experiment: Experiment) -> ControlLoop:
     return ControlLoop(
         curve=curve, schedule=schedule,
         plants=[build_plant(experiment, a, positions[i], velocities[i]) for i, a in enumerate(axes)],
-        servos=[build_servo(experiment, a, velocities[i], accelerations[i]) for i, a in enumerate(axes)],
+        servos=[build_servo(experiment, a, positions[i], velocities[i], accelerations[i])
+                for i, a in enumerate(axes)],
         estimator=build_estimator(experiment, curve), controller=build_controller(experiment, curve),
         sample_time=experiment.sample_time, n_steps=experiment.n_steps)

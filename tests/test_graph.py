@@ -52,6 +52,13 @@ def test_task_frame_helix_graph_reproduces_simulation_exactly(tmp_path):
     _assert_identical(path, run_graph(path, tmp_path / "helix.mcap"))
 
 
+def test_eso_saddle_graph_reproduces_simulation_exactly(tmp_path):
+    """Paper 004's saddle: ESO sliding mode servos, the multi-axis variable-gain CCC, disturbed axes."""
+    path = tmp_path / "saddle.yaml"
+    path.write_text(shortened(CONFIG / "paper004_saddle_eso.yaml", 0.3))
+    _assert_identical(path, run_graph(path, tmp_path / "saddle.mcap"))
+
+
 def test_run_longer_than_the_stall_timeout_completes(tmp_path):
     """The stall timer measures time without progress, not time since the start: a run whose lockstep
     lasts several stall timeouts completes, identical to the simulation."""

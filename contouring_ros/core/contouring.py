@@ -27,20 +27,20 @@ class NoCoupling:
 
 
 class VariableGainCCC:
-    """Koren & Lo variable-gain cross-coupled controller (paper 000 Fig. 5 right; Koren & Lo 1991).
+    """Variable-gain cross-coupled controller: Koren & Lo (1991; paper 000 Fig. 5 right) and its multi-axis
+    form with C_i = n_i (Yeh & Hsu 2002; paper 004 eq. 1-11).
 
     The scalar contour error epsilon drives one PID G_c(s) = kp + ki/s + kd s, and its output is
-    distributed to the axes with the time-varying gains C = n, the unit normal along which the estimate
-    measures the error (C = E / epsilon; the contour normal at the estimated foot point while epsilon = 0):
-    u = C G_c(epsilon). For the tangent-line estimate epsilon = C_y E_y - C_x E_x with C_x = sin(phi),
-    C_y = cos(phi), phi the tangent angle at the reference point: Koren & Lo's gains for linear contours.
-    Planar contours only.
+    distributed to the axes with the time-varying gains C = n, the unit vector along which the estimate
+    measures the error (C = E / epsilon; while epsilon = 0, the left normal of the tangent on planar
+    contours, no correction in 3-D): u = C G_c(epsilon). For the tangent-line estimate on planar contours
+    epsilon = C_y E_y - C_x E_x with C_x = sin(phi), C_y = cos(phi), phi the tangent angle at the reference
+    point: Koren & Lo's gains for linear contours. In 3-D epsilon = |E| = <n, e> >= 0 with n the unit normal
+    part of the tracking error (paper 004 eq. 7-11).
     """
 
     def __init__(self, curve: Curve, kp: float, ki: float, kd: float, sample_time: float,
                  output_limit: float = 0.0):
-        if curve.dimension != 2:
-            raise ValueError("the variable-gain CCC is defined for planar (2-axis) contours")
         self.curve = curve
         self.pid = DiscretePID(kp, ki, kd, sample_time)
         self.output_limit = float(output_limit)
@@ -48,8 +48,10 @@ class VariableGainCCC:
     def step(self, estimate, reference=None, position=None, velocity=None) -> np.ndarray:
         if abs(estimate.signed) > 1e-12:
             gains = np.asarray(estimate.vector, dtype=float) / estimate.signed
-        else:
+        elif self.curve.dimension == 2:
             gains = left_normal(unit_tangent(self.curve, estimate.theta))
+        else:
+            gains = np.zeros(self.curve.dimension)
         return gains * self.pid.clamp(self.pid.step(estimate.signed), self.output_limit)
 
 

@@ -9,7 +9,7 @@ from abc import ABC, abstractmethod
 
 import numpy as np
 
-__all__ = ["Curve", "Parabola", "Line", "Circle", "Ellipse", "FigureEight", "Helix"]
+__all__ = ["Curve", "Parabola", "Line", "Circle", "Ellipse", "FigureEight", "Saddle", "Helix"]
 
 
 class Curve(ABC):
@@ -210,3 +210,24 @@ class Helix(Curve):
         zero = 0.0 * t
         return [(a * cw, b * sw, c * t), (-a * w * sw, b * w * cw, c + zero),
                 (-a * w * w * cw, -b * w * w * sw, zero), (a * w**3 * sw, -b * w**3 * cw, zero)]
+
+
+class Saddle(Curve):
+    """Saddle curve of paper 004 eq. 27: R = [a cos(w theta), b sin(w theta), h cos(2 w theta)],
+    theta in [0, 2 pi / w) (closed; with w = 2 pi, theta is the paper's time in seconds)."""
+
+    dimension = 3
+    closed = True
+
+    def __init__(self, a: float, b: float, h: float, omega: float = 2.0 * np.pi):
+        self.a, self.b, self.h, self.omega = float(a), float(b), float(h), float(omega)
+        if self.a <= 0.0 or self.b <= 0.0 or self.omega <= 0.0:
+            raise ValueError("saddle a, b and omega must be positive")
+        self.domain = (0.0, 2.0 * np.pi / self.omega)
+
+    def columns(self, t) -> list:
+        a, b, h, w = self.a, self.b, self.h, self.omega
+        c1, s1, c2, s2 = np.cos(w * t), np.sin(w * t), np.cos(2 * w * t), np.sin(2 * w * t)
+        return [(a * c1, b * s1, h * c2), (-a * w * s1, b * w * c1, -2 * h * w * s2),
+                (-a * w * w * c1, -b * w * w * s1, -4 * h * w * w * c2),
+                (a * w**3 * s1, -b * w**3 * c1, 8 * h * w**3 * s2)]

@@ -6,7 +6,9 @@ from __future__ import annotations
 
 import math
 
-__all__ = ["NoDisturbance", "ConstantDisturbance", "SinusoidalDisturbance"]
+import numpy as np
+
+__all__ = ["NoDisturbance", "ConstantDisturbance", "SinusoidalDisturbance", "RandomDisturbance"]
 
 
 class NoDisturbance:
@@ -37,3 +39,20 @@ class SinusoidalDisturbance:
 
     def __call__(self, t: float) -> float:
         return self.offset + self.amplitude * math.sin(2.0 * math.pi * self.frequency * t + self.phase)
+
+
+class RandomDisturbance:
+    """D(t) = offset + std * N(0, 1), a new Gaussian sample every step, reproducible from ``seed``.
+
+    The sample of time t depends only on (seed, t in nanoseconds), never on how often or in which order
+    D is called, so the node graph and the in-process simulation see the same sequence.
+    """
+
+    def __init__(self, std: float, seed: int = 0, offset: float = 0.0):
+        self.std, self.seed, self.offset = float(std), int(seed), float(offset)
+
+    def __call__(self, t: float) -> float:
+        if self.std == 0.0:
+            return self.offset
+        key = int(round(t * 1e9))
+        return self.offset + self.std * float(np.random.default_rng([self.seed, key]).standard_normal())

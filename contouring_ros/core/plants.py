@@ -82,7 +82,9 @@ class MassDamperAxis:
 
     M d2P/dt2 + B dP/dt = K (sat(T) + D - F_c(dP/dt))
 
-    i.e. the transfer function K / (M s^2 + B s) from command to position (paper 003's helix axes
+    or, with ``disturbance_unit: acceleration``, M d2P/dt2 + B dP/dt = K (sat(T) - F_c) + M D: the
+    disturbance D added to the acceleration, as in paper 004 eq. 13-14 (q'' = -(B/M) q' + (K_f/M) u + d).
+    The transfer function from command to position is K / (M s^2 + B s) (paper 003's helix axes
     1/(s^2 + 200 s) are M = 1, B = 200, K = 1; its XY stage 16.23/(s^2 + 798.5 s) is M = 1, B = 798.5,
     K = 16.23). The command T is clipped to +-saturation, the disturbance D and the friction F_c (both in
     command units, like the paper's volts) add to it.
@@ -100,7 +102,8 @@ class MassDamperAxis:
 
     def __init__(self, mass: float, damping: float, gain: float, sample_time: float, disturbance=None,
                  position: float = 0.0, velocity: float = 0.0, saturation: float = 0.0,
-                 coulomb_positive: float = 0.0, coulomb_negative: float = 0.0):
+                 coulomb_positive: float = 0.0, coulomb_negative: float = 0.0,
+                 disturbance_unit: str = "command"):
         if mass <= 0.0 or gain <= 0.0 or sample_time <= 0.0 or damping < 0.0:
             raise ValueError("mass, gain and sample time must be positive and damping non-negative")
         self.mass, self.damping, self.gain = float(mass), float(damping), float(gain)
@@ -116,6 +119,9 @@ class MassDamperAxis:
             self._vv, self._vw = 1.0 - one_minus_e, one_minus_e / a
             self._pv, self._pw = one_minus_e / a, (ts - one_minus_e / a) / a
         self._input_scale = self.gain / self.mass
+        if disturbance_unit not in ("command", "acceleration"):
+            raise ValueError(f"disturbance_unit must be command or acceleration, got {disturbance_unit!r}")
+        self._disturbance_scale = 1.0 if disturbance_unit == "command" else self.mass / self.gain
         self.position = float(position)
         self.velocity = float(velocity)
 
@@ -124,7 +130,7 @@ class MassDamperAxis:
         if self.saturation:
             command = max(-self.saturation, min(self.saturation, command))
         p, v = self.position, self.velocity
-        w = self._input_scale * (command + self.disturbance(t)
+        w = self._input_scale * (command + self._disturbance_scale * self.disturbance(t)
                                  - coulomb_friction(v, self.coulomb_positive, self.coulomb_negative))
         self.position = p + self._pv * v + self._pw * w
         self.velocity = self._vv * v + self._vw * w

@@ -13,8 +13,9 @@ class ServoNode(LockstepNode):
     def setup(self):
         self.axis = self.own_axis()
         self.index = self.axes.index(self.axis)
-        _, velocities, accelerations = initial_state(self.experiment)
-        self.servo = build_servo(self.experiment, self.axis, velocities[self.index], accelerations[self.index])
+        positions, velocities, accelerations = initial_state(self.experiment)
+        self.servo = build_servo(self.experiment, self.axis, positions[self.index], velocities[self.index],
+                                 accelerations[self.index])
         self.state_topic = graph.state_topic(self.axis)
         for topic in (graph.REFERENCE, self.state_topic, graph.CORRECTION):
             self.add_input(topic)
