@@ -105,6 +105,7 @@ SERVOS = {
              "observer": Param("bool", False), "c": Param("float", 1.0, "positive"),
              "d": Param("float", 1.0, "positive"), "output_limit": LIMIT},
     "direct": {"output_limit": LIMIT},
+    "pid": _gains(ki=0.0, kd=0.0),
     "eso_smc": {"mass": Param("float", check="positive"), "damping": Param("float", check="nonnegative"),
                 "gain": Param("float", check="positive"), "c": Param("float", check="positive"),
                 "k": Param("float", check="positive"), "alphas": Param("floats"),
@@ -114,6 +115,7 @@ SERVOS = {
 ESTIMATORS = {
     "tangent_line": {},
     "natural_local": {},
+    "osculating_circle": {},
     "newton": {"k_prime": Param("float", check="positive"), "c_prime": Param("float", check="positive"),
                "iterations": Param("int", 20, "positive"), "inner_step": Param("float", 0.0, "nonnegative"),
                "theta0": Param("float", None),
@@ -130,6 +132,9 @@ CONTROLLERS = {
                       "f_n": Param("float", check="positive"), "f_b": Param("float", None, "positive"),
                       "zeta": Param("float", 1.0, "positive")},
 }
+CONTROLLERS["adaptive_tnb"] = {
+    "coupling": Param("floats"), "alpha": Param("float", check="positive"), "gamma_mass": Param("floats"),
+    "gamma_damping": Param("floats"), "mass0": Param("floats"), "damping0": Param("floats")}
 # task-frame controllers: the local approximation they act on -> the estimator that reports its errors
 APPROXIMATIONS = {"first_order": "tangent_line", "natural_local": "natural_local"}
 # controllers that compute every axis' whole command (their servos must be 'direct', and only theirs)
@@ -188,8 +193,8 @@ class Experiment:
 
 
 class _NoAliasLoader(yaml.SafeLoader):
-    """YAML loader that refuses anchors/aliases, so no file can expand without bound, and reads
-    exponent floats without a dot (1e-3) as numbers, as YAML 1.2 and the ROS parameter parser do."""
+    """YAML loader that refuses anchors/aliases, so no file can expand without bound, and reads every
+    exponent float (1e-3, 4.86e7) as a number, as YAML 1.2 and the ROS parameter parser do."""
 
     def compose_node(self, parent, index):
         if self.check_event(yaml.AliasEvent):
@@ -200,7 +205,8 @@ class _NoAliasLoader(yaml.SafeLoader):
 
 
 _NoAliasLoader.add_implicit_resolver(
-    "tag:yaml.org,2002:float", re.compile(r"^[-+]?[0-9]+[eE][-+]?[0-9]+$"), list("-+0123456789"))
+    "tag:yaml.org,2002:float", re.compile(r"^[-+]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)[eE][-+]?[0-9]+$"),
+    list("-+0123456789."))
 
 
 def _fail(where: str, key: str, message: str):
@@ -323,17 +329,22 @@ def _validate_role(where, node: str, role: str, given: dict, globals_: dict) -> 
     if role == "plant" and section["model"] == "mass_damper" and section["disturbance_unit"] not in DISTURBANCE_UNITS:
         _fail(where, f"{node}.disturbance_unit", f"expected one of {', '.join(DISTURBANCE_UNITS)}, "
                                                  f"got {section['disturbance_unit']!r}")
+    if role == "contour_estimator" and section["type"] == "osculating_circle" and len(globals_["axes"]) != 2:
+        _fail(where, f"{node}.type", "the osculating_circle estimate needs a planar contour (2 axes)")
     if role == "servo" and section["law"] == "eso_smc" and len(section["alphas"]) != 3:
         _fail(where, f"{node}.alphas", f"expected the three ESO gains alpha_1..3, got {len(section['alphas'])}")
     if role == "ccc" and section["type"] == "task_frame_pd":
         if section["approximation"] not in APPROXIMATIONS:
             _fail(where, f"{node}.approximation", f"expected one of {', '.join(APPROXIMATIONS)}, "
                                                   f"got {section['approximation']!r}")
-        if len(globals_["axes"]) not in (2, 3):
-            _fail(where, f"{node}.type", "the task_frame_pd controller needs 2 or 3 axes (a Frenet frame)")
         if len(globals_["axes"]) == 3 and section["f_b"] is None:
             _fail(where, f"{node}.f_b", "missing required key (the binormal bandwidth, for 3 axes)")
-        for key in ("mass", "damping", "gain", "coulomb_positive", "coulomb_negative"):
+    per_axis_keys = {"task_frame_pd": ("mass", "damping", "gain", "coulomb_positive", "coulomb_negative"),
+                     "adaptive_tnb": ("coupling", "gamma_mass", "gamma_damping", "mass0", "damping0")}
+    if role == "ccc" and section["type"] in per_axis_keys:
+        if len(globals_["axes"]) not in (2, 3):
+            _fail(where, f"{node}.type", f"the {section['type']} controller needs 2 or 3 axes (a Frenet frame)")
+        for key in per_axis_keys[section["type"]]:
             if section[key] is not None and len(section[key]) != len(globals_["axes"]):
                 _fail(where, f"{node}.{key}", f"expected one value per axis ({len(globals_['axes'])}), "
                                               f"got {len(section[key])}")
@@ -527,6 +538,8 @@ def build_servo(experiment: Experiment, axis: str, position: float, velocity: fl
                                          ts, position, velocity, s["disturbance_compensation"], s["output_limit"])
     if s["law"] == "direct":
         return servo.DirectServo(s["output_limit"])
+    if s["law"] == "pid":
+        return servo.PIDServo(s["kp"], s["ki"], s["kd"], ts, s["output_limit"])
     if s["law"] == "pid_feedforward":
         return servo.PIDFeedforwardServo(s["kp"], s["ki"], s["kd"], s["gain"], s["time_constant"], ts,
                                          s["output_limit"])
@@ -543,6 +556,8 @@ def build_estimator(experiment: Experiment, curve):
         return estimators.TangentLineEstimator(curve)
     if s["type"] == "natural_local":
         return estimators.NaturalLocalEstimator(curve)
+    if s["type"] == "osculating_circle":
+        return estimators.OsculatingCircleEstimator(curve)
     theta0 = s["theta0"] if s["theta0"] is not None else experiment.schedule["theta_start"]
     inner = s["inner_step"] or experiment.sample_time
     check = estimators.BranchCheck(curve, s["branch_check_samples"], s["branch_check_tolerance"]) \
@@ -560,6 +575,9 @@ def build_controller(experiment: Experiment, curve):
         return contouring.TaskFramePD(curve, approximation, s["mass"], s["damping"], s["gain"],
                                       [s["f_t"], s["f_n"]] + ([s["f_b"]] if s["f_b"] is not None else []), s["zeta"], s["coulomb_positive"],
                                       s["coulomb_negative"])
+    if s["type"] == "adaptive_tnb":
+        return contouring.AdaptiveTNBCCC(curve, s["coupling"], s["alpha"], s["gamma_mass"], s["gamma_damping"],
+                                         s["mass0"], s["damping0"], ts)
     if s["type"] == "variable_gain":
         return contouring.VariableGainCCC(curve, s["kp"], s["ki"], s["kd"], ts, s["output_limit"])
     return contouring.UnitVectorCCC(len(experiment.axes), s["kp"], s["ki"], s["kd"], ts, s["output_limit"])

@@ -59,17 +59,22 @@ def _ratio(ours: float, theirs) -> str:
     return f"{ours / theirs:.2g}" if theirs else "-"
 
 
+METRICS = (("mce_um", "MCE", "mce"), ("tace_um", "TACE", "tace"), ("rms_um", "RMS", "rms"))
+
+
 def paper_report(paper: str, graph: bool = False, progress=None) -> str:
-    """A Markdown table of every scenario of ``paper``: the paper's MCE/TACE and ours, in micrometres
-    (TACE is the time-averaged, "mean", contour error; '-' where the paper gives no number)."""
+    """A Markdown table of every scenario of ``paper``: for each metric the paper reports (MCE, TACE = the
+    time-averaged or "mean" contour error, RMS), the paper's value, ours and their ratio, in micrometres."""
     rows = paper_rows(paper, graph, progress)
-    head = "| scenario | paper MCE | ours MCE | MCE ratio | paper TACE | ours TACE | TACE ratio |"
+    metrics = [m for m in METRICS if any(m[0] in reference for _, _, reference, _, _ in rows)]
+    head = "| scenario |" + "".join(f" paper {label} | ours {label} | ratio |" for _, label, _ in metrics)
     lines = [f"### Paper {paper}", "", head + (" graph MCE | graph TACE |" if graph else ""),
-             "|---|---:|---:|---:|---:|---:|---:|" + ("---:|---:|" if graph else "")]
+             "|---|" + "---:|---:|---:|" * len(metrics) + ("---:|---:|" if graph else "")]
     for stem, _, reference, ours, through_graph in rows:
-        mce, tace = reference.get("mce_um"), reference.get("tace_um")
-        line = (f"| {stem} | {mce if mce is not None else '-'} | {ours.mce * 1e6:.3g} | {_ratio(ours.mce * 1e6, mce)} | "
-                f"{tace if tace is not None else '-'} | {ours.tace * 1e6:.3g} | {_ratio(ours.tace * 1e6, tace)} |")
+        line = f"| {stem} |"
+        for key, _, attribute in metrics:
+            theirs, value = reference.get(key), getattr(ours, attribute) * 1e6
+            line += f" {theirs if theirs is not None else '-'} | {value:.3g} | {_ratio(value, theirs)} |"
         if graph:
             line += f" {through_graph.mce * 1e6:.3g} | {through_graph.tace * 1e6:.3g} |"
         lines.append(line)

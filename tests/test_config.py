@@ -1,4 +1,6 @@
 """Malformed experiment files fail at once with one line naming the key."""
+import re
+
 import pytest
 
 from contouring_ros.config import load_experiment, parse_experiment
@@ -139,3 +141,11 @@ def test_direct_servo_needs_a_whole_command_controller():
                         "    time_constant: 0.040\n    observer: true\n    c: 25.0\n    d: 25.0\n", "", 1)
     with pytest.raises(ConfigError, match="/x/servo.law: 'direct' passes the contour controller's output through"):
         parse_experiment(text, "exp.yaml")
+
+
+def test_osculating_circle_and_adaptive_tnb_keys():
+    circle = (CONFIG / "paper001_caseI_adaptive_tnb.yaml").read_text()
+    with pytest.raises(ConfigError, match=r"/ccc.coupling: expected one value per axis \(2\), got 1"):
+        parse_experiment(re.sub(r"coupling: \[[^\]]*\]", "coupling: [1.0]", circle), "c.yaml")
+    with pytest.raises(ConfigError, match="the osculating_circle estimate needs a planar contour"):
+        parse_experiment(HELIX.replace("{type: natural_local}", "{type: osculating_circle}"), "h.yaml")

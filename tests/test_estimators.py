@@ -5,7 +5,7 @@ from numpy.testing import assert_allclose
 
 from contouring_ros.core.curves import Circle, Helix, Line, Parabola
 from contouring_ros.core.estimators import (LocalApproximationEstimator, NaturalLocalEstimator, NewtonEstimator,
-                                            TangentLineEstimator, first_order_terms)
+                                            OsculatingCircleEstimator, TangentLineEstimator, first_order_terms)
 from contouring_ros.core.geometry import ExactContourError
 from contouring_ros.core.interpolation import Reference, UniformSchedule, reference
 
@@ -112,3 +112,21 @@ def test_natural_local_is_exact_for_points_on_its_own_cubic():
     local = np.array([t, kappa * t * t / 2 + offset[0], kappa * tau * t**3 / 6 + offset[1]])
     estimate = estimator.step(ref, ref.position + rotation @ local)
     assert_allclose(estimate.vector, -(rotation[:, 1:] @ offset), atol=1e-17)
+
+
+def test_osculating_circle_is_exact_on_a_circle():
+    """Yang & Li's circular approximation (paper 003 eq. 12) is the contour itself on a circle: any point,
+    inside or outside, any lag, gives the exact error vector and foot point."""
+    circle = Circle(0.06, (0.01, -0.02))
+    estimator = OsculatingCircleEstimator(circle)
+    exact = ExactContourError(circle)
+    rng = np.random.default_rng(2)
+    for theta in np.linspace(0.3, 6.0, 12):
+        ref = _reference_at(circle, theta)
+        on_circle = circle.point(theta - rng.uniform(0.0, 0.3))
+        point = circle.center + (on_circle - circle.center) * (1 + rng.uniform(-0.02, 0.02))
+        estimate = estimator.step(ref, point)
+        truth = exact(point)
+        assert_allclose(estimate.vector, truth.vector[0], atol=1e-15)
+        assert_allclose(estimate.signed, truth.signed[0], atol=1e-15)
+        assert_allclose(circle.wrap(estimate.theta), truth.theta[0], atol=1e-12)

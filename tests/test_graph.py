@@ -59,6 +59,13 @@ def test_eso_saddle_graph_reproduces_simulation_exactly(tmp_path):
     _assert_identical(path, run_graph(path, tmp_path / "saddle.mcap"))
 
 
+def test_adaptive_tnb_circle_graph_reproduces_simulation_exactly(tmp_path):
+    """Paper 001: PD axis loops, the adaptive TNB CCC (state-dependent, adapting), the osculating circle."""
+    path = tmp_path / "circle.yaml"
+    path.write_text(shortened(CONFIG / "paper001_caseII_adaptive_tnb.yaml", 0.3))
+    _assert_identical(path, run_graph(path, tmp_path / "circle.mcap"))
+
+
 def test_run_longer_than_the_stall_timeout_completes(tmp_path):
     """The stall timer measures time without progress, not time since the start: a run whose lockstep
     lasts several stall timeouts completes, identical to the simulation."""

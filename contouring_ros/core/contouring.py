@@ -9,11 +9,11 @@ from __future__ import annotations
 import numpy as np
 
 from .curves import Curve
-from .geometry import frenet_frame, left_normal, unit_tangent
+from .geometry import frenet_generator, frenet_frame, left_normal, unit_tangent
 from .plants import coulomb_friction
 from .pid import DiscretePID
 
-__all__ = ["NoCoupling", "VariableGainCCC", "UnitVectorCCC", "TaskFramePD"]
+__all__ = ["NoCoupling", "VariableGainCCC", "UnitVectorCCC", "TaskFramePD", "AdaptiveTNBCCC"]
 
 
 class NoCoupling:
@@ -142,3 +142,49 @@ class TaskFramePD:
         friction = np.array([coulomb_friction(w, p, q) for w, p, q in zip(
             np.asarray(velocity, dtype=float), self.coulomb_positive, self.coulomb_negative)])
         return u_z / self.gain + friction + feedforward
+
+
+class AdaptiveTNBCCC:
+    """Adaptive nonlinear contour coupling control in the tangential/normal/binormal frame (paper 001
+    eq. 19-26, in the world frame as eq. 38).
+
+    With the tracking error e~ = x_d - x, the Frenet frame F of the reference point and its rate
+    dF^T/dt = v R F^T (eq. 14-15; R is the frame generator G of :func:`frenet_frame`), the filtered error of
+    eq. 20 in world coordinates is r = v F R F^T e~ + e~' + alpha e~. The correction
+
+    T_c = k_c v (F R F^T) e~ + M^ x_d'' + B^ x_d'                                         (38, terms 1 and 4)
+
+    adds the cross-coupling term and the adaptive feedforward F Y_d theta^ = M^ x_d'' + B^ x_d' to the
+    axes' PD (terms 2-3 of eq. 38, the servo law 'pid'), with one coupling gain k_c per axis as in the
+    paper's experiment. The estimates of the diagonal inertia and friction follow eq. 26,
+    theta^' = Gamma Y_d^T r, which in world coordinates is m^_i' = Gamma_m,i x_d,i'' r_i and
+    b^_i' = Gamma_b,i x_d,i' r_i; they are integrated by a forward rectangle at each step.
+    """
+
+    needs_state = True
+
+    def __init__(self, curve: Curve, coupling, alpha: float, gamma_mass, gamma_damping, mass0, damping0,
+                 sample_time: float):
+        n = curve.dimension
+        self.curve = curve
+        self.coupling = TaskFramePD._per_axis(coupling, n, "coupling")
+        self.gamma_mass = TaskFramePD._per_axis(gamma_mass, n, "gamma_mass")
+        self.gamma_damping = TaskFramePD._per_axis(gamma_damping, n, "gamma_damping")
+        self.mass = TaskFramePD._per_axis(mass0, n, "mass0").copy()
+        self.damping = TaskFramePD._per_axis(damping0, n, "damping0").copy()
+        self.alpha = float(alpha)
+        self.sample_time = float(sample_time)
+
+    def step(self, estimate, reference=None, position=None, velocity=None) -> np.ndarray:
+        frame = frenet_frame(self.curve, float(reference.theta), float(reference.theta_dot),
+                             float(reference.theta_ddot))
+        r = frame.rotation
+        n = r.shape[0]
+        error = reference.position - np.asarray(position, dtype=float)
+        error_rate = reference.velocity - np.asarray(velocity, dtype=float)
+        coupled = frame.speed * (r @ frenet_generator(n, frame.curvature, frame.torsion) @ r.T @ error)
+        filtered = coupled + error_rate + self.alpha * error
+        correction = self.coupling * coupled + self.mass * reference.acceleration + self.damping * reference.velocity
+        self.mass = self.mass + self.sample_time * self.gamma_mass * reference.acceleration * filtered
+        self.damping = self.damping + self.sample_time * self.gamma_damping * reference.velocity * filtered
+        return correction

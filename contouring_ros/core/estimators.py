@@ -11,10 +11,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from .curves import Curve
-from .geometry import frenet_axes, signed_error
+from .geometry import frenet_axes, left_normal, signed_error
 
 __all__ = ["ContourEstimate", "TangentLineEstimator", "NewtonEstimator", "BranchCheck", "LocalApproximationEstimator",
-           "NaturalLocalEstimator", "first_order_terms", "natural_local_terms"]
+           "NaturalLocalEstimator", "OsculatingCircleEstimator", "first_order_terms", "natural_local_terms"]
 
 
 @dataclass(frozen=True)
@@ -213,3 +213,36 @@ class NaturalLocalEstimator(LocalApproximationEstimator):
 
     def __init__(self, curve: Curve):
         super().__init__(curve, natural_local_terms)
+
+
+class OsculatingCircleEstimator:
+    """Osculating-circle (circular approximation) estimate of Yang & Li (2011; paper 003 eq. 12).
+
+    The planar contour near the reference point R(theta_r) is replaced by its osculating circle: centre
+    c = R + beta / kappa (beta the left normal, kappa the signed curvature, paper 003 eq. 27), radius
+    1 / |kappa|. The estimate is the distance to that circle, E = c + (P - c) / |P - c| / |kappa| - P, and
+    its foot point's parameter is theta_r + phi / (|kappa| |R'|), phi the signed angle from R - c to P - c
+    seen in the direction of travel. Exact on circles; where kappa vanishes it is the tangent-line estimate.
+    """
+
+    def __init__(self, curve: Curve, min_curvature: float = 1e-9):
+        if curve.dimension != 2:
+            raise ValueError("the osculating-circle estimate is defined for planar (2-axis) contours")
+        self.curve = curve
+        self.min_curvature = float(min_curvature)
+        self._tangent_line = TangentLineEstimator(curve)
+
+    def step(self, reference, position) -> ContourEstimate:
+        rotation, kappa, _, speed = frenet_axes(self.curve, reference.theta)
+        if abs(kappa) < self.min_curvature:
+            return self._tangent_line.step(reference, position)
+        point = np.asarray(position, dtype=float)
+        centre = reference.position + rotation[:, 1] / kappa
+        radial = point - centre
+        distance = math.hypot(radial[0], radial[1])
+        vector = centre + radial / (distance * abs(kappa)) - point
+        start = reference.position - centre
+        angle = math.atan2(start[0] * radial[1] - start[1] * radial[0], float(start @ radial))
+        theta = float(reference.theta) + math.copysign(1.0, kappa) * angle / (abs(kappa) * speed)
+        foot_tangent = math.copysign(1.0, kappa) * left_normal(radial / distance)
+        return ContourEstimate(theta=theta, vector=vector, signed=float(signed_error(vector, foot_tangent)))

@@ -13,7 +13,7 @@ import numpy as np
 
 from .curves import Curve
 
-__all__ = ["unit_tangent", "left_normal", "curvature", "signed_error", "FrenetFrame", "frenet_axes", "frenet_frame",
+__all__ = ["unit_tangent", "left_normal", "curvature", "signed_error", "FrenetFrame", "frenet_axes", "frenet_frame", "frenet_generator",
            "FootPoints", "ExactContourError"]
 
 
@@ -109,7 +109,8 @@ class FrenetFrame:
     rotation_acceleration: np.ndarray
 
 
-def _frenet_generator(n: int, kappa: float, tau: float) -> np.ndarray:
+def frenet_generator(n: int, kappa: float, tau: float) -> np.ndarray:
+    """G = [[0, kappa, 0], [-kappa, 0, tau], [0, -tau, 0]] (its planar block for n = 2): dR/dt = -v R G."""
     g = np.zeros((n, n))
     g[0, 1], g[1, 0] = kappa, -kappa
     if n == 3:
@@ -134,8 +135,8 @@ def frenet_frame(curve: Curve, theta: float, theta_dot: float, theta_ddot: float
     h = relative_step * max(abs(curve.domain[1] - curve.domain[0]), 1e-9)
     _, kappa_plus, tau_plus, _ = frenet_axes(curve, theta + h)
     _, kappa_minus, tau_minus, _ = frenet_axes(curve, theta - h)
-    g = _frenet_generator(n, kappa, tau)
-    g_rate = _frenet_generator(n, (kappa_plus - kappa_minus) / (2 * h) * theta_dot,
+    g = frenet_generator(n, kappa, tau)
+    g_rate = frenet_generator(n, (kappa_plus - kappa_minus) / (2 * h) * theta_dot,
                                (tau_plus - tau_minus) / (2 * h) * theta_dot)
     rate = -speed * rotation @ g
     acceleration = -(speed_rate * rotation @ g + speed * rate @ g + speed * rotation @ g_rate)

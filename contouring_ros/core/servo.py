@@ -14,7 +14,7 @@ from scipy.linalg import expm
 from .pid import DiscretePID
 
 __all__ = ["PIDFeedforwardServo", "IntegralSlidingModeServo", "DisturbanceObserver", "DirectServo",
-           "ExtendedStateObserver", "ESOSlidingModeServo", "saturation"]
+           "ExtendedStateObserver", "ESOSlidingModeServo", "PIDServo", "saturation"]
 
 
 def saturation(u: float) -> float:
@@ -213,3 +213,16 @@ class ESOSlidingModeServo:
             command = max(-self.output_limit, min(self.output_limit, command))
         self.observer.update(command, position)
         return command
+
+
+class PIDServo:
+    """PID on the position error with the velocity error as its derivative, no feedforward (the PD baseline
+    of paper 001 section 4 with ki = 0): T = kp (R - P) + ki int (R - P) + kd (R' - V) + correction."""
+
+    def __init__(self, kp, ki, kd, sample_time, output_limit: float = 0.0):
+        self.pid = DiscretePID(kp, ki, kd, sample_time)
+        self.output_limit = float(output_limit)
+
+    def step(self, ref_pos, ref_vel, ref_acc, position, velocity, correction) -> float:
+        command = self.pid.step(ref_pos - position, ref_vel - velocity) + correction
+        return self.pid.clamp(command, self.output_limit)
