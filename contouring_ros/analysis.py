@@ -78,7 +78,7 @@ def replay_estimators(run: RecordedRun, specs: list, progress: bool = False) -> 
     experiment = parse_experiment(run.experiment_text, "the bag's experiment")
     curve = curve_of(run)
     result = run.result
-    exact = ExactContourError(curve)(result.position).distance
+    exact = ExactContourError(curve)(result.position, near=result.theta).distance
     recorded = np.linalg.norm(result.estimate_vector, axis=1)
     replays = [_replay("recorded (" + experiment.estimator.get("type", "?") + ")", recorded, exact)]
     n = len(run.axes)
@@ -123,7 +123,7 @@ def figures(runs: list, magnification: float | None = None) -> dict:
 
     curve = curve_of(runs[0][1])
     solver = ExactContourError(curve)
-    exacts = [solver(run.result.position) for _, run in runs]
+    exacts = [solver(run.result.position, near=run.result.theta) for _, run in runs]
     out = {}
 
     fig, ax = plt.subplots(figsize=(7, 6))

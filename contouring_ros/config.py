@@ -22,7 +22,7 @@ import numpy as np
 import yaml
 
 from .core import contouring, curves, disturbances, estimators, plants, servo
-from .core.interpolation import UniformSchedule, reference
+from .core.interpolation import FeedrateSchedule, UniformSchedule, reference
 from .core.simulation import ControlLoop
 from .errors import ConfigError
 
@@ -73,14 +73,23 @@ CURVES = {
                 "center": Param("floats", [0.0, 0.0])},
     "figure_eight": {"a": Param("float", check="positive"), "b": Param("float", check="positive"),
                      "center": Param("floats", [0.0, 0.0])},
+    "butterfly": {"scale": Param("float", check="positive"), "center": Param("floats", [0.0, 0.0])},
     "saddle": {"a": Param("float", check="positive"), "b": Param("float", check="positive"),
                "h": Param("float"), "omega": Param("float", 6.283185307179586)},
     "helix": {"a": Param("float", check="positive"), "b": Param("float", check="positive"), "c": Param("float"),
               "omega": Param("float"), "length": Param("float", check="positive")},
 }
+WINDOW = Param("float", 0.0, "nonnegative", help="curve-parameter half-width the exact contour error searches "
+                                                "around the reference point; 0: the whole curve")
+for _spec in CURVES.values():
+    _spec["contour_error_window"] = WINDOW
 SCHEDULES = {
     "uniform": {"theta_start": Param("float"), "theta_end": Param("float"),
                 "duration": Param("float", check="positive")},
+    "feedrate": {"theta_start": Param("float"), "theta_end": Param("float"),
+                 "feedrate": Param("float", check="positive"), "acceleration": Param("float", check="positive"),
+                 "normal_acceleration": Param("float", 0.0, "nonnegative"),
+                 "samples": Param("int", 20001, "positive")},
 }
 PLANTS = {
     "first_order_velocity": {"gain": Param("float", check="positive"),
@@ -98,7 +107,7 @@ PLANTS = {
 DISTURBANCE_UNITS = ("command", "acceleration")
 SERVOS = {
     "pid_feedforward": {**_gains(), "gain": Param("float", check="positive"),
-                        "time_constant": Param("float", check="positive")},
+                        "time_constant": Param("float", check="nonnegative")},
     "ismc": {"a": Param("float", check="positive"), "b": Param("float", check="positive"),
              "mu": Param("float", check="positive"), "kappa": Param("float", check="positive"),
              "gain": Param("float", check="positive"), "time_constant": Param("float", check="positive"),
@@ -116,6 +125,8 @@ ESTIMATORS = {
     "tangent_line": {},
     "natural_local": {},
     "osculating_circle": {},
+    "foot_point_search": {"max_iterations": Param("int", 10, "positive"),
+                          "tolerance": Param("float", 1e-6, "positive")},
     "newton": {"k_prime": Param("float", check="positive"), "c_prime": Param("float", check="positive"),
                "iterations": Param("int", 20, "positive"), "inner_step": Param("float", 0.0, "nonnegative"),
                "theta0": Param("float", None),
@@ -132,13 +143,15 @@ CONTROLLERS = {
                       "f_n": Param("float", check="positive"), "f_b": Param("float", None, "positive"),
                       "zeta": Param("float", 1.0, "positive")},
 }
+CONTROLLERS["tvt"] = {"kc": Param("float", check="nonnegative"),
+                      "min_feedrate": Param("float", 1e-3, "nonnegative")}
 CONTROLLERS["adaptive_tnb"] = {
     "coupling": Param("floats"), "alpha": Param("float", check="positive"), "gamma_mass": Param("floats"),
     "gamma_damping": Param("floats"), "mass0": Param("floats"), "damping0": Param("floats")}
 # task-frame controllers: the local approximation they act on -> the estimator that reports its errors
 APPROXIMATIONS = {"first_order": "tangent_line", "natural_local": "natural_local"}
 # controllers that compute every axis' whole command (their servos must be 'direct', and only theirs)
-WHOLE_COMMAND_CONTROLLERS = {"task_frame_pd"}
+WHOLE_COMMAND_CONTROLLERS = {"task_frame_pd", "tvt"}
 GLOBALS = {
     "experiment": Param("dict", {}),
     "paper": Param("dict", {}),
@@ -315,7 +328,7 @@ def _validate_globals(where, given: dict) -> dict:
         _fail(where, "axes", f"{len(axes)} axes given but the {out['curve']['type']} curve has {dimension} "
                              "coordinates")
     if out["duration"] == 0.0:
-        out["duration"] = out["schedule"]["duration"]
+        out["duration"] = _schedule_duration(where, out["curve"], out["schedule"])
     if out["sample_time"] > out["duration"]:
         _fail(where, "sample_time", f"expected at most the duration ({out['duration']} s)")
     return out
@@ -468,6 +481,12 @@ def _kwargs(section: dict, type_key: str = "type") -> dict:
 
 
 def build_curve_from(section: dict, where: str = "curve") -> curves.Curve:
+    curve = _build_curve(section, where)
+    curve.contour_error_window = section["contour_error_window"]
+    return curve
+
+
+def _build_curve(section: dict, where: str) -> curves.Curve:
     kind = section["type"]
     try:
         if kind == "parabola":
@@ -480,6 +499,8 @@ def build_curve_from(section: dict, where: str = "curve") -> curves.Curve:
             return curves.Ellipse(section["a"], section["b"], section["center"])
         if kind == "figure_eight":
             return curves.FigureEight(section["a"], section["b"], section["center"])
+        if kind == "butterfly":
+            return curves.Butterfly(section["scale"], section["center"])
         if kind == "saddle":
             return curves.Saddle(section["a"], section["b"], section["h"], section["omega"])
         if kind == "helix":
@@ -493,8 +514,23 @@ def build_curve(experiment: Experiment) -> curves.Curve:
     return build_curve_from(experiment.curve, experiment.path)
 
 
-def build_schedule(experiment: Experiment):
-    return UniformSchedule(**_kwargs(experiment.schedule))
+def build_schedule_from(section: dict, curve, where: str = "schedule"):
+    if section["type"] == "feedrate":
+        try:
+            return FeedrateSchedule(curve, **_kwargs(section))
+        except ValueError as error:
+            raise ConfigError(f"{where}: schedule: {error}") from None
+    return UniformSchedule(**_kwargs(section))
+
+
+def _schedule_duration(where: str, curve_section: dict, schedule_section: dict) -> float:
+    if schedule_section["type"] == "uniform":
+        return schedule_section["duration"]
+    return build_schedule_from(schedule_section, build_curve_from(curve_section, where), where).duration
+
+
+def build_schedule(experiment: Experiment, curve=None):
+    return build_schedule_from(experiment.schedule, curve or build_curve(experiment), experiment.path)
 
 
 def build_disturbance(section: dict):
@@ -512,7 +548,7 @@ def initial_state(experiment: Experiment, curve=None, schedule=None):
     """Initial axis positions, velocities and accelerations: on the reference at t = 0, moving with it
     (``on_reference``) or at rest (``at_rest``)."""
     curve = curve or build_curve(experiment)
-    schedule = schedule or build_schedule(experiment)
+    schedule = schedule or build_schedule(experiment, curve)
     start = reference(curve, schedule, 0.0)
     if experiment.initial_state == "on_reference":
         return start.position, start.velocity, start.acceleration
@@ -558,6 +594,8 @@ def build_estimator(experiment: Experiment, curve):
         return estimators.NaturalLocalEstimator(curve)
     if s["type"] == "osculating_circle":
         return estimators.OsculatingCircleEstimator(curve)
+    if s["type"] == "foot_point_search":
+        return estimators.FootPointSearchEstimator(curve, s["max_iterations"], s["tolerance"])
     theta0 = s["theta0"] if s["theta0"] is not None else experiment.schedule["theta_start"]
     inner = s["inner_step"] or experiment.sample_time
     check = estimators.BranchCheck(curve, s["branch_check_samples"], s["branch_check_tolerance"]) \
@@ -575,6 +613,8 @@ def build_controller(experiment: Experiment, curve):
         return contouring.TaskFramePD(curve, approximation, s["mass"], s["damping"], s["gain"],
                                       [s["f_t"], s["f_n"]] + ([s["f_b"]] if s["f_b"] is not None else []), s["zeta"], s["coulomb_positive"],
                                       s["coulomb_negative"])
+    if s["type"] == "tvt":
+        return contouring.TangentialVelocityCCC(curve, build_schedule(experiment, curve), s["kc"], s["min_feedrate"])
     if s["type"] == "adaptive_tnb":
         return contouring.AdaptiveTNBCCC(curve, s["coupling"], s["alpha"], s["gamma_mass"], s["gamma_damping"],
                                          s["mass0"], s["damping0"], ts)
@@ -585,7 +625,8 @@ def build_controller(experiment: Experiment, curve):
 
 def build_loop(experiment: Experiment) -> ControlLoop:
     """Every core object of the experiment, in their initial state."""
-    curve, schedule = build_curve(experiment), build_schedule(experiment)
+    curve = build_curve(experiment)
+    schedule = build_schedule(experiment, curve)
     positions, velocities, accelerations = initial_state(experiment, curve, schedule)
     axes = experiment.axes
     return ControlLoop(

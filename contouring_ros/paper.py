@@ -63,18 +63,25 @@ METRICS = (("mce_um", "MCE", "mce"), ("tace_um", "TACE", "tace"), ("rms_um", "RM
 
 
 def paper_report(paper: str, graph: bool = False, progress=None) -> str:
-    """A Markdown table of every scenario of ``paper``: for each metric the paper reports (MCE, TACE = the
-    time-averaged or "mean" contour error, RMS), the paper's value, ours and their ratio, in micrometres."""
+    """A Markdown table of every scenario of ``paper``, in micrometres: our MCE, TACE (the time-averaged, or
+    "mean", contour error), RMS and estimation deviation; beside each metric the paper reports, the paper's
+    value and the ratio ours / paper."""
     rows = paper_rows(paper, graph, progress)
-    metrics = [m for m in METRICS if any(m[0] in reference for _, _, reference, _, _ in rows)]
-    head = "| scenario |" + "".join(f" paper {label} | ours {label} | ratio |" for _, label, _ in metrics)
+    given = {key for _, _, reference, _, _ in rows for key, _, _ in METRICS if key in reference}
+    head, rule = "| scenario |", "|---|"
+    for key, label, _ in METRICS:
+        head += f" paper {label} | ours {label} | ratio |" if key in given else f" ours {label} |"
+        rule += "---:|---:|---:|" if key in given else "---:|"
+    head, rule = head + " est. dev. max |", rule + "---:|"
     lines = [f"### Paper {paper}", "", head + (" graph MCE | graph TACE |" if graph else ""),
-             "|---|" + "---:|---:|---:|" * len(metrics) + ("---:|---:|" if graph else "")]
+             rule + ("---:|---:|" if graph else "")]
     for stem, _, reference, ours, through_graph in rows:
         line = f"| {stem} |"
-        for key, _, attribute in metrics:
+        for key, _, attribute in METRICS:
             theirs, value = reference.get(key), getattr(ours, attribute) * 1e6
-            line += f" {theirs if theirs is not None else '-'} | {value:.3g} | {_ratio(value, theirs)} |"
+            line += (f" {theirs if theirs is not None else '-'} | {value:.3g} | {_ratio(value, theirs)} |"
+                     if key in given else f" {value:.3g} |")
+        line += f" {ours.estimation_max * 1e6:.3g} |"
         if graph:
             line += f" {through_graph.mce * 1e6:.3g} | {through_graph.tace * 1e6:.3g} |"
         lines.append(line)

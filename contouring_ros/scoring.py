@@ -10,7 +10,8 @@ __all__ = ["score_run", "score_bag", "curve_of", "format_scores"]
 
 def score_run(curve, run) -> Scores:
     """Scores of a SimulationResult on ``curve``."""
-    return score(curve, run.time, run.position, run.reference_position, run.estimate_vector, run.command)[0]
+    return score(curve, run.time, run.position, run.reference_position, run.estimate_vector, run.command,
+                 theta=run.theta)[0]
 
 
 def score_bag(path, experiment_text: str | None = None, progress: bool = False) -> tuple[Scores, RecordedRun]:

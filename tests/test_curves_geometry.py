@@ -3,13 +3,13 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from contouring_ros.core.curves import Circle, Ellipse, FigureEight, Helix, Line, Parabola, Saddle
+from contouring_ros.core.curves import Butterfly, Circle, Ellipse, FigureEight, Helix, Line, Parabola, Saddle
 from contouring_ros.core.geometry import ExactContourError, curvature, frenet_frame
 
 
 @pytest.mark.parametrize("curve", [Parabola(0.02, 50.0), Circle(0.1, (0.01, -0.02)), Line([0, 0, 0], [0.3, 0.1, -0.2]),
                                    Ellipse(0.03, 0.01, (0.03, 0.0)), FigureEight(0.03, 0.03),
-                                   Helix(0.03, 0.01, 0.1, 2 * np.pi, 4.0), Saddle(0.002, 0.003, 0.0005)])
+                                   Helix(0.03, 0.01, 0.1, 2 * np.pi, 4.0), Saddle(0.002, 0.003, 0.0005), Butterfly(0.01)])
 def test_derivatives_match_finite_differences(curve):
     lo, hi = curve.domain
     theta = np.linspace(lo + 0.1 * (hi - lo), hi - 0.1 * (hi - lo), 7)

@@ -66,6 +66,13 @@ def test_adaptive_tnb_circle_graph_reproduces_simulation_exactly(tmp_path):
     _assert_identical(path, run_graph(path, tmp_path / "circle.mcap"))
 
 
+def test_tvt_butterfly_graph_reproduces_simulation_exactly(tmp_path):
+    """Paper 002: the feedrate-profile interpolator, the foot-point search and the TVT CCC."""
+    path = tmp_path / "butterfly.yaml"
+    path.write_text(shortened(CONFIG / "paper002_butterfly_c3_tvt.yaml", 0.3))
+    _assert_identical(path, run_graph(path, tmp_path / "butterfly.mcap"))
+
+
 def test_run_longer_than_the_stall_timeout_completes(tmp_path):
     """The stall timer measures time without progress, not time since the start: a run whose lockstep
     lasts several stall timeouts completes, identical to the simulation."""

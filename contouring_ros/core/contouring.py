@@ -13,7 +13,8 @@ from .geometry import frenet_generator, frenet_frame, left_normal, unit_tangent
 from .plants import coulomb_friction
 from .pid import DiscretePID
 
-__all__ = ["NoCoupling", "VariableGainCCC", "UnitVectorCCC", "TaskFramePD", "AdaptiveTNBCCC"]
+__all__ = ["NoCoupling", "VariableGainCCC", "UnitVectorCCC", "TaskFramePD", "AdaptiveTNBCCC",
+           "TangentialVelocityCCC"]
 
 
 class NoCoupling:
@@ -188,3 +189,36 @@ class AdaptiveTNBCCC:
         self.mass = self.mass + self.sample_time * self.gamma_mass * reference.acceleration * filtered
         self.damping = self.damping + self.sample_time * self.gamma_damping * reference.velocity * filtered
         return correction
+
+
+class TangentialVelocityCCC:
+    """Cross-coupled control by tangential velocity tracking (TVT, paper 002 section 3, steps 3-6).
+
+    No axis tracks a time-stamped reference point. At the estimated foot point theta* the axes get the
+    velocity command
+
+    V = f(theta*) t(theta*) + k_c E
+
+    with f(theta*) the feedrate the interpolator commands at that curve parameter (the curve-parameter
+    velocity interpolator; never below ``min_feedrate`` until theta* reaches the end of the path: a profile
+    that starts from rest has f = 0 at the start point, where the axes would otherwise stay), t the unit
+    tangent there, and E the estimate's contour error vector (the normal
+    from the actual point to the tangent line at the foot point, eq. 4-5 of the text's step 4): a P-type
+    contour controller of gain ``kc`` [1/s] on velocity loops. The output is every axis' whole velocity
+    command (servo law 'direct' over closed velocity loops).
+    """
+
+    needs_state = True
+
+    def __init__(self, curve: Curve, schedule, kc: float, min_feedrate: float = 0.0):
+        self.curve, self.schedule, self.kc = curve, schedule, float(kc)
+        self.min_feedrate = float(min_feedrate)
+        self.theta_end = float(schedule.theta_end)
+
+    def step(self, estimate, reference=None, position=None, velocity=None) -> np.ndarray:
+        theta = float(estimate.theta)
+        tangent = unit_tangent(self.curve, theta)
+        feedrate = float(self.schedule.feedrate_at(self.curve, theta))
+        if theta < self.theta_end:
+            feedrate = max(feedrate, self.min_feedrate)
+        return feedrate * tangent + self.kc * np.asarray(estimate.vector, dtype=float)

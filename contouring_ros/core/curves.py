@@ -9,7 +9,7 @@ from abc import ABC, abstractmethod
 
 import numpy as np
 
-__all__ = ["Curve", "Parabola", "Line", "Circle", "Ellipse", "FigureEight", "Saddle", "Helix"]
+__all__ = ["Curve", "Parabola", "Line", "Circle", "Ellipse", "FigureEight", "Saddle", "Helix", "Butterfly"]
 
 
 class Curve(ABC):
@@ -22,6 +22,11 @@ class Curve(ABC):
     dimension: int
     domain: tuple[float, float]
     closed: bool = False
+    #: Half-width, in curve parameter, of the stretch around the reference point against which the exact
+    #: contour error is measured (0: the whole curve). For self-crossing contours (the butterfly), so that a
+    #: point near a crossing is measured against its own branch, as paper 003 section IV-A measures
+    #: "in the neighborhood of the current desired point".
+    contour_error_window: float = 0.0
 
     @abstractmethod
     def columns(self, theta) -> list:
@@ -231,3 +236,33 @@ class Saddle(Curve):
         return [(a * c1, b * s1, h * c2), (-a * w * s1, b * w * c1, -2 * h * w * s2),
                 (-a * w * w * c1, -b * w * w * s1, -4 * h * w * w * c2),
                 (a * w**3 * s1, -b * w**3 * c1, 8 * h * w**3 * s2)]
+
+
+class Butterfly(Curve):
+    """Fay's butterfly without its slowly varying term, scaled: R = scale r(u) [sin u, cos u] with
+    r(u) = exp(cos u) - 2 cos 4u, u in [0, 2 pi) (closed). The large- and varying-curvature test contour of
+    the contouring literature that paper 002 runs (its own parametrisation is lost from the text)."""
+
+    dimension = 2
+    closed = True
+
+    def __init__(self, scale: float, center=(0.0, 0.0)):
+        self.scale = float(scale)
+        if self.scale <= 0.0:
+            raise ValueError("butterfly scale must be positive")
+        self.center = np.asarray(center, dtype=float)
+        self._center = tuple(self.center.tolist())
+        self.domain = (0.0, 2.0 * np.pi)
+
+    def columns(self, u) -> list:
+        k, (cx, cy) = self.scale, self._center
+        s, c, e = np.sin(u), np.cos(u), np.exp(np.cos(u))
+        s4, c4 = np.sin(4 * u), np.cos(4 * u)
+        r = e - 2 * c4
+        r1 = -s * e + 8 * s4
+        r2 = (s * s - c) * e + 32 * c4
+        r3 = s * e * (1 + 3 * c - s * s) - 128 * s4
+        return [(cx + k * r * s, cy + k * r * c),
+                (k * (r1 * s + r * c), k * (r1 * c - r * s)),
+                (k * (r2 * s + 2 * r1 * c - r * s), k * (r2 * c - 2 * r1 * s - r * c)),
+                (k * (r3 * s + 3 * r2 * c - 3 * r1 * s - r * c), k * (r3 * c - 3 * r2 * s - 3 * r1 * c + r * s))]

@@ -14,7 +14,8 @@ from .curves import Curve
 from .geometry import frenet_axes, left_normal, signed_error
 
 __all__ = ["ContourEstimate", "TangentLineEstimator", "NewtonEstimator", "BranchCheck", "LocalApproximationEstimator",
-           "NaturalLocalEstimator", "OsculatingCircleEstimator", "first_order_terms", "natural_local_terms"]
+           "NaturalLocalEstimator", "OsculatingCircleEstimator", "FootPointSearchEstimator", "first_order_terms",
+           "natural_local_terms"]
 
 
 @dataclass(frozen=True)
@@ -246,3 +247,39 @@ class OsculatingCircleEstimator:
         theta = float(reference.theta) + math.copysign(1.0, kappa) * angle / (abs(kappa) * speed)
         foot_tangent = math.copysign(1.0, kappa) * left_normal(radial / distance)
         return ContourEstimate(theta=theta, vector=vector, signed=float(signed_error(vector, foot_tangent)))
+
+
+class FootPointSearchEstimator:
+    """Foot-point search by tangential-error backstepping, and the distance to the tangent line there
+    (paper 002, section 3, steps 1-4; its reference 20).
+
+    From the previous step's foot point (the reference point at the first step) the parameter steps back by
+    the tangential error, theta <- theta + <P - R(theta), t(theta)> / |R'(theta)|, until that error is
+    below ``tolerance`` or after ``max_iterations`` (paper 002: 10 iterations, 1 um). The estimate is the
+    normal part of R(theta*) - P: the distance from P to the tangent line at the foot point, exact at a true
+    foot point. ``iterations`` counts the backsteps of the last step.
+    """
+
+    def __init__(self, curve: Curve, max_iterations: int = 10, tolerance: float = 1e-6):
+        self.curve = curve
+        self.max_iterations = int(max_iterations)
+        self.tolerance = float(tolerance)
+        self.theta = None
+        self.iterations = 0
+
+    def step(self, reference, position) -> ContourEstimate:
+        point = np.asarray(position, dtype=float)
+        theta = float(reference.theta) if self.theta is None else self.theta
+        self.iterations = 0
+        while True:
+            d = self.curve.derivatives(theta, order=1)
+            speed = math.sqrt(float(d[1] @ d[1]))
+            tangent = d[1] / speed
+            along = float((point - d[0]) @ tangent)
+            if abs(along) < self.tolerance or self.iterations >= self.max_iterations:
+                break
+            theta = self.curve.wrap_scalar(theta + along / speed)
+            self.iterations += 1
+        self.theta = theta
+        vector = d[0] - point + along * tangent
+        return ContourEstimate(theta=theta, vector=vector, signed=float(signed_error(vector, tangent)))

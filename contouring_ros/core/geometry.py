@@ -178,9 +178,15 @@ class ExactContourError:
         branches of the curve come closer than the sample spacing.
     tolerance : float
         Newton step size [parameter units] at which the refinement stops.
+    window : float, optional
+        Restrict each point's search to parameters within +-window of the parameter given with it
+        (``near``); default: the curve's ``contour_error_window`` (0: the whole curve).
     """
 
-    def __init__(self, curve: Curve, samples: int = 20001, tolerance: float = 1e-15, max_iterations: int = 50):
+    CANDIDATES = 64   # nearest samples examined per point when a window restricts the search
+
+    def __init__(self, curve: Curve, samples: int = 20001, tolerance: float = 1e-15, max_iterations: int = 50,
+                 window: float | None = None):
         self.curve = curve
         lo, hi = curve.domain
         from scipy.spatial import cKDTree   # imported here: the nodes never need it, and it is slow to load
@@ -188,12 +194,29 @@ class ExactContourError:
         self._tree = cKDTree(curve.point(self._grid))
         self.tolerance = float(tolerance)
         self.max_iterations = int(max_iterations)
+        self.window = float(curve.contour_error_window if window is None else window)
 
-    def __call__(self, points) -> FootPoints:
-        """Exact contour error of ``points`` (shape (m, n) or (n,))."""
+    def _nearest_in_window(self, points, near) -> np.ndarray:
+        """Index of each point's nearest sample among those within +-window of its ``near`` parameter."""
+        _, candidates = self._tree.query(points, k=min(self.CANDIDATES, self._grid.size))
+        offset = self._grid[candidates] - np.asarray(near, dtype=float).reshape(-1, 1)
+        if self.curve.closed:
+            period = self.curve.domain[1] - self.curve.domain[0]
+            offset = (offset + period / 2) % period - period / 2
+        inside = np.abs(offset) <= self.window
+        first = np.argmax(inside, axis=1)                 # candidates come nearest first
+        chosen = candidates[np.arange(len(points)), first]
+        return np.where(inside.any(axis=1), chosen, candidates[:, 0])
+
+    def __call__(self, points, near=None) -> FootPoints:
+        """Exact contour error of ``points`` (shape (m, n) or (n,)); ``near`` gives each point's reference
+        parameter, used when the search is restricted to a window."""
         points = np.atleast_2d(np.asarray(points, dtype=float))
         grid = self._grid
-        _, nearest = self._tree.query(points)
+        if self.window > 0.0 and near is not None:
+            nearest = self._nearest_in_window(points, near)
+        else:
+            _, nearest = self._tree.query(points)
         lower = grid[np.maximum(nearest - 1, 0)]
         upper = grid[np.minimum(nearest + 1, grid.size - 1)]
         theta = grid[nearest]

@@ -11,7 +11,7 @@ import numpy as np
 
 from .curves import Curve
 
-__all__ = ["UniformSchedule", "Reference", "reference"]
+__all__ = ["UniformSchedule", "FeedrateSchedule", "Reference", "reference"]
 
 
 class UniformSchedule:
@@ -35,6 +35,85 @@ class UniformSchedule:
         theta = np.where(moving, self.theta_start + self.rate * np.clip(t, 0.0, None), self.theta_end)
         theta_dot = np.where(moving, self.rate, 0.0)
         return theta, theta_dot, np.zeros_like(theta)
+
+    def feedrate_at(self, curve: Curve, theta):
+        """The feedrate |R'(theta)| theta_dot where the curve parameter is theta (0 outside the range)."""
+        lo, hi = sorted((self.theta_start, self.theta_end))
+        inside = (np.asarray(theta) >= lo) & (np.asarray(theta) <= hi)
+        return np.where(inside, np.linalg.norm(curve.derivatives(theta, order=1)[1], axis=-1) * abs(self.rate), 0.0)
+
+
+class FeedrateSchedule:
+    """theta(t) that moves along the curve at a commanded feedrate with an acceleration-bounded profile.
+
+    The feedrate v(s) along the arc length s is the largest profile under three bounds: the commanded
+    ``feedrate``; on curved stretches sqrt(normal_acceleration / kappa), so the centripetal acceleration
+    stays within ``normal_acceleration`` (0: no bound); and |dv/dt| <= ``acceleration``, from rest at the
+    start to rest at the end (the classic forward-backward pass over a dense table of ``samples`` points,
+    with v^2 linear in s, i.e. constant acceleration, between them; jerk is not bounded). Arc length is
+    integrated by the trapezoidal rule on that table. Between table points the motion is evaluated exactly
+    under the constant acceleration; theta_dot = v / |R'| and theta_ddot = (dv/dt - theta_dot^2 R'.R''/|R'|)
+    / |R'| follow from the chain rule.
+    """
+
+    def __init__(self, curve: Curve, theta_start: float, theta_end: float, feedrate: float, acceleration: float,
+                 normal_acceleration: float = 0.0, samples: int = 20001):
+        if feedrate <= 0.0 or acceleration <= 0.0 or theta_end <= theta_start:
+            raise ValueError("feedrate and acceleration must be positive and theta_end above theta_start")
+        self.curve = curve
+        self.theta_start, self.theta_end = float(theta_start), float(theta_end)
+        theta = np.linspace(self.theta_start, self.theta_end, int(samples))
+        d = curve.derivatives(theta, order=2)
+        speed = np.linalg.norm(d[1], axis=-1)
+        arc = np.concatenate([[0.0], np.cumsum(0.5 * (speed[1:] + speed[:-1]) * np.diff(theta))])
+        limit = np.full(theta.size, float(feedrate))
+        if normal_acceleration > 0.0:
+            d1, d2 = d[1], d[2]
+            cross = np.abs(d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]) if curve.dimension == 2 else \
+                np.linalg.norm(np.cross(d1, d2), axis=-1)
+            kappa = cross / speed**3
+            with np.errstate(divide="ignore"):
+                limit = np.minimum(limit, np.sqrt(normal_acceleration / kappa))
+        step = np.diff(arc)
+        v2 = limit**2
+        v2[0] = 0.0
+        for i in range(1, theta.size):
+            v2[i] = min(v2[i], v2[i - 1] + 2.0 * acceleration * step[i - 1])
+        v2[-1] = 0.0
+        for i in range(theta.size - 2, -1, -1):
+            v2[i] = min(v2[i], v2[i + 1] + 2.0 * acceleration * step[i])
+        v = np.sqrt(v2)
+        dt = 2.0 * step / (v[1:] + v[:-1])
+        self._theta, self._arc, self._v = theta, arc, v
+        self._t = np.concatenate([[0.0], np.cumsum(dt)])
+        self._a = (v[1:] ** 2 - v[:-1] ** 2) / (2.0 * step)
+        self.duration = float(self._t[-1])
+
+    def feedrate_at(self, curve: Curve, theta):
+        """The profile's feedrate where the curve parameter is theta (0 outside the schedule's range)."""
+        return np.interp(theta, self._theta, self._v, left=0.0, right=0.0)
+
+    def __call__(self, t):
+        """theta, theta_dot, theta_ddot at time(s) t."""
+        t = np.asarray(t, dtype=float)
+        i = np.clip(np.searchsorted(self._t, t, side="right") - 1, 0, self._t.size - 2)
+        tau = np.clip(t, 0.0, self.duration) - self._t[i]
+        a = self._a[i]
+        v = self._v[i] + a * tau
+        s = self._arc[i] + self._v[i] * tau + 0.5 * a * tau * tau
+        fraction = (s - self._arc[i]) / (self._arc[i + 1] - self._arc[i])
+        theta = self._theta[i] + fraction * (self._theta[i + 1] - self._theta[i])
+        d = self.curve.derivatives(theta, order=2)
+        speed = np.linalg.norm(d[1], axis=-1)
+        theta_dot = v / speed
+        theta_ddot = (a - theta_dot**2 * np.sum(d[1] * d[2], axis=-1) / speed) / speed
+        done = t >= self.duration
+        theta = np.where(done, self.theta_end, theta)
+        theta_dot = np.where(done, 0.0, theta_dot)
+        theta_ddot = np.where(done, 0.0, theta_ddot)
+        if np.ndim(theta) == 0:
+            return float(theta), float(theta_dot), float(theta_ddot)
+        return theta, theta_dot, theta_ddot
 
 
 @dataclass(frozen=True)

@@ -39,7 +39,7 @@ def _rms(x, axis=None):
 
 
 def score(curve, time, position, reference_position, estimate_vector, command,
-          exact: ExactContourError | None = None) -> tuple[Scores, np.ndarray]:
+          exact: ExactContourError | None = None, theta=None) -> tuple[Scores, np.ndarray]:
     """Score a run and return (scores, exact contour error per step [m]).
 
     Parameters
@@ -52,9 +52,11 @@ def score(curve, time, position, reference_position, estimate_vector, command,
     command : (m, n) actuator commands
     exact : ExactContourError, optional
         A prebuilt solver for ``curve`` (saves rebuilding its search tree).
+    theta : (m,) reference curve parameter, optional
+        Where the curve has a ``contour_error_window``, the search is restricted around it.
     """
     exact = exact or ExactContourError(curve)
-    errors = exact(position).distance
+    errors = exact(position, near=theta).distance
     estimated = np.linalg.norm(estimate_vector, axis=1)
     deviation = np.abs(estimated - errors)
     tracking = np.abs(reference_position - position)

@@ -17,7 +17,7 @@ class InterpolatorNode(LockstepNode):
 
     def setup(self):
         self.curve = build_curve(self.experiment)
-        self.schedule = build_schedule(self.experiment)
+        self.schedule = build_schedule(self.experiment, self.curve)
         self.add_input(graph.CONTOUR_ERROR)
         self.reference_pub = self.add_output(graph.REFERENCE)
         self.clock_pub = self.add_output(graph.CLOCK)

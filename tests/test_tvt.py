@@ -1,0 +1,76 @@
+"""Paper 002's pieces against known answers: the feedrate profile, the foot-point search, the windowed exact
+contour error of a self-crossing curve; and the TVT CCC's ordering on the butterfly."""
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from contouring_ros.config import build_loop, load_experiment
+from contouring_ros.core.curves import Butterfly, Circle, Line, Parabola
+from contouring_ros.core.estimators import FootPointSearchEstimator
+from contouring_ros.core.geometry import ExactContourError
+from contouring_ros.core.interpolation import FeedrateSchedule, Reference, reference
+from contouring_ros.core.simulation import simulate
+from contouring_ros.scoring import score_run
+from conftest import CONFIG
+
+
+def test_feedrate_profile_on_a_line_is_the_trapezoid():
+    """Rest to rest over L at feedrate F and acceleration A (L > F^2 / A): duration L / F + F / A."""
+    length, feedrate, acceleration = 0.2, 0.1, 0.5
+    line = Line([0.0, 0.0], [0.12, 0.16])
+    schedule = FeedrateSchedule(line, 0.0, length, feedrate, acceleration)
+    assert_allclose(schedule.duration, length / feedrate + feedrate / acceleration, rtol=1e-9)
+    t = np.arange(0.0, schedule.duration, 1e-3)
+    speed = np.linalg.norm(reference(line, schedule, t).velocity, axis=1)
+    expected = np.minimum.reduce([acceleration * t, np.full_like(t, feedrate), acceleration * (schedule.duration - t)])
+    assert_allclose(speed, expected, atol=1e-9)
+
+
+def test_feedrate_profile_respects_the_centripetal_bound_on_a_circle():
+    radius, normal_acceleration = 0.01, 0.5
+    circle = Circle(radius)
+    schedule = FeedrateSchedule(circle, 0.0, 2 * np.pi, 0.2, 2.0, normal_acceleration)
+    t = np.arange(0.0, schedule.duration, 1e-3)
+    ref = reference(circle, schedule, t)
+    speed = np.linalg.norm(ref.velocity, axis=1)
+    assert speed.max() == pytest.approx(np.sqrt(normal_acceleration * radius), rel=1e-6)
+    # positions and velocities agree: the mean velocity over a sample is the average of its ends, up to
+    # |jump in acceleration| Ts / 8 where the profile switches from cruise to braking inside a sample
+    assert_allclose(np.diff(ref.position, axis=0) / 1e-3, 0.5 * (ref.velocity[1:] + ref.velocity[:-1]),
+                    atol=1.2 * 2.0 * 1e-3 / 8)
+
+
+@pytest.mark.parametrize("curve,theta", [(Parabola(0.02, 100.0), 0.004), (Butterfly(0.01), 1.6)])
+def test_foot_point_search_ends_within_its_tolerance_at_the_exact_foot_point(curve, theta):
+    point = curve.point(theta) + np.array([3e-4, -2e-4])
+    estimator = FootPointSearchEstimator(curve, max_iterations=50, tolerance=1e-9)
+    d = curve.derivatives(theta - 0.002, order=2)
+    estimate = estimator.step(Reference(theta - 0.002, 1.0, 0.0, d[0], d[1], d[2]), point)
+    foot = curve.derivatives(estimate.theta, order=1)
+    assert abs((point - foot[0]) @ foot[1]) / np.linalg.norm(foot[1]) < 1e-9
+    exact = ExactContourError(curve, window=0.3)(point, near=[theta])
+    assert_allclose(np.linalg.norm(estimate.vector), exact.distance[0], rtol=1e-6)
+
+
+def test_windowed_exact_contour_error_keeps_a_point_on_its_own_branch():
+    """Where the butterfly crosses itself the nearest point of the whole curve can lie on the other
+    branch; restricted to +-0.3 rad around the point's own parameter, the error is to its own branch."""
+    butterfly = Butterfly(0.01)
+    grid = np.linspace(0.0, 2 * np.pi, 200001)
+    points = butterfly.point(grid)
+    shifted = points[::1000] + 5e-5
+    windowed = ExactContourError(butterfly, window=0.3)(shifted, near=grid[::1000])
+    assert np.all(np.abs(np.angle(np.exp(1j * (windowed.theta - grid[::1000])))) < 0.3)
+    global_ = ExactContourError(butterfly)(shifted)
+    assert np.all(windowed.distance >= global_.distance - 1e-15)
+
+
+def _paper002(method: str):
+    loop = build_loop(load_experiment(CONFIG / f"paper002_butterfly_{method}.yaml"))
+    return score_run(loop.curve, simulate(loop))
+
+
+def test_paper002_tvt_below_osculating_below_tangent_line_in_max_contour_error():
+    tangent, osculating, tvt = (_paper002(m) for m in ("c1_tangent_line", "c2_osculating_circle", "c3_tvt"))
+    assert tvt.mce < osculating.mce < tangent.mce
+    assert tvt.estimation_max < 1e-6
