@@ -76,6 +76,8 @@ CURVES = {
     "butterfly": {"scale": Param("float", check="positive"), "center": Param("floats", [0.0, 0.0])},
     "saddle": {"a": Param("float", check="positive"), "b": Param("float", check="positive"),
                "h": Param("float"), "omega": Param("float", 6.283185307179586)},
+    "spline": {"x": Param("floats"), "y": Param("floats"), "z": Param("floats", None), "closed": Param("bool", False)},
+    "toolpath": {"start": Param("floats"), "moves": Param("strings")},
     "helix": {"a": Param("float", check="positive"), "b": Param("float", check="positive"), "c": Param("float"),
               "omega": Param("float"), "length": Param("float", check="positive")},
 }
@@ -86,7 +88,7 @@ for _spec in CURVES.values():
 SCHEDULES = {
     "uniform": {"theta_start": Param("float"), "theta_end": Param("float"),
                 "duration": Param("float", check="positive")},
-    "feedrate": {"theta_start": Param("float"), "theta_end": Param("float"),
+    "feedrate": {"theta_start": Param("float", None), "theta_end": Param("float", None),  # default: the curve's domain
                  "feedrate": Param("float", check="positive"), "acceleration": Param("float", check="positive"),
                  "normal_acceleration": Param("float", 0.0, "nonnegative"),
                  "samples": Param("int", 20001, "positive")},
@@ -95,14 +97,14 @@ PLANTS = {
     "first_order_velocity": {"gain": Param("float", check="positive"),
                              "time_constant": Param("float", check="positive"),
                              "disturbance": Param("dict", {"type": "none"}, choices=DISTURBANCES),
-                             "saturation": LIMIT},
+                             "saturation": LIMIT, "encoder_resolution": Param("float", 0.0, "nonnegative")},
     "mass_damper": {"mass": Param("float", check="positive"), "damping": Param("float", check="nonnegative"),
                     "gain": Param("float", check="positive"),
                     "coulomb_positive": Param("float", 0.0, "nonnegative"),
                     "coulomb_negative": Param("float", 0.0, "nonnegative"),
                     "disturbance": Param("dict", {"type": "none"}, choices=DISTURBANCES),
                     "disturbance_unit": Param("str", "command"),
-                    "saturation": LIMIT},
+                    "saturation": LIMIT, "encoder_resolution": Param("float", 0.0, "nonnegative")},
 }
 DISTURBANCE_UNITS = ("command", "acceleration")
 SERVOS = {
@@ -115,6 +117,9 @@ SERVOS = {
              "d": Param("float", 1.0, "positive"), "output_limit": LIMIT},
     "direct": {"output_limit": LIMIT},
     "pid": _gains(ki=0.0, kd=0.0),
+    "cascade": {"kp_position": Param("float", check="nonnegative"), "kp_velocity": Param("float", check="nonnegative"),
+                "ki_velocity": Param("float", 0.0, "nonnegative"), "coulomb_positive": Param("float", 0.0, "nonnegative"),
+                "coulomb_negative": Param("float", 0.0, "nonnegative"), "output_limit": LIMIT},
     "eso_smc": {"mass": Param("float", check="positive"), "damping": Param("float", check="nonnegative"),
                 "gain": Param("float", check="positive"), "c": Param("float", check="positive"),
                 "k": Param("float", check="positive"), "alphas": Param("floats"),
@@ -499,6 +504,13 @@ def _build_curve(section: dict, where: str) -> curves.Curve:
             return curves.Ellipse(section["a"], section["b"], section["center"])
         if kind == "figure_eight":
             return curves.FigureEight(section["a"], section["b"], section["center"])
+        if kind == "spline":
+            coordinates = [section["x"], section["y"]] + ([section["z"]] if section["z"] is not None else [])
+            if len({len(c) for c in coordinates}) != 1:
+                raise ValueError("x, y (and z) must list the same number of points")
+            return curves.SplineCurve(np.column_stack(coordinates), section["closed"])
+        if kind == "toolpath":
+            return curves.ToolPath(section["start"], section["moves"])
         if kind == "butterfly":
             return curves.Butterfly(section["scale"], section["center"])
         if kind == "saddle":
@@ -516,8 +528,12 @@ def build_curve(experiment: Experiment) -> curves.Curve:
 
 def build_schedule_from(section: dict, curve, where: str = "schedule"):
     if section["type"] == "feedrate":
+        arguments = _kwargs(section)
+        for key, default in (("theta_start", curve.domain[0]), ("theta_end", curve.domain[1])):
+            if arguments[key] is None:
+                arguments[key] = default
         try:
-            return FeedrateSchedule(curve, **_kwargs(section))
+            return FeedrateSchedule(curve, **arguments)
         except ValueError as error:
             raise ConfigError(f"{where}: schedule: {error}") from None
     return UniformSchedule(**_kwargs(section))
@@ -561,10 +577,11 @@ def build_plant(experiment: Experiment, axis: str, position: float, velocity: fl
         return plants.MassDamperAxis(section["mass"], section["damping"], section["gain"], experiment.sample_time,
                                      build_disturbance(section["disturbance"]), position, velocity,
                                      section["saturation"], section["coulomb_positive"],
-                                     section["coulomb_negative"], section["disturbance_unit"])
+                                     section["coulomb_negative"], section["disturbance_unit"],
+                                     section["encoder_resolution"])
     return plants.FirstOrderVelocityAxis(section["gain"], section["time_constant"], experiment.sample_time,
                                          build_disturbance(section["disturbance"]), position, velocity,
-                                         section["saturation"])
+                                         section["saturation"], section["encoder_resolution"])
 
 
 def build_servo(experiment: Experiment, axis: str, position: float, velocity: float, acceleration: float):
@@ -574,6 +591,9 @@ def build_servo(experiment: Experiment, axis: str, position: float, velocity: fl
                                          ts, position, velocity, s["disturbance_compensation"], s["output_limit"])
     if s["law"] == "direct":
         return servo.DirectServo(s["output_limit"])
+    if s["law"] == "cascade":
+        return servo.CascadeServo(s["kp_position"], s["kp_velocity"], s["ki_velocity"], ts, s["coulomb_positive"],
+                                  s["coulomb_negative"], s["output_limit"])
     if s["law"] == "pid":
         return servo.PIDServo(s["kp"], s["ki"], s["kd"], ts, s["output_limit"])
     if s["law"] == "pid_feedforward":
@@ -596,7 +616,7 @@ def build_estimator(experiment: Experiment, curve):
         return estimators.OsculatingCircleEstimator(curve)
     if s["type"] == "foot_point_search":
         return estimators.FootPointSearchEstimator(curve, s["max_iterations"], s["tolerance"])
-    theta0 = s["theta0"] if s["theta0"] is not None else experiment.schedule["theta_start"]
+    theta0 = s["theta0"] if s["theta0"] is not None else build_schedule(experiment, curve).theta_start
     inner = s["inner_step"] or experiment.sample_time
     check = estimators.BranchCheck(curve, s["branch_check_samples"], s["branch_check_tolerance"]) \
         if s["branch_check_samples"] else None

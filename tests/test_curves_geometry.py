@@ -3,13 +3,17 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from contouring_ros.core.curves import Butterfly, Circle, Ellipse, FigureEight, Helix, Line, Parabola, Saddle
+from contouring_ros.core.curves import (Butterfly, Circle, Ellipse, FigureEight, Helix, Line, Parabola, Saddle,
+                                       SplineCurve, ToolPath)
 from contouring_ros.core.geometry import ExactContourError, curvature, frenet_frame
 
 
 @pytest.mark.parametrize("curve", [Parabola(0.02, 50.0), Circle(0.1, (0.01, -0.02)), Line([0, 0, 0], [0.3, 0.1, -0.2]),
                                    Ellipse(0.03, 0.01, (0.03, 0.0)), FigureEight(0.03, 0.03),
-                                   Helix(0.03, 0.01, 0.1, 2 * np.pi, 4.0), Saddle(0.002, 0.003, 0.0005), Butterfly(0.01)])
+                                   Helix(0.03, 0.01, 0.1, 2 * np.pi, 4.0), Saddle(0.002, 0.003, 0.0005), Butterfly(0.01),
+                                   SplineCurve([[0, 0, 0], [0.01, 0.01, 0.002], [0.02, 0, 0.004], [0.03, -0.01, 0.003],
+                                                [0.04, 0, 0.0]]),
+                                   ToolPath([0.0, 0.0], ["G3 X0.06 Y0 I0.03 J0"])])
 def test_derivatives_match_finite_differences(curve):
     lo, hi = curve.domain
     theta = np.linspace(lo + 0.1 * (hi - lo), hi - 0.1 * (hi - lo), 7)
@@ -83,3 +87,36 @@ def test_frenet_frame_rates_match_finite_differences(curve, theta_dot):
     scale = np.abs(frames[1].rotation_acceleration).max()
     assert_allclose(frames[1].rotation_rate, rate, atol=1e-7 * np.abs(rate).max())
     assert_allclose(frames[1].rotation_acceleration, acceleration, atol=1e-5 * scale)
+
+
+def test_spline_passes_through_its_points_at_their_chord_lengths():
+    points = np.array([[0.0, 0.0], [0.01, 0.01], [0.02, 0.0], [0.03, -0.01], [0.04, 0.0]])
+    spline = SplineCurve(points)
+    chords = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
+    assert_allclose(spline.point(chords), points, atol=1e-15)
+    closed = SplineCurve(points, closed=True)
+    assert closed.closed and closed.domain[1] > spline.domain[1]
+    assert_allclose(closed.derivatives(closed.domain[1], 2), closed.derivatives(0.0, 2), atol=1e-9)
+
+
+def test_tool_path_of_lines_and_arcs():
+    """G1 50 mm along x, G3 quarter circle of radius 30 mm, G1 30 mm along y: length 80 mm + 15 pi mm,
+    unit speed everywhere, curvature 0 on the lines and 1/30 mm on the arc."""
+    path = ToolPath([0.0, 0.0], ["G1 X0.05 Y0", "G3 X0.08 Y0.03 I0 J0.03", "G1 X0.08 Y0.06"])
+    assert_allclose(path.domain[1], 0.08 + 0.015 * np.pi, rtol=1e-12)
+    s = np.linspace(0.0, path.domain[1], 101)
+    assert_allclose(np.linalg.norm(path.derivatives(s, 1)[1], axis=1), 1.0, rtol=1e-12)
+    assert_allclose(path.point(path.domain[1]), [0.08, 0.06], atol=1e-15)
+    assert_allclose(curvature(path, [0.02, 0.05 + 0.0075 * np.pi, 0.1]), [0.0, 1 / 0.03, 0.0], atol=1e-9)
+    clockwise = ToolPath([0.0, 0.0], ["G2 X0.06 Y0 I0.03 J0"])
+    assert_allclose(clockwise.point(0.015 * np.pi), [0.03, 0.03], atol=1e-15)
+
+
+@pytest.mark.parametrize("moves,message", [(["G1 X0 Y0"], "a line of zero length"),
+                                           (["G3 X0.05 Y0 I0 J0.03"], "not on the arc's circle"),
+                                           (["G2 X0.05 Y0"], "needs its centre offset"),
+                                           (["M3 S1000"], "expected G1, G2 or G3"),
+                                           (["G1 Xfast"], "expected words like X0.05")])
+def test_tool_path_refuses_bad_moves(moves, message):
+    with pytest.raises(ValueError, match=message):
+        ToolPath([0.0, 0.0], moves)

@@ -1,5 +1,6 @@
 """The axis models against their analytic responses."""
 import numpy as np
+import pytest
 from numpy.testing import assert_allclose
 
 from contouring_ros.core.disturbances import ConstantDisturbance
@@ -62,3 +63,26 @@ def test_coulomb_friction_and_saturation_in_steady_state():
         backward.step(-3.0, i * 0.001)
     assert_allclose(forward.velocity, 16.0 * (10.0 - 0.12) / 800.0, rtol=1e-9)
     assert_allclose(backward.velocity, 16.0 * (-3.0 + 0.11) / 800.0, rtol=1e-9)
+
+
+def test_encoder_reads_the_position_to_its_resolution():
+    axis = MassDamperAxis(1.0, 100.0, 1.0, 0.001, position=1.23456789e-3, encoder_resolution=5e-7)
+    position, velocity = axis.measure()
+    assert position == pytest.approx(1.2345e-3, abs=1e-15) and velocity == axis.velocity
+    assert FirstOrderVelocityAxis(1.0, 0.01, 0.001, position=2.5e-7 + 1e-12, encoder_resolution=5e-7).measure()[0] \
+        == pytest.approx(5e-7)
+
+
+def test_cascade_servo_follows_a_ramp_with_no_steady_state_error_despite_friction():
+    """P position over PI velocity with Coulomb feedforward (paper 002 Fig. 5) on a torque-driven axis
+    with friction: at constant velocity the integral supplies B v / K, the feedforward the friction, and
+    the velocity feedforward leaves no position error."""
+    from contouring_ros.core.servo import CascadeServo
+    ts, v = 0.001, 0.05
+    axis = MassDamperAxis(1.0, 798.5, 16.23, ts, coulomb_positive=0.12, coulomb_negative=0.11, saturation=10.0)
+    servo = CascadeServo(40.0, 20.0, 1000.0, ts, coulomb_positive=0.12, coulomb_negative=0.11, output_limit=10.0)
+    for k in range(3000):
+        t = k * ts
+        axis.step(servo.step(v * t, v, 0.0, axis.position, axis.velocity, 0.0), t)
+    assert abs(axis.position - v * 3.0) < 1e-9
+    assert abs(axis.velocity - v) < 1e-9

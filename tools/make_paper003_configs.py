@@ -1,9 +1,9 @@
-"""Write the paper 003 helix scenario files (config/paper003_*.yaml) from one template.
+"""Write the paper 003 scenario files (config/paper003_*.yaml) from two templates.
 
-Paper 003 (Meng, Lou & Zhou, natural local approximation based contouring control), section IV-A: the
+Paper 003 (Meng, Lou & Zhou, natural local approximation based contouring control): section IV-A, the
 helix on three mismatched axes under the task-frame PD controller, first-order (tangent line) vs natural
-local approximation, for two bandwidth sets. Run after changing the template:
-python tools/make_paper003_configs.py
+local approximation, for two bandwidth sets; sections IV-B/C, the ellipse and the figure-8 on the XY stage
+(Tables I-II). Run after changing the templates: python tools/make_paper003_configs.py
 """
 from pathlib import Path
 
@@ -85,8 +85,104 @@ PAPER = {("first_order", 15): 11.46, ("natural_local", 15): 7.10,
          ("first_order", 20): 11.23, ("natural_local", 20): 4.45}
 
 
+XY_HEADER = """\
+# Paper 003 (Meng, Lou & Zhou, natural local approximation based contouring control), section IV-C, {table}.
+# {title}
+# Paper's result (a machine experiment, Table {table_number}): max {mce} um, RMS {rms} um.
+#
+# Readings this file had to choose:
+# - Axes: the identified XY stage, 16.23 / (s^2 + 798.5 s) and 17.58 / (s^2 + 862.75 s) from volts to metres
+#   (model: mass_damper, M = 1), Coulomb friction x+ 0.12, x- 0.11, y+ 0.07, y- 0.06 V, drives saturating at
+#   +-10 V; exact zero-order hold at 1 ms. The controller uses the same model (M, B, K and the friction,
+#   eq. 25), so what remains is the sampling, the saturation and the approximation.
+# - {curve_note}
+# - f_t = 15 Hz, damping ratios 1; planar frame with the relative curvature of eq. 27.
+# - Each axis starts on the contour moving with it; two periods.
+"""
+
+XY_BODY = """\
+/**:
+  ros__parameters:
+    experiment:
+      name: {name}
+      description: "{title}"
+    paper:
+      source: "003 section IV-C, Table {table_number}"
+      mce_um: {mce}
+      rms_um: {rms}
+    sample_time: 0.001
+    axes: ["x", "y"]
+    curve: {curve}
+    schedule: {schedule}
+    initial_state: on_reference
+
+/x/plant:
+  ros__parameters: {{model: mass_damper, mass: 1.0, damping: 798.5, gain: 16.23, coulomb_positive: 0.12,
+                    coulomb_negative: 0.11, saturation: 10.0}}
+
+/y/plant:
+  ros__parameters: {{model: mass_damper, mass: 1.0, damping: 862.75, gain: 17.58, coulomb_positive: 0.07,
+                    coulomb_negative: 0.06, saturation: 10.0}}
+
+/x/servo:
+  ros__parameters: {{law: direct, output_limit: 10.0}}
+
+/y/servo:
+  ros__parameters: {{law: direct, output_limit: 10.0}}
+
+/contour_estimator:
+  ros__parameters: {{type: {estimator}}}
+
+/ccc:
+  ros__parameters:
+    type: task_frame_pd
+    approximation: {approximation}
+    mass: [1.0, 1.0]
+    damping: [798.5, 862.75]
+    gain: [16.23, 17.58]
+    coulomb_positive: [0.12, 0.07]
+    coulomb_negative: [0.11, 0.06]
+    f_t: 15.0
+    f_n: {f_n}
+    zeta: 1.0
+"""
+
+XY_CURVES = {
+    "ellipse": dict(table="Table I", table_number="I",
+                    curve="{type: ellipse, a: 0.03, b: 0.01, center: [0.03, 0.0]}",
+                    schedule="{type: uniform, theta_start: 3.141592653589793, theta_end: -9.42477796076938, "
+                             "duration: 2.2222222222222223}",
+                    curve_note="Ellipse x = 0.03 (1 - cos wt), y = 0.01 sin wt, w = 1.8 pi: the ellipse of centre "
+                               "(0.03, 0) at theta = pi - w t (theta runs down from pi).",
+                    results={("natural_local", 60): (27.77, 9.91), ("natural_local", 80): (15.07, 5.60),
+                             ("natural_local", 100): (12.21, 3.64), ("first_order", 60): (40.07, 15.15),
+                             ("first_order", 80): (37.28, 13.45), ("first_order", 100): (34.17, 13.20)}),
+    "figure_eight": dict(table="Table II", table_number="II",
+                         curve="{type: figure_eight, a: 0.03, b: 0.03}",
+                         schedule="{type: uniform, theta_start: 0.0, theta_end: 12.566370614359172, duration: 4.0}",
+                         curve_note="Figure-8 x = 0.03 (1 - cos wt), y = 0.03 sin 2wt, w = pi: theta = w t.",
+                         results={("natural_local", 60): (128.29, 42.33), ("natural_local", 80): (75.23, 24.75),
+                                  ("natural_local", 100): (54.22, 16.69), ("first_order", 60): (139.61, 39.48),
+                                  ("first_order", 80): (107.97, 32.55), ("first_order", 100): (102.16, 31.88)}),
+}
+
+
+def write_xy_stage(out: Path):
+    for curve, spec in XY_CURVES.items():
+        for approximation, (estimator, label) in APPROXIMATIONS.items():
+            for f_n in (60, 80, 100):
+                name = f"paper003_{curve}_{approximation}_fn{f_n}"
+                mce, rms = spec["results"][approximation, f_n]
+                title = f"XY stage {curve.replace('_', '-')}, task-frame PD, {label} approximation, f_n = {f_n} Hz"
+                fields = dict(spec, name=name, title=title, mce=mce, rms=rms, estimator=estimator,
+                              approximation=approximation, f_n=f"{f_n:.1f}")
+                (out / f"{name}.yaml").write_text(XY_HEADER.format(**fields) + "\n" + XY_BODY.format(**fields))
+                print(out / f"{name}.yaml")
+
+
 def main():
     out = Path(__file__).resolve().parent.parent / "config"
+    write_xy_stage(out)
     for sensitivity in (False, True):
         identified = "[205.0, 230.0, 185.0]" if sensitivity else "[205.0, 230.0, 180.0]"
         for approximation, (estimator, label) in APPROXIMATIONS.items():

@@ -9,7 +9,7 @@ from abc import ABC, abstractmethod
 
 import numpy as np
 
-__all__ = ["Curve", "Parabola", "Line", "Circle", "Ellipse", "FigureEight", "Saddle", "Helix", "Butterfly"]
+__all__ = ["Curve", "Parabola", "Line", "Circle", "Ellipse", "FigureEight", "Saddle", "Helix", "Butterfly", "SplineCurve", "ToolPath"]
 
 
 class Curve(ABC):
@@ -266,3 +266,114 @@ class Butterfly(Curve):
                 (k * (r1 * s + r * c), k * (r1 * c - r * s)),
                 (k * (r2 * s + 2 * r1 * c - r * s), k * (r2 * c - 2 * r1 * s - r * c)),
                 (k * (r3 * s + 3 * r2 * c - 3 * r1 * s - r * c), k * (r3 * c - 3 * r2 * s - 3 * r1 * c + r * s))]
+
+
+class SplineCurve(Curve):
+    """Cubic B-spline interpolating the given points, parametrised by cumulative chord length [m] (a close
+    stand-in for arc length); ``closed`` makes it periodic through the first point again. Derivatives up to
+    the third are the spline's own (scipy.interpolate.make_interp_spline), exact for the piecewise cubic.
+
+    Parameters
+    ----------
+    points : array_like, shape (m, n)
+        At least 4 points (2-D or 3-D); consecutive points must differ.
+    closed : bool
+        Periodic spline (the last point is joined back to the first).
+    """
+
+    def __init__(self, points, closed: bool = False):
+        from scipy.interpolate import make_interp_spline
+        points = np.asarray(points, dtype=float)
+        if points.ndim != 2 or points.shape[0] < 4 or points.shape[1] not in (2, 3):
+            raise ValueError("a spline needs at least 4 points of 2 or 3 coordinates")
+        if closed and np.any(points[0] != points[-1]):
+            points = np.vstack([points, points[:1]])
+        chords = np.linalg.norm(np.diff(points, axis=0), axis=1)
+        if np.any(chords <= 0.0):
+            raise ValueError("consecutive spline points must differ")
+        knots = np.concatenate([[0.0], np.cumsum(chords)])
+        self.dimension = points.shape[1]
+        self.closed = bool(closed)
+        self.domain = (0.0, float(knots[-1]))
+        spline = make_interp_spline(knots, points, k=3, bc_type="periodic" if closed else "not-a-knot")
+        self._splines = [spline] + [spline.derivative(j) for j in (1, 2, 3)]
+
+    def columns(self, t) -> list:
+        if np.ndim(t) == 0:
+            return [tuple(float(v) for v in s(float(t))) for s in self._splines]
+        values = [s(t) for s in self._splines]
+        return [tuple(v[..., i] for i in range(self.dimension)) for v in values]
+
+
+class ToolPath(Curve):
+    """A planar CNC tool path of straight lines and circular arcs (G01 / G02 / G03), parametrised by arc
+    length [m] from ``start``.
+
+    Each move is a string: ``"G1 X Y"`` a line to (X, Y); ``"G2 X Y I J"`` (clockwise) or ``"G3 X Y I J"``
+    (counter-clockwise) an arc to (X, Y) about the centre start + (I, J); coordinates in metres. The end
+    point of an arc must lie on its circle (to 1 um). Derivatives are analytic within each move; the
+    curvature jumps where moves meet, as on a machine.
+    """
+
+    dimension = 2
+
+    def __init__(self, start, moves):
+        position = np.asarray(start, dtype=float)
+        if position.shape != (2,):
+            raise ValueError("a tool path starts at a planar point [x, y]")
+        self.segments = []            # (kind, start, end or centre, radius, start angle, direction, length)
+        lengths = []
+        for number, move in enumerate(moves, start=1):
+            words = move.replace(",", " ").split()
+            code = words[0].upper() if words else ""
+            try:
+                values = {w[0].upper(): float(w[1:]) for w in words[1:]}
+            except ValueError:
+                raise ValueError(f"move {number} {move!r}: expected words like X0.05") from None
+            if code in ("G1", "G01"):
+                end = np.array([values.get("X", position[0]), values.get("Y", position[1])])
+                length = float(np.linalg.norm(end - position))
+                if length <= 0.0:
+                    raise ValueError(f"move {number} {move!r}: a line of zero length")
+                self.segments.append(("line", position, (end - position) / length, 0.0, 0.0, 0.0))
+            elif code in ("G2", "G02", "G3", "G03"):
+                if "I" not in values or "J" not in values:
+                    raise ValueError(f"move {number} {move!r}: an arc needs its centre offset I and J")
+                end = np.array([values.get("X", position[0]), values.get("Y", position[1])])
+                centre = position + np.array([values["I"], values["J"]])
+                radius = float(np.linalg.norm(position - centre))
+                if radius <= 0.0 or abs(np.linalg.norm(end - centre) - radius) > 1e-6:
+                    raise ValueError(f"move {number} {move!r}: the end point is not on the arc's circle")
+                direction = 1.0 if code in ("G3", "G03") else -1.0
+                a0 = float(np.arctan2(*(position - centre)[::-1]))
+                a1 = float(np.arctan2(*(end - centre)[::-1]))
+                sweep = (direction * (a1 - a0)) % (2 * np.pi) or 2 * np.pi
+                length = radius * sweep
+                self.segments.append(("arc", centre, None, radius, a0, direction))
+            else:
+                raise ValueError(f"move {number} {move!r}: expected G1, G2 or G3")
+            lengths.append(length)
+            position = end
+        if not self.segments:
+            raise ValueError("a tool path needs at least one move")
+        self._starts = np.concatenate([[0.0], np.cumsum(lengths)])
+        self.domain = (0.0, float(self._starts[-1]))
+        self.closed = False
+
+    def _one(self, s: float) -> list:
+        i = min(max(int(np.searchsorted(self._starts, s, side="right")) - 1, 0), len(self.segments) - 1)
+        kind, origin, direction, radius, a0, turn = self.segments[i]
+        u = s - self._starts[i]
+        if kind == "line":
+            return [tuple(origin + u * direction), tuple(direction), (0.0, 0.0), (0.0, 0.0)]
+        a = a0 + turn * u / radius
+        c, si = np.cos(a), np.sin(a)
+        return [(origin[0] + radius * c, origin[1] + radius * si), (-turn * si, turn * c),
+                (-c / radius, -si / radius), (turn * si / radius**2, -turn * c / radius**2)]
+
+    def columns(self, t) -> list:
+        if np.ndim(t) == 0:
+            return [tuple(float(v) for v in row) for row in self._one(float(t))]
+        rows = [self._one(float(s)) for s in np.ravel(t)]
+        shape = np.shape(t)
+        return [tuple(np.array([r[j][i] for r in rows]).reshape(shape) for i in range(2)) for j in range(4)]

@@ -9,10 +9,28 @@ import math
 
 from .disturbances import NoDisturbance
 
-__all__ = ["FirstOrderVelocityAxis", "MassDamperAxis", "coulomb_friction"]
+__all__ = ["FirstOrderVelocityAxis", "MassDamperAxis", "coulomb_friction", "quantize"]
 
 
-class FirstOrderVelocityAxis:
+def quantize(value: float, resolution: float) -> float:
+    """``value`` rounded to the nearest multiple of ``resolution`` (0: unchanged), as an encoder reads it."""
+    return round(value / resolution) * resolution if resolution else value
+
+
+class Axis:
+    """What every axis model shares: its measurement. ``measure()`` gives the (position, velocity) the
+    drive reports: the position read by an encoder of ``encoder_resolution`` [m] (0: exact), the velocity
+    as the drive's own estimate (taken exact)."""
+
+    encoder_resolution = 0.0
+    position = 0.0
+    velocity = 0.0
+
+    def measure(self) -> tuple[float, float]:
+        return quantize(self.position, self.encoder_resolution), self.velocity
+
+
+class FirstOrderVelocityAxis(Axis):
     """First-order velocity axis of paper 000 eq. 1-2.
 
     dP/dt = V,  dV/dt = -V / tau + (k / tau) (T + D)
@@ -40,7 +58,8 @@ class FirstOrderVelocityAxis:
     """
 
     def __init__(self, gain: float, time_constant: float, sample_time: float, disturbance=None,
-                 position: float = 0.0, velocity: float = 0.0, saturation: float = 0.0):
+                 position: float = 0.0, velocity: float = 0.0, saturation: float = 0.0,
+                 encoder_resolution: float = 0.0):
         if gain <= 0.0 or time_constant <= 0.0 or sample_time <= 0.0:
             raise ValueError("gain, time constant and sample time must be positive")
         self.gain = float(gain)
@@ -55,6 +74,7 @@ class FirstOrderVelocityAxis:
         self.position = float(position)
         self.velocity = float(velocity)
         self.saturation = float(saturation)
+        self.encoder_resolution = float(encoder_resolution)
 
     def step(self, command: float, t: float) -> tuple[float, float]:
         """Apply ``command`` over [t, t + Ts) and return the (position, velocity) at t + Ts."""
@@ -76,7 +96,7 @@ def coulomb_friction(velocity: float, positive: float, negative: float) -> float
     return 0.0
 
 
-class MassDamperAxis:
+class MassDamperAxis(Axis):
     """Mass-damper feed drive with Coulomb friction and actuator saturation (papers 001 eq. 1, 003 eq. 18,
     004 eq. 12).
 
@@ -103,7 +123,7 @@ class MassDamperAxis:
     def __init__(self, mass: float, damping: float, gain: float, sample_time: float, disturbance=None,
                  position: float = 0.0, velocity: float = 0.0, saturation: float = 0.0,
                  coulomb_positive: float = 0.0, coulomb_negative: float = 0.0,
-                 disturbance_unit: str = "command"):
+                 disturbance_unit: str = "command", encoder_resolution: float = 0.0):
         if mass <= 0.0 or gain <= 0.0 or sample_time <= 0.0 or damping < 0.0:
             raise ValueError("mass, gain and sample time must be positive and damping non-negative")
         self.mass, self.damping, self.gain = float(mass), float(damping), float(gain)
@@ -122,6 +142,7 @@ class MassDamperAxis:
         if disturbance_unit not in ("command", "acceleration"):
             raise ValueError(f"disturbance_unit must be command or acceleration, got {disturbance_unit!r}")
         self._disturbance_scale = 1.0 if disturbance_unit == "command" else self.mass / self.gain
+        self.encoder_resolution = float(encoder_resolution)
         self.position = float(position)
         self.velocity = float(velocity)
 

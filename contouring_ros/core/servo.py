@@ -12,9 +12,10 @@ import numpy as np
 from scipy.linalg import expm
 
 from .pid import DiscretePID
+from .plants import coulomb_friction
 
 __all__ = ["PIDFeedforwardServo", "IntegralSlidingModeServo", "DisturbanceObserver", "DirectServo",
-           "ExtendedStateObserver", "ESOSlidingModeServo", "PIDServo", "saturation"]
+           "ExtendedStateObserver", "ESOSlidingModeServo", "PIDServo", "CascadeServo", "saturation"]
 
 
 def saturation(u: float) -> float:
@@ -226,3 +227,27 @@ class PIDServo:
     def step(self, ref_pos, ref_vel, ref_acc, position, velocity, correction) -> float:
         command = self.pid.step(ref_pos - position, ref_vel - velocity) + correction
         return self.pid.clamp(command, self.output_limit)
+
+
+class CascadeServo:
+    """P position loop over a PI velocity loop with Coulomb friction feedforward (paper 002, Fig. 5).
+
+    V* = R' + kp_position (R - P) + correction                    (velocity command; the CCC acts here)
+    T  = kp_velocity (V* - V) + ki_velocity int (V* - V) + F_c(V*)
+
+    with F_c(V*) = coulomb_positive for V* > 0, -coulomb_negative for V* < 0 (in command units). For
+    torque-driven axes (model mass_damper); the integral is held while the command is at ``output_limit``.
+    """
+
+    def __init__(self, kp_position, kp_velocity, ki_velocity, sample_time, coulomb_positive=0.0,
+                 coulomb_negative=0.0, output_limit: float = 0.0):
+        self.kp_position = float(kp_position)
+        self.velocity_loop = DiscretePID(kp_velocity, ki_velocity, 0.0, sample_time)
+        self.coulomb_positive, self.coulomb_negative = float(coulomb_positive), float(coulomb_negative)
+        self.output_limit = float(output_limit)
+
+    def step(self, ref_pos, ref_vel, ref_acc, position, velocity, correction) -> float:
+        velocity_command = ref_vel + self.kp_position * (ref_pos - position) + correction
+        command = self.velocity_loop.step(velocity_command - velocity, 0.0) \
+            + coulomb_friction(velocity_command, self.coulomb_positive, self.coulomb_negative)
+        return self.velocity_loop.clamp(command, self.output_limit)

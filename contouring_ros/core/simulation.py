@@ -91,8 +91,9 @@ def simulate(loop: ControlLoop) -> SimulationResult:
         "estimate_vector", "correction", "command")}
     for k in range(m):
         t = step_time(k, loop.sample_time)
-        position = np.array([plant.position for plant in loop.plants])
-        velocity = np.array([plant.velocity for plant in loop.plants])
+        measured = [plant.measure() for plant in loop.plants]
+        position = np.array([p for p, _ in measured])
+        velocity = np.array([v for _, v in measured])
         ref = reference(loop.curve, loop.schedule, t)
         estimate = loop.estimator.step(ref, position)
         correction = loop.controller.step(estimate, ref, position, velocity)

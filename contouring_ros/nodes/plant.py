@@ -21,8 +21,8 @@ class PlantNode(LockstepNode):
         self.names = [self.axis]
 
     def publish_state(self, k: int):
-        self.publisher.publish(cdr.encode_joint_state(*self.stamp(k), self.names, [self.plant.position],
-                                                      [self.plant.velocity]))
+        position, velocity = self.plant.measure()
+        self.publisher.publish(cdr.encode_joint_state(*self.stamp(k), self.names, [position], [velocity]))
 
     def start(self):
         self.publish_state(0)
