@@ -25,7 +25,7 @@ from . import cdr, graph
 from .core.simulation import SimulationResult, step_time
 from .errors import BagError
 
-__all__ = ["message_definition", "BagWriter", "RecordedRun", "read_run", "read_metadata", "write_simulation",
+__all__ = ["message_definition", "BagWriter", "RecordedRun", "read_run", "read_metadata", "node_reports", "write_simulation",
            "EXPERIMENT_METADATA", "RUN_METADATA"]
 
 EXPERIMENT_METADATA = "contouring_ros.experiment"
@@ -89,9 +89,12 @@ class BagWriter:
     topics : iterable of (name, 'pkg/msg/Type')
     metadata : dict of str -> dict of str to str
         Metadata records written at the start.
+    background : bool
+        Write (and compress) on a thread of its own: :meth:`write` only queues the message, so the caller
+        (the recorder's take loop, or the composed layout's one loop) never waits for a chunk to compress.
     """
 
-    def __init__(self, path, topics, *, metadata=None, chunk_size: int = 256 * 1024):
+    def __init__(self, path, topics, *, metadata=None, chunk_size: int = 256 * 1024, background: bool = False):
         from mcap.writer import CompressionType, Writer
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
@@ -110,21 +113,47 @@ class BagWriter:
         for name, record in (metadata or {}).items():
             self._writer.add_metadata(name, record)
         self.closed = False
+        self._queue = self._thread = None
+        if background:
+            import queue
+            import threading
+            self._queue = queue.SimpleQueue()
+            self._thread = threading.Thread(target=self._drain, name="bag writer", daemon=True)
+            self._thread.start()
+
+    def _drain(self):
+        while True:
+            item = self._queue.get()
+            if item is None:
+                return
+            item[0](*item[1:])
+
+    def _do(self, *call):
+        if self._queue is not None:
+            self._queue.put(call)
+        else:
+            call[0](*call[1:])
 
     def add_metadata(self, name: str, record: dict):
         """Add a metadata record (str -> str) before the bag is closed."""
-        self._writer.add_metadata(name, record)
+        self._do(self._writer.add_metadata, name, record)
 
     def write(self, topic: str, stamp_ns: int, data: bytes):
         """Append one serialised message, logged at its stamp."""
+        self._do(self._write, topic, stamp_ns, data)
+
+    def _write(self, topic: str, stamp_ns: int, data: bytes):
         self._writer.add_message(self._channels[topic], log_time=stamp_ns, data=data, publish_time=stamp_ns,
                                  sequence=self._sequence[topic])
         self._sequence[topic] += 1
 
     def close(self):
-        """Write the summary (statistics, indexes) and close the file."""
+        """Write what is queued, then the summary (statistics, indexes), and close the file."""
         if not self.closed:
             self.closed = True
+            if self._thread is not None:
+                self._queue.put(None)
+                self._thread.join()
             self._writer.finish()
             self._file.close()
 
@@ -168,6 +197,21 @@ def read_metadata(path) -> dict:
     from mcap.reader import make_reader
     with open(path, "rb") as stream:
         return {record.name: dict(record.metadata) for record in make_reader(stream).iter_metadata()}
+
+
+def node_reports(path) -> dict:
+    """Each node's end-of-run report from the bag's /diagnostics: node name -> {key: value} (the last
+    status of that node whose message starts with 'completed'), decoded with the ROS 2 decoder alone."""
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+    reports = {}
+    with open(path, "rb") as stream:
+        reader = make_reader(stream, decoder_factories=[DecoderFactory()])
+        for _, _, _, array_msg in reader.iter_decoded_messages(topics=[graph.DIAGNOSTICS]):
+            for status in array_msg.status:
+                if status.message.startswith("completed"):
+                    reports[status.name] = {kv.key: kv.value for kv in status.values}
+    return reports
 
 
 def _step_times(stamps_ns, sample_time) -> np.ndarray:

@@ -53,6 +53,11 @@ def _run(args):
     _warn(run)
     print(f"bag: {bag}")
     print(format_scores([(config.stem, scores)], run.axes))
+    from .bag import node_reports
+    from .scoring import format_realtime
+    realtime = format_realtime(node_reports(bag))
+    if realtime:
+        print(realtime)
 
 
 def _simulate(args):

@@ -2,7 +2,9 @@
 SingleThreadedExecutor (the stock callback path of :class:`~contouring_ros.nodes.lockstep.LockstepNode`).
 
 Same nodes, same topics, same step semantics as the process layout, hence the same bag payloads.
-Usage (the runner does this): python -m contouring_ros.composed EXPERIMENT.yaml BAG.mcap [lean|stock]
+Usage (the runner does this):
+python -m contouring_ros.composed EXPERIMENT.yaml BAG.mcap [lean|stock] [--start-time UNIX_TIME]
+(``--start-time``: tick 0 of a realtime run)
 """
 from __future__ import annotations
 
@@ -37,7 +39,7 @@ def _lean_spin_once(nodes, wait_set, handles, timeout_ns: int):
         node.take_all(node.on_message)
 
 
-def run_composed(experiment_path: str, bag: str, executor_kind: str = "lean"):
+def run_composed(experiment_path: str, bag: str, executor_kind: str = "lean", start_time: float = 0.0):
     """Create every node in this process, run the lockstep to the end, close the bag.
 
     ``executor_kind`` ``lean`` waits on one wait set holding every node's subscriptions and dispatches
@@ -48,7 +50,10 @@ def run_composed(experiment_path: str, bag: str, executor_kind: str = "lean"):
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.parameter import Parameter
     experiment = load_experiment(experiment_path)
-    rclpy.init(args=["--ros-args", "--params-file", str(experiment_path)])
+    arguments = ["--ros-args", "--params-file", str(experiment_path)]
+    if start_time:
+        arguments += ["-p", f"start_time:={start_time!r}"]
+    rclpy.init(args=arguments)
     classes, nodes = _node_classes(), []
     executor = SingleThreadedExecutor()
     try:
@@ -64,7 +69,7 @@ def run_composed(experiment_path: str, bag: str, executor_kind: str = "lean"):
             node.wait_for_graph()
         for node in nodes:
             node.start()
-        if executor_kind == "lean":
+        if executor_kind == "lean" or experiment.timing == "realtime":
             from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
             handles = [sub.handle for node in nodes for _, sub, _, _ in node._inputs]
             wait_set = _rclpy.WaitSet(len(handles), 0, 0, 0, 0, 0, nodes[0].node.context.handle)
@@ -73,6 +78,8 @@ def run_composed(experiment_path: str, bag: str, executor_kind: str = "lean"):
                 _lean_spin_once(nodes, wait_set, handles, int(timeout_sec * 1e9))
         else:
             spin_once = executor.spin_once
+        if experiment.timing == "realtime":
+            _run_realtime(nodes, nodes[0].experiment)
         last, last_progress = -1, time.monotonic()
         while not all(node.finished for node in nodes):
             spin_once(timeout_sec=0.2)
@@ -97,13 +104,45 @@ def run_composed(experiment_path: str, bag: str, executor_kind: str = "lean"):
         rclpy.try_shutdown()
 
 
+def _run_realtime(nodes, experiment):
+    """Every node's realtime ticks in one loop: wait for tick k on all subscriptions, then tick each node
+    in graph order (interpolator, plants, estimator, CCC, servos); the recorder takes what arrives.
+    ``experiment`` is a node's (it holds the run's start_time)."""
+    import rclpy
+    from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+    from .nodes.lockstep import wait_until
+    lockstep_nodes, recorder = nodes[:-1], nodes[-1]
+    for node in lockstep_nodes:
+        node.realtime_setup()
+    handles = [sub.handle for node in nodes for _, sub, _, _ in node._inputs]
+    wait_set = _rclpy.WaitSet(len(handles), 0, 0, 0, 0, 0, nodes[0].node.context.handle)
+
+    def take():
+        for node in lockstep_nodes:
+            node.take_all(node.keep_newest)
+        recorder.take_all(recorder.on_message)
+
+    for tick in range(experiment.n_steps):
+        wait_until(lockstep_nodes[0].tick_time(tick), wait_set, handles, take, nodes[0].node.context)
+        for node in lockstep_nodes:
+            node.realtime_tick(tick)
+        recorder.take_all(recorder.on_message)
+    end = time.time() + 1.0
+    while not recorder.complete() and time.time() < end and rclpy.ok(context=nodes[0].node.context):
+        wait_until(time.time() + 0.01, wait_set, handles, take, nodes[0].node.context)
+    recorder.finished = True
+
+
 def main(argv=None) -> int:
-    argv = sys.argv[1:] if argv is None else argv
-    if len(argv) not in (2, 3) or (len(argv) == 3 and argv[2] not in ("lean", "stock")):
-        print("usage: python -m contouring_ros.composed EXPERIMENT.yaml BAG.mcap [lean|stock]", file=sys.stderr)
-        return 2
+    import argparse
+    parser = argparse.ArgumentParser(prog="python -m contouring_ros.composed")
+    parser.add_argument("experiment")
+    parser.add_argument("bag")
+    parser.add_argument("executor", nargs="?", default="lean", choices=["lean", "stock"])
+    parser.add_argument("--start-time", type=float, default=0.0, help="Unix time of tick 0 (realtime runs)")
+    args = parser.parse_args(sys.argv[1:] if argv is None else argv)
     try:
-        run_composed(*argv)
+        run_composed(args.experiment, args.bag, args.executor, args.start_time)
     except KeyboardInterrupt:
         return 130
     except ContouringError as error:

@@ -169,7 +169,10 @@ GLOBALS = {
     "network": Param("bool", False),          # discover nodes beyond localhost
     "stall_timeout": Param("float", 10.0, "positive"),   # s without a complete step before a node gives up
     "on_invalid_input": Param("str", "stop"),  # stop | hold: a non-finite or malformed input message
+    "timing": Param("str", "lockstep"),        # lockstep | realtime (DESIGN.md, "One control step")
+    "start_time": Param("float", 0.0, "nonnegative"),  # realtime: Unix time of tick 0 (the runner sets it)
 }
+TIMINGS = ("lockstep", "realtime")
 INVALID_INPUT_POLICIES = ("stop", "hold")
 INITIAL_STATES = ("on_reference", "at_rest")
 # node section -> (key holding the type name, registry)
@@ -194,6 +197,8 @@ class Experiment:
     network: bool = False
     stall_timeout: float = 10.0
     on_invalid_input: str = "stop"
+    timing: str = "lockstep"
+    start_time: float = 0.0
     plants: dict = field(default_factory=dict)     # axis -> plant section
     servos: dict = field(default_factory=dict)     # axis -> servo section
     estimator: dict = field(default_factory=dict)
@@ -326,6 +331,8 @@ def _validate_globals(where, given: dict) -> dict:
     if out["on_invalid_input"] not in INVALID_INPUT_POLICIES:
         _fail(where, "on_invalid_input", f"expected one of {', '.join(INVALID_INPUT_POLICIES)}, "
                                          f"got {out['on_invalid_input']!r}")
+    if out["timing"] not in TIMINGS:
+        _fail(where, "timing", f"expected one of {', '.join(TIMINGS)}, got {out['timing']!r}")
     if out["initial_state"] not in INITIAL_STATES:
         _fail(where, "initial_state", f"expected one of {', '.join(INITIAL_STATES)}, got {out['initial_state']!r}")
     dimension = build_curve_from(out["curve"], where).dimension
@@ -423,6 +430,7 @@ def parse_experiment(text: str, where: str = "<experiment>") -> Experiment:
         axes=tuple(axes), curve=globals_["curve"], schedule=globals_["schedule"],
         initial_state=globals_["initial_state"], network=globals_["network"],
         stall_timeout=globals_["stall_timeout"], on_invalid_input=globals_["on_invalid_input"],
+        timing=globals_["timing"], start_time=globals_["start_time"],
         plants={a: parsed[f"/{a}/plant"] for a in axes}, servos={a: parsed[f"/{a}/servo"] for a in axes},
         estimator=parsed["/contour_estimator"], controller=parsed["/ccc"],
         info={"experiment": globals_["experiment"], "paper": globals_["paper"]})
@@ -443,7 +451,8 @@ def experiment_for_node(parameters: dict, node: str, role: str, where: str | Non
         path=where, text="", sample_time=globals_["sample_time"], duration=globals_["duration"], axes=axes,
         curve=globals_["curve"], schedule=globals_["schedule"], initial_state=globals_["initial_state"],
         network=globals_["network"], stall_timeout=globals_["stall_timeout"],
-        on_invalid_input=globals_["on_invalid_input"],
+        on_invalid_input=globals_["on_invalid_input"], timing=globals_["timing"],
+        start_time=globals_["start_time"],
         plants={axis: section} if role == "plant" else {}, servos={axis: section} if role == "servo" else {},
         estimator=section if role == "contour_estimator" else {}, controller=section if role == "ccc" else {},
         info={"experiment": globals_["experiment"], "paper": globals_["paper"], "node": section})

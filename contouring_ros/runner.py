@@ -27,6 +27,7 @@ __all__ = ["NodeProcess", "DomainLease", "graph_commands", "private_environment"
 
 FASTDDS_PROFILE = Path(__file__).resolve().parent / "fastdds_profile.xml"
 SHUTDOWN_GRACE = 10.0
+REALTIME_START_DELAY = 5.0   # s from launch to tick 0 of a realtime run: every node is up and matched by then
 OFF_CRITICAL_PATH = {"/recorder"}
 OFF_CRITICAL_PATH_NICENESS = 5   # s the nodes get to exit on their own once the recorder has the whole run
 _MODULES = {"interpolator": "interpolator", "plant": "plant", "servo": "servo",
@@ -74,8 +75,9 @@ def private_environment(domain_id: int, network: bool = False) -> dict:
     return env
 
 
-def graph_commands(experiment_path, experiment: Experiment, bag: Path) -> list:
-    """One NodeProcess per node of the graph (recorder first), each a `python -m` of its node module."""
+def graph_commands(experiment_path, experiment: Experiment, bag: Path, start_time: float = 0.0) -> list:
+    """One NodeProcess per node of the graph (recorder first), each a `python -m` of its node module;
+    realtime runs also get the shared ``start_time`` of tick 0."""
     out = []
     for full_name in ["/recorder"] + [n for n in graph.node_names(experiment.axes) if n != "/recorder"]:
         parts = full_name.strip("/").split("/")
@@ -84,6 +86,8 @@ def graph_commands(experiment_path, experiment: Experiment, bag: Path) -> list:
                    "-r", f"__ns:={namespace}", "-r", f"__node:={name}", "--params-file", str(experiment_path)]
         if name == "recorder":
             command += ["-p", f"bag:={bag}", "-p", f"experiment_file:={experiment_path}"]
+        if start_time:
+            command += ["-p", f"start_time:={start_time!r}"]
         out.append(NodeProcess(full_name, command))
     return out
 
@@ -156,10 +160,10 @@ def _raise_terminated(signum, frame):
     raise _Terminated()
 
 
-def composed_command(experiment_path, bag: Path) -> list:
+def composed_command(experiment_path, bag: Path, start_time: float = 0.0) -> list:
     """The composed layout: one process running every node under one executor."""
     return [NodeProcess("/composed", [sys.executable, "-m", "contouring_ros.composed", str(experiment_path),
-                                      str(bag)])]
+                                      str(bag)] + (["--start-time", repr(start_time)] if start_time else []))]
 
 
 def run_graph(experiment_path, bag=None, *, timeout: float | None = None, domain_id: int | None = None,
@@ -195,8 +199,9 @@ def run_graph(experiment_path, bag=None, *, timeout: float | None = None, domain
     timeout = timeout if timeout is not None else 60.0 + experiment.n_steps / 50.0
     if layout not in ("process", "composed"):
         raise RunError(f"unknown layout {layout!r} (expected process or composed)")
-    nodes = graph_commands(experiment_path.resolve(), experiment, bag.resolve()) if layout == "process" \
-        else composed_command(experiment_path.resolve(), bag.resolve())
+    start_time = time.time() + REALTIME_START_DELAY if experiment.timing == "realtime" else 0.0
+    nodes = graph_commands(experiment_path.resolve(), experiment, bag.resolve(), start_time) \
+        if layout == "process" else composed_command(experiment_path.resolve(), bag.resolve(), start_time)
     say = progress or (lambda message: None)
     in_main_thread = threading.current_thread() is threading.main_thread()
     previous_handler = signal.signal(signal.SIGTERM, _raise_terminated) if in_main_thread else None

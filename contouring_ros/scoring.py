@@ -5,7 +5,10 @@ from .bag import RecordedRun, read_run
 from .config import build_curve, parse_experiment
 from .core.metrics import Scores, score
 
-__all__ = ["score_run", "score_bag", "curve_of", "format_scores"]
+__all__ = ["score_run", "score_bag", "curve_of", "format_scores", "format_realtime"]
+
+REALTIME_COLUMNS = ("ticks", "deadline misses", "late inputs", "ticks missing an input", "latency p50 [us]",
+                    "latency p99 [us]", "latency max [us]", "jitter [us]")
 
 
 def score_run(curve, run) -> Scores:
@@ -51,4 +54,20 @@ def format_scores(named: list, axes=None) -> str:
             value = get(scores)
             cells.append((f"{value:d}" if isinstance(value, int) else f"{value:.4g}").rjust(w))
         lines.append("  ".join([label.ljust(width)] + cells))
+    return "\n".join(lines)
+
+
+def format_realtime(reports: dict) -> str:
+    """The realtime summary of a run, one row per node, from :func:`contouring_ros.bag.node_reports`
+    ('' when the run was not realtime)."""
+    rows = {name: values for name, values in reports.items() if "deadline misses" in values}
+    if not rows:
+        return ""
+    width = max(len(name) for name in rows)
+    header = ["node".ljust(width)] + [c.rjust(max(8, len(c))) for c in REALTIME_COLUMNS] + ["miss rate".rjust(9)]
+    lines = ["realtime (per node; latency = tick to outputs sent):", "  ".join(header)]
+    for name, values in sorted(rows.items()):
+        cells = [str(values.get(c, "-")).rjust(max(8, len(c))) for c in REALTIME_COLUMNS]
+        rate = 100.0 * int(values["deadline misses"]) / max(1, int(values["ticks"]))
+        lines.append("  ".join([name.ljust(width)] + cells + [f"{rate:8.2f}%"]))
     return "\n".join(lines)

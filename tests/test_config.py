@@ -25,6 +25,7 @@ BASE = DEFAULT.read_text()
     ("/contour_estimator:", "/estimator:", "/estimator: unknown node section"),
     ("    kp: 1.0\n", "", "/ccc.kp: missing required key"),
     ("    mu: 1.0e-3\n", "    mu: [1]\n", "/x/servo.mu: expected a number"),
+    ("    sample_time: 0.001", "    sample_time: 0.001\n    timing: soon", "timing: expected one of lockstep, realtime"),
 ])
 def test_malformed_experiment_names_the_key(old, new, expected):
     assert old in BASE

@@ -14,6 +14,7 @@ class InterpolatorNode(LockstepNode):
 
     role = "interpolator"
     default_name = "interpolator"
+    realtime_needs_inputs = False
 
     def setup(self):
         self.curve = build_curve(self.experiment)

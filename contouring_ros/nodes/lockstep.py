@@ -15,6 +15,8 @@ import importlib
 import sys
 import time
 
+import numpy as np
+
 import rclpy
 from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException
@@ -53,6 +55,11 @@ class LockstepNode:
 
     role = ""
     default_name = ""
+    #: realtime: at tick k the node handles step k + realtime_offset (the plant, -1: at tick k it applies
+    #: the command it holds over the last period and publishes its state at k)
+    realtime_offset = 0
+    #: realtime: whether a tick needs every input (False for the interpolator, whose input only paces it)
+    realtime_needs_inputs = True
 
     def __init__(self, args=None, *, name: str | None = None, namespace: str | None = None,
                  parameter_overrides=None, callbacks: bool = False):
@@ -252,6 +259,83 @@ class LockstepNode:
         self.wait_loop(lambda: self.finished, take_and_fire,
                        lambda: f"at step {self.next_step}, no message on {', '.join(self.missing_inputs())}")
 
+    # -- realtime ---------------------------------------------------------------------------------------
+    def realtime_setup(self):
+        """Prepare the realtime tick counters; return the first tick this node handles."""
+        if self.experiment.start_time <= 0.0:
+            raise ConfigError(f"{self.name}: timing: realtime needs start_time (the shared Unix time of tick 0, "
+                              "which contouring-ros run sets)")
+        self._newest = {}
+        self._first_tick = max(0, -self.realtime_offset)
+        ticks = self.n_steps - self._first_tick
+        self.latency, self.lateness = np.full(ticks, np.nan), np.full(ticks, np.nan)
+        self.deadline_misses = self.late_inputs = self.missing_inputs_count = 0
+        return self._first_tick
+
+    def keep_newest(self, topic: str, data: bytes):
+        """Realtime input handler: hold the newest message of each input (zero-order hold)."""
+        k = cdr.stamp_ns(data) // self.sample_time_ns
+        if topic not in self._newest or k >= self._newest[topic][0]:
+            self._newest[topic] = (k, data)
+
+    def tick_time(self, tick: int) -> float:
+        """Wall-clock time at which this node handles ``tick``."""
+        return self.experiment.start_time + tick * self.experiment.sample_time
+
+    def realtime_tick(self, tick: int):
+        """Handle tick ``tick`` now with the newest inputs held, and account for its timing."""
+        if tick < self._first_tick:
+            return
+        self.take_all(self.keep_newest)
+        deadline = self.tick_time(tick)
+        woke = time.time()
+        step, newest = tick + self.realtime_offset, self._newest
+        present = [topic for topic, *_ in self._inputs if topic in newest]
+        self.late_inputs += sum(1 for topic in present if newest[topic][0] < step - 1)
+        if self.realtime_needs_inputs and len(present) < len(self._inputs):
+            self.missing_inputs_count += 1
+        else:
+            self.on_step(step, self._checked_inputs(step, {topic: newest[topic][1] for topic in present})
+                         if self.realtime_needs_inputs else {})
+        done = time.time()
+        self.next_step = step + 1
+        i = tick - self._first_tick
+        self.lateness[i], self.latency[i] = woke - deadline, done - deadline
+        if done - deadline > self.experiment.sample_time:
+            self.deadline_misses += 1
+        if tick == self.n_steps - 1:
+            self.finished = True
+
+    def spin_realtime(self):
+        """Tick on the wall clock every Ts from the experiment's ``start_time`` (DESIGN.md, realtime): at
+        tick k take whatever arrived, hold the newest message of each input (zero-order hold) and handle
+        step k + ``realtime_offset`` with them. A tick that starts late is still handled, at once, so every
+        step is published; it counts as a deadline miss when its outputs leave after the next tick. An input
+        older than the previous step counts as late, a tick without some input as missing (nothing is
+        published for it)."""
+        self.wait_for_graph()
+        self.start()
+        first = self.realtime_setup()
+        handles = [sub.handle for _, sub, _, _ in self._inputs]
+        wait_set = _rclpy.WaitSet(max(len(handles), 1), 0, 0, 0, 0, 0, self.node.context.handle)
+        for tick in range(first, self.n_steps):
+            wait_until(self.tick_time(tick), wait_set, handles, lambda: self.take_all(self.keep_newest),
+                       self.node.context)
+            self.realtime_tick(tick)
+
+
+    def realtime_counters(self) -> dict:
+        """Deadline misses, late and missing inputs, loop latency (tick to outputs sent) p50/p99/max and
+        wake-up jitter, in microseconds: the end-of-run realtime summary."""
+        if getattr(self, "latency", None) is None or not np.isfinite(self.latency).any():
+            return {}
+        latency = self.latency[np.isfinite(self.latency)] * 1e6
+        return {"ticks": latency.size, "deadline misses": self.deadline_misses,
+                "late inputs": self.late_inputs, "ticks missing an input": self.missing_inputs_count,
+                "latency p50 [us]": f"{np.percentile(latency, 50):.0f}",
+                "latency p99 [us]": f"{np.percentile(latency, 99):.0f}", "latency max [us]": f"{latency.max():.0f}",
+                "jitter [us]": f"{np.std(self.lateness[np.isfinite(self.lateness)]) * 1e6:.0f}"}
+
     def finish(self):
         """Wait until every subscriber still in the graph acknowledged what we published.
 
@@ -259,7 +343,8 @@ class LockstepNode:
         acknowledgements follow the writers' heartbeats, every 20 ms with the package's Fast DDS profile.
         """
         self.report(DiagnosticStatus.OK if not self.rejected else DiagnosticStatus.WARN,
-                    f"completed {self.next_step} steps", {"steps": self.next_step, **self.counters(), **{
+                    f"completed {self.next_step} steps", {"steps": self.next_step, **self.counters(),
+                                                          **self.realtime_counters(), **{
                         f"rejected {topic}": count for topic, count in self.rejected.items()}})
         deadline = time.monotonic() + ACK_TIMEOUT
         for pub in self._outputs.values():
@@ -269,6 +354,24 @@ class LockstepNode:
 
     def destroy(self):
         self.node.destroy_node()
+
+
+def wait_until(deadline: float, wait_set, handles, take, context):
+    """Until the wall clock reaches ``deadline``, wait on the subscriptions and ``take()`` what arrives."""
+    while True:
+        remaining = deadline - time.time()
+        if remaining <= 0.0:
+            return
+        if handles:
+            wait_set.clear_entities()
+            for handle in handles:
+                wait_set.add_subscription(handle)
+            wait_set.wait(int(remaining * 1e9))
+            take()
+        else:
+            time.sleep(remaining)
+        if not rclpy.ok(context=context):
+            raise ExternalShutdownException()
 
 
 def run_node(node_class, args=None) -> int:
@@ -282,7 +385,10 @@ def run_node(node_class, args=None) -> int:
     code = 0
     try:
         node = node_class(args)
-        node.spin()
+        if node.experiment.timing == "realtime" and node.role != "recorder":
+            node.spin_realtime()
+        else:
+            node.spin()
         node.finish()
     except (KeyboardInterrupt, ExternalShutdownException):
         code = 130

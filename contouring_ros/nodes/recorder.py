@@ -16,6 +16,7 @@ from ..errors import ConfigError
 from .lockstep import DIAGNOSTICS_QOS, GRAPH_QOS, LockstepNode, run_node
 
 DIAGNOSTICS_LINGER = 0.3   # s the recorder keeps taking /diagnostics after the last lockstep message
+REALTIME_GRACE = 2.0       # s after the last realtime tick the recorder waits for steps that never came
 
 class RecorderNode(LockstepNode):
     role = "recorder"
@@ -32,7 +33,7 @@ class RecorderNode(LockstepNode):
         self.counts = {topic.name: 0 for topic in self.topic_list}
         self.lockstep_topics = [topic.name for topic in self.topic_list if topic.every_step]
         self.first_receive = self.last_receive = None
-        self.writer = BagWriter(options["bag"], [(t.name, t.type) for t in self.topic_list], metadata={
+        self.writer = BagWriter(options["bag"], [(t.name, t.type) for t in self.topic_list], background=True, metadata={
             EXPERIMENT_METADATA: {"yaml": text, "axes": ",".join(self.axes), "steps": str(self.n_steps),
                                   "sample_time": repr(self.experiment.sample_time),
                                   "contouring_ros_version": __version__}})
@@ -60,7 +61,11 @@ class RecorderNode(LockstepNode):
             self.take_all()
             return sum(self.counts.values()) > before
 
-        self.wait_loop(self.complete, take,
+        done = self.complete
+        if self.experiment.timing == "realtime":
+            end = self.experiment.start_time + self.n_steps * self.experiment.sample_time + REALTIME_GRACE
+            done = lambda: self.complete() or time.time() > end  # noqa: E731
+        self.wait_loop(done, take,
                        lambda: "incomplete topics " + ", ".join(t for t in self.lockstep_topics
                                                                  if self.counts[t] < self.n_steps))
         self.finished = True
