@@ -108,6 +108,56 @@ def _stop(nodes, grace: float = 5.0):
             node.process.wait()
 
 
+SHARED_MEMORY = Path("/dev/shm")
+
+
+def _mapped_or_open_files() -> set:
+    """Every /dev/shm path some live process has open or mapped (from /proc; what we can read)."""
+    held = set()
+    for proc in Path("/proc").iterdir():
+        if not proc.name.isdigit():
+            continue
+        try:
+            for line in (proc / "maps").read_text().splitlines():
+                if "/dev/shm/" in line:
+                    held.add(line[line.index("/dev/shm/"):].split(" (deleted)")[0].strip())
+            for fd in (proc / "fd").iterdir():
+                target = os.readlink(fd)
+                if target.startswith("/dev/shm/"):
+                    held.add(target)
+        except OSError:
+            continue
+    return held
+
+
+def clean_shared_memory(since: float) -> int:
+    """Remove the Fast DDS shared-memory files a killed node left behind: created since ``since`` (a
+    time.time()) and open or mapped by no live process. A node killed by a signal cannot release its
+    segments, and stale ones pile up across runs and slow every later participant's start. Returns how
+    many were removed."""
+    if not SHARED_MEMORY.is_dir():
+        return 0
+    candidates = []
+    for path in SHARED_MEMORY.iterdir():
+        if "fastrtps" in path.name or "fastdds" in path.name:
+            try:
+                if path.stat().st_mtime >= since:
+                    candidates.append(path)
+            except OSError:
+                continue
+    if not candidates:
+        return 0
+    held, removed = _mapped_or_open_files(), 0
+    for path in candidates:
+        if str(path) not in held:
+            try:
+                path.unlink()
+                removed += 1
+            except OSError:
+                pass
+    return removed
+
+
 def _exit_description(code: int) -> str:
     if code < 0:
         try:
@@ -205,7 +255,7 @@ def run_graph(experiment_path, bag=None, *, timeout: float | None = None, domain
     say = progress or (lambda message: None)
     in_main_thread = threading.current_thread() is threading.main_thread()
     previous_handler = signal.signal(signal.SIGTERM, _raise_terminated) if in_main_thread else None
-    started = time.monotonic()
+    started, wall_started = time.monotonic(), time.time()
     try:
         with DomainLease(domain_id) as lease:
             env = private_environment(lease.domain_id, network=experiment.network)
@@ -230,6 +280,8 @@ def run_graph(experiment_path, bag=None, *, timeout: float | None = None, domain
                 for node in nodes:
                     if node.log is not None:
                         node.log.close()
+                if any(node.process is not None and (node.process.returncode or 0) < 0 for node in nodes):
+                    clean_shared_memory(wall_started - 1.0)
     finally:
         if in_main_thread:
             signal.signal(signal.SIGTERM, previous_handler)

@@ -55,7 +55,10 @@ def _run_and_signal(experiment, bag, node_name, sig, after: float):
 @graph
 def test_killed_node_stops_the_run_and_the_bag_scores_up_to_the_failure(tmp_path):
     bag = tmp_path / "killed.mcap"
+    shared_memory_before = _shared_memory_files()
     error, delay = _run_and_signal(DEFAULT, bag, "/y/servo", signal.SIGKILL, 0.5)
+    # the killed node could not release its Fast DDS segments: the runner removed them
+    assert _shared_memory_files() <= shared_memory_before
     assert "/y/servo was killed by SIGKILL" in str(error)
     assert delay < 1.0 + 5.5        # noticed within a second; the rest get SIGINT and up to 5 s to close
     run = read_run(bag)

@@ -1,0 +1,142 @@
+"""One command for the speed figures of issue "Speed": everything measured in one run, with the ratios.
+
+Prints, on this machine, now:
+- the rclpy ping-pong floor: time per message hop between two processes on the graph's lean loop;
+- the graph's lockstep rate (control steps per wall second, measured by the recorder between the first and
+  last message) for the process and the composed layout, with 2 axes (the default experiment) and 3 axes
+  (config/line3d_newton_ismc.yaml), and each as a multiple of four floor hops (the lockstep critical path
+  is plant -> estimator -> CCC -> servo -> plant);
+- realtime mode at 1 kHz for both layouts: deadline-miss rate over all nodes and the worst node's, loop
+  latency p50 / p99;
+- the in-process simulation's rate (and real-time factor) and the sweep throughput (configurations per
+  second over a process pool, and the time 1000 configurations would take).
+
+Usage: python bench/all.py [--seconds 2] [--realtime-seconds 10] [--sweep 200]
+Figures vary run to run on a shared machine: compare the ratios within one run.
+"""
+from __future__ import annotations
+
+import argparse
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from contouring_ros.bag import RUN_METADATA, node_reports, read_metadata  # noqa: E402
+from contouring_ros.config import build_loop, load_experiment, parse_experiment  # noqa: E402
+from contouring_ros.core.simulation import simulate  # noqa: E402
+from contouring_ros.runner import DomainLease, private_environment, run_graph  # noqa: E402
+from contouring_ros.sweep import run_sweep  # noqa: E402
+
+DEFAULT = ROOT / "config" / "paper000_b_ismc_h50_newton.yaml"
+THREE_AXES = ROOT / "config" / "line3d_newton_ismc.yaml"
+
+
+def with_globals(path: Path, **keys) -> str:
+    """The experiment text with extra shared keys (duration, timing) after sample_time."""
+    extra = "".join(f"\n    {key}: {value}" for key, value in keys.items())
+    return path.read_text().replace("    sample_time: 0.001", "    sample_time: 0.001" + extra, 1)
+
+
+def floor_hop_us(rounds: int) -> float:
+    with DomainLease() as lease:
+        env = private_environment(lease.domain_id)
+        script = str(ROOT / "bench" / "pingpong.py")
+        pong = subprocess.Popen([sys.executable, script, "pong", str(rounds)], env=env, stdout=subprocess.DEVNULL)
+        try:
+            out = subprocess.run([sys.executable, script, "ping", str(rounds)], env=env, capture_output=True,
+                                 text=True, timeout=300)
+        finally:
+            pong.wait(timeout=30)
+    for line in out.stdout.splitlines():
+        if line.startswith("hop_us"):
+            return float(line.split()[1])
+    raise SystemExit(f"ping-pong failed: {out.stderr.strip().splitlines()[-1:]}")
+
+
+def lockstep_rate(path: Path, layout: str, seconds: float, tmp: Path, runs: int) -> float:
+    config = tmp / f"lockstep_{path.stem}.yaml"
+    config.write_text(with_globals(path, duration=seconds))
+    steps = load_experiment(config).n_steps
+    rates = []
+    for i in range(runs):
+        bag = run_graph(config, tmp / f"{path.stem}_{layout}_{i}.mcap", layout=layout)
+        rates.append((steps - 1) / float(read_metadata(bag)[RUN_METADATA]["wall_seconds_first_to_last_message"]))
+    return statistics.median(rates)
+
+
+def realtime(layout: str, seconds: float, tmp: Path) -> dict:
+    config = tmp / "realtime.yaml"
+    config.write_text(with_globals(DEFAULT, duration=seconds, timing="realtime"))
+    reports = [v for name, v in node_reports(run_graph(config, tmp / f"realtime_{layout}.mcap", layout=layout)).items()
+               if "deadline misses" in v]
+    ticks = sum(int(v["ticks"]) for v in reports)
+    misses = sum(int(v["deadline misses"]) for v in reports)
+    return {"miss rate": 100.0 * misses / ticks,
+            "worst node miss rate": max(100.0 * int(v["deadline misses"]) / int(v["ticks"]) for v in reports),
+            "p50": statistics.median(float(v["latency p50 [us]"]) for v in reports),
+            "p99": max(float(v["latency p99 [us]"]) for v in reports)}
+
+
+def simulation_rate() -> tuple[float, float]:
+    experiment = load_experiment(DEFAULT)
+    loop = build_loop(experiment)
+    start = time.perf_counter()
+    simulate(loop)
+    rate = experiment.n_steps / (time.perf_counter() - start)
+    return rate, rate * experiment.sample_time
+
+
+def sweep_rate(configs: int) -> float:
+    text = DEFAULT.read_text()
+    parse_experiment(text)
+    grid = {"ccc.kp": [0.5 + 2.0 * i / configs for i in range(configs)]}
+    start = time.perf_counter()
+    run_sweep(text, grid)
+    return configs / (time.perf_counter() - start)
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seconds", type=float, default=2.0, help="simulated seconds per lockstep run")
+    parser.add_argument("--runs", type=int, default=3, help="lockstep runs per case (median)")
+    parser.add_argument("--realtime-seconds", type=float, default=10.0)
+    parser.add_argument("--rounds", type=int, default=5000, help="ping-pong round trips")
+    parser.add_argument("--sweep", type=int, default=200, help="sweep configurations")
+    args = parser.parse_args()
+    say = lambda *a: print(*a, flush=True)  # noqa: E731
+    with tempfile.TemporaryDirectory() as directory:
+        tmp = Path(directory)
+        hop = floor_hop_us(args.rounds)
+        floor_rate = 1e6 / (4 * hop)
+        say(f"ping-pong floor: {hop:.0f} us per hop; four hops (one lockstep step's critical path) "
+            f"{4 * hop:.0f} us = at most {floor_rate:.0f} steps/s")
+        rates = {}
+        for label, path in (("2 axes", DEFAULT), ("3 axes", THREE_AXES)):
+            for layout in ("process", "composed"):
+                rates[label, layout] = rate = lockstep_rate(path, layout, args.seconds, tmp, args.runs)
+                say(f"lockstep {layout:8s} {label}: {rate:5.0f} steps/s ({1e6 / rate:.0f} us/step = "
+                    f"{1e6 / rate / (4 * hop):.1f} x four floor hops; real-time factor {rate / 1000:.2f})")
+        for label in ("2 axes", "3 axes"):
+            say(f"composed / process, {label}: {rates[label, 'composed'] / rates[label, 'process']:.1f}x")
+        for layout in ("process", "composed"):
+            r = realtime(layout, args.realtime_seconds, tmp)
+            say(f"realtime {layout:8s} 1 kHz, {args.realtime_seconds:g} s: deadline misses {r['miss rate']:.1f}% of "
+                f"all node ticks (worst node {r['worst node miss rate']:.1f}%), latency p50 {r['p50']:.0f} us, "
+                f"p99 {r['p99']:.0f} us")
+        sim, factor = simulation_rate()
+        say(f"in-process simulation: {sim:.0f} steps/s = {factor:.1f}x real time; "
+            f"{sim / rates['2 axes', 'process']:.0f}x the process graph, {sim / rates['2 axes', 'composed']:.0f}x "
+            "the composed graph")
+        configs = sweep_rate(args.sweep)
+        say(f"sweep: {configs:.1f} configurations/s ({args.sweep} of the default experiment): 1000 would take "
+            f"{1000 / configs:.0f} s")
+
+
+if __name__ == "__main__":
+    main()

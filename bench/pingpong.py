@@ -1,0 +1,70 @@
+"""One side of the rclpy ping-pong that measures this machine's floor per message hop.
+
+Run by bench/all.py, two processes on a private ROS domain: ``ping`` publishes a stamped JointState on
+/ping, ``pong`` answers each on /pong, ``ping`` sends the next on each answer. Both use the graph's lean
+loop pieces (persistent wait set, serialised messages taken directly, the graph's QoS), so the time per
+hop is what one message between two of our nodes costs at least. ping prints "hop_us <value>".
+"""
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+import rclpy  # noqa: E402
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy  # noqa: E402
+from sensor_msgs.msg import JointState  # noqa: E402
+
+from contouring_ros import cdr  # noqa: E402
+from contouring_ros.nodes.lockstep import GRAPH_QOS  # noqa: E402
+
+
+def main():
+    role, rounds = sys.argv[1], int(sys.argv[2])
+    rclpy.init()
+    node = rclpy.create_node(role)
+    out_topic, in_topic = ("/ping", "/pong") if role == "ping" else ("/pong", "/ping")
+    publisher = node.create_publisher(JointState, out_topic, GRAPH_QOS)
+    subscription = node.create_subscription(JointState, in_topic, lambda _: None, GRAPH_QOS, raw=True)
+    deadline = time.monotonic() + 30.0
+    while publisher.get_subscription_count() < 1 or subscription.get_publisher_count() < 1:
+        if time.monotonic() > deadline:
+            raise SystemExit(f"{role}: the other side did not appear")
+        time.sleep(0.01)
+    time.sleep(0.5)       # let discovery settle on both sides
+
+    def send(k):
+        publisher.publish(cdr.encode_joint_state(k // 1000, (k % 1000) * 1_000_000, ["x"], [float(k)], [0.0]))
+
+    wait_set = _rclpy.WaitSet(1, 0, 0, 0, 0, 0, node.context.handle)
+    received, start = -1, time.perf_counter()
+    if role == "ping":
+        send(0)
+    while received < rounds - 1:
+        wait_set.clear_entities()
+        wait_set.add_subscription(subscription.handle)
+        wait_set.wait(1_000_000_000)
+        while True:
+            taken = subscription.handle.take_message(JointState, True)
+            if taken is None:
+                break
+            stamp = cdr.stamp_ns(taken[0])
+            received = stamp // 1_000_000_000 * 1000 + stamp % 1_000_000_000 // 1_000_000
+            if role == "pong":
+                send(received)
+            elif received + 1 < rounds:
+                send(received + 1)
+        if time.monotonic() > deadline + 120.0:
+            raise SystemExit(f"{role}: stalled at round {received}")
+    elapsed = time.perf_counter() - start
+    if role == "ping":
+        print(f"hop_us {elapsed / (2 * rounds) * 1e6:.1f}", flush=True)
+    time.sleep(0.3)
+    node.destroy_node()
+    rclpy.try_shutdown()
+
+
+if __name__ == "__main__":
+    main()
