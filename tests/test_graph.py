@@ -39,38 +39,18 @@ def test_graph_reproduces_simulation_exactly(default_runs):
     _assert_identical(path, bags[0])
 
 
-def test_variable_gain_graph_reproduces_simulation_exactly(tmp_path):
-    path = tmp_path / "vg.yaml"
-    path.write_text(shortened(CONFIG / "paper000_b_ismc_h100_vgccc.yaml", 0.3))
-    _assert_identical(path, run_graph(path, tmp_path / "vg.mcap"))
-
-
-def test_task_frame_helix_graph_reproduces_simulation_exactly(tmp_path):
-    """Paper 003's three-axis helix: the CCC node also takes the reference and the states."""
-    path = tmp_path / "helix.yaml"
-    path.write_text(shortened(CONFIG / "paper003_helix_natural_local_f15_10.yaml", 0.3))
-    _assert_identical(path, run_graph(path, tmp_path / "helix.mcap"))
-
-
-def test_eso_saddle_graph_reproduces_simulation_exactly(tmp_path):
-    """Paper 004's saddle: ESO sliding mode servos, the multi-axis variable-gain CCC, disturbed axes."""
-    path = tmp_path / "saddle.yaml"
-    path.write_text(shortened(CONFIG / "paper004_saddle_eso.yaml", 0.3))
-    _assert_identical(path, run_graph(path, tmp_path / "saddle.mcap"))
-
-
-def test_adaptive_tnb_circle_graph_reproduces_simulation_exactly(tmp_path):
-    """Paper 001: PD axis loops, the adaptive TNB CCC (state-dependent, adapting), the osculating circle."""
-    path = tmp_path / "circle.yaml"
-    path.write_text(shortened(CONFIG / "paper001_caseII_adaptive_tnb.yaml", 0.3))
-    _assert_identical(path, run_graph(path, tmp_path / "circle.mcap"))
-
-
-def test_tvt_butterfly_graph_reproduces_simulation_exactly(tmp_path):
-    """Paper 002: the feedrate-profile interpolator, the foot-point search and the TVT CCC."""
-    path = tmp_path / "butterfly.yaml"
-    path.write_text(shortened(CONFIG / "paper002_butterfly_c3_tvt.yaml", 0.3))
-    _assert_identical(path, run_graph(path, tmp_path / "butterfly.mcap"))
+@pytest.mark.parametrize("scenario", [
+    "paper000_b_ismc_h100_vgccc",              # variable-gain CCC on the tangent-line estimate
+    "paper003_helix_natural_local_f15_10",     # 3 axes; the CCC node also takes the reference and the states
+    "paper004_saddle_eso",                     # ESO sliding mode servos, 3-axis variable gain, disturbed axes
+    "paper001_caseII_adaptive_tnb",            # PD loops, the adapting TNB CCC, the osculating circle
+    "paper002_butterfly_c3_tvt",               # feedrate-profile interpolator, foot-point search, TVT CCC
+])
+def test_each_papers_graph_reproduces_simulation_exactly(scenario, tmp_path):
+    """Through the process graph, one scenario of each paper equals its in-process simulation."""
+    path = tmp_path / f"{scenario}.yaml"
+    path.write_text(shortened(CONFIG / f"{scenario}.yaml", 0.3))
+    _assert_identical(path, run_graph(path, tmp_path / f"{scenario}.mcap"))
 
 
 def test_run_longer_than_the_stall_timeout_completes(tmp_path):
