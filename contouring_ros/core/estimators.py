@@ -155,10 +155,6 @@ class NewtonEstimator:
             filtered = decay * filtered + (1.0 - decay) * (gradient / hessian)
             theta = wrap(theta - gain * filtered)
         self.theta, self.filtered = theta, filtered
-        d = curve.derivatives(theta, order=1)
-        vector = d[0] - position
-        tangent = d[1] / math.sqrt(float(d[1] @ d[1]))
-        return ContourEstimate(theta=theta, vector=vector, signed=float(signed_error(vector, tangent)))
 
 
 def first_order_terms(kappa: float, tau: float, t: float, n: int) -> tuple:
