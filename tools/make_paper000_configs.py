@@ -6,6 +6,8 @@ after changing the template: python tools/make_paper000_configs.py
 """
 from pathlib import Path
 
+from scenario_template import shared_section
+
 HEADER = """\
 # Paper 000 (Ghaffari & Ulsoy, Newton-based CEE and robust CCC), section {section}.
 # {title}
@@ -28,21 +30,7 @@ HEADER = """\
 """
 
 BODY = """\
-/**:
-  ros__parameters:
-    experiment:
-      name: {name}
-      description: "{title}"
-    paper:
-      source: "000 section {section}"
-      mce_um: {mce}
-      tace_um: {tace}
-    sample_time: 0.001
-    axes: ["x", "y"]  # quoted: the ROS parameter parser reads a bare y as a boolean
-    curve: {{type: parabola, a: 0.02, h: {h}}}
-    schedule: {{type: uniform, theta_start: -0.02, theta_end: 0.02, duration: {T}}}
-    initial_state: on_reference
-
+{shared}
 /x/plant:
   ros__parameters:
     model: first_order_velocity
@@ -112,8 +100,10 @@ def main():
     out = Path(__file__).resolve().parent.parent / "config"
     for stem, section, title, h, T, servo, (estimator, ccc), mce, tace in CASES:
         text = HEADER.format(section=section, title=title, mce=mce, tace=tace, iterations=ITERATIONS) + "\n" + \
-            BODY.format(name=stem, title=title, section=section, mce=mce, tace=tace, h=h, T=T,
-                        servo_x=servo["x"], servo_y=servo["y"], estimator=estimator, ccc=ccc)
+            BODY.format(servo_x=servo["x"], servo_y=servo["y"], estimator=estimator, ccc=ccc, shared=shared_section(
+                stem, title, {"source": f"000 section {section}", "mce_um": mce, "tace_um": tace}, ["x", "y"],
+                f"{{type: parabola, a: 0.02, h: {h}}}",
+                f"{{type: uniform, theta_start: -0.02, theta_end: 0.02, duration: {T}}}"))
         (out / f"{stem}.yaml").write_text(text)
         print(out / f"{stem}.yaml")
 

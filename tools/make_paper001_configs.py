@@ -7,6 +7,8 @@ adaptive TNB CCC (Tables 1-2). Run after changing the template: python tools/mak
 import math
 from pathlib import Path
 
+from scenario_template import shared_section
+
 SCREW = 228.0                     # 2 pi / lead [rad/m] of the x ball screw (see the header)
 J_X, B_X_ROT = 0.05916, 0.01725   # x: kg m^2, N m s/rad
 M_Y, B_Y = 1144.0, 967.0          # y: kg, N s/m
@@ -41,21 +43,7 @@ HEADER = """\
 """
 
 BODY = """\
-/**:
-  ros__parameters:
-    experiment:
-      name: {name}
-      description: "{title}"
-    paper:
-      source: "001 section 4, Table 2, case {case}"
-      mce_um: {mce}
-      rms_um: {rms}
-    sample_time: 0.001
-    axes: ["x", "y"]
-    curve: {{type: circle, radius: {radius}}}
-    schedule: {{type: uniform, theta_start: 0.0, theta_end: 6.283185307179586, duration: {duration!r}}}
-    initial_state: on_reference
-
+{shared}
 /x/plant:
   ros__parameters: {{model: mass_damper, mass: {m_x!r}, damping: {b_x!r}, gain: 1.0}}
 
@@ -100,6 +88,10 @@ def main():
             fields = dict(name=name, title=title, case=case, mce=mce, rms=rms, radius=radius,
                           duration=2 * math.pi * radius / feedrate, m_x=M_X, b_x=B_X, m_y=M_Y, b_y=B_Y,
                           kp_x=KP_X, kd_x=KD_X, kp_y=KP_Y, kd_y=KD_Y, alpha=ALPHA, ccc=ccc)
+            fields["shared"] = shared_section(
+                name, title, {"source": f"001 section 4, Table 2, case {case}", "mce_um": mce, "rms_um": rms},
+                ["x", "y"], f"{{type: circle, radius: {radius}}}",
+                f"{{type: uniform, theta_start: 0.0, theta_end: 6.283185307179586, duration: {fields['duration']!r}}}")
             (out / f"{name}.yaml").write_text(HEADER.format(**fields) + "\n" + BODY.format(**fields))
             print(out / f"{name}.yaml")
 

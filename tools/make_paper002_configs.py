@@ -7,6 +7,8 @@ python tools/make_paper002_configs.py
 """
 from pathlib import Path
 
+from scenario_template import shared_section
+
 HEADER = """\
 # Paper 002 (TVT-based cross-coupled control), section 4: {title}.
 # A machine experiment: only the ordering is compared, max contour error C3 < C2 < C1 (paper: C3 65% below
@@ -28,20 +30,7 @@ HEADER = """\
 """
 
 BODY = """\
-/**:
-  ros__parameters:
-    experiment:
-      name: {name}
-      description: "{title}"
-    paper:
-      source: "002 section 4 (ordering only)"
-    sample_time: 0.001
-    axes: ["x", "y"]
-    curve: {{type: butterfly, scale: 0.01, contour_error_window: 0.3}}
-    schedule: {{type: feedrate, theta_start: 0.0, theta_end: 6.283185307179586, feedrate: 0.1, acceleration: 1.0,
-               normal_acceleration: 1.0}}
-    initial_state: on_reference
-
+{shared}
 /x/plant:
   ros__parameters: {{model: first_order_velocity, gain: 1.0, time_constant: 0.005}}
 
@@ -77,7 +66,11 @@ def main():
     for key, (label, servo, estimator, ccc) in METHODS.items():
         name = f"paper002_butterfly_{key}"
         title = f"butterfly at 100 mm/s, {label}"
-        fields = dict(name=name, title=title, servo=servo, estimator=estimator, ccc=ccc)
+        fields = dict(name=name, title=title, servo=servo, estimator=estimator, ccc=ccc, shared=shared_section(
+            name, title, {"source": "002 section 4 (ordering only)"}, ["x", "y"],
+            "{type: butterfly, scale: 0.01, contour_error_window: 0.3}",
+            "{type: feedrate, theta_start: 0.0, theta_end: 6.283185307179586, feedrate: 0.1, acceleration: 1.0, "
+            "normal_acceleration: 1.0}"))
         (out / f"{name}.yaml").write_text(HEADER.format(**fields) + "\n" + BODY.format(**fields))
         print(out / f"{name}.yaml")
 

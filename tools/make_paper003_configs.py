@@ -7,6 +7,8 @@ local approximation, for two bandwidth sets; sections IV-B/C, the ellipse and th
 """
 from pathlib import Path
 
+from scenario_template import shared_section
+
 HEADER = """\
 # Paper 003 (Meng, Lou & Zhou, natural local approximation based contouring control), section IV-A.
 # {title}
@@ -31,20 +33,7 @@ SENSITIVITY = """
 #   at about 0.44 / (2 pi f_b)^2, some 100 um: a real contour error no approximation can remove."""
 
 BODY = """\
-/**:
-  ros__parameters:
-    experiment:
-      name: {name}
-      description: "{title}"
-    paper:
-      source: "003 section IV-A"
-      tace_um: {tace}
-    sample_time: 0.001
-    axes: ["x", "y", "z"]
-    curve: {{type: helix, a: 0.03, b: 0.01, c: 0.1, omega: 6.283185307179586, length: 4.5}}
-    schedule: {{type: uniform, theta_start: 0.0, theta_end: 4.0, duration: 4.0}}
-    initial_state: on_reference
-
+{shared}
 /x/plant:
   ros__parameters: {{model: mass_damper, mass: 1.0, damping: 200.0, gain: 1.0}}
 
@@ -101,21 +90,7 @@ XY_HEADER = """\
 """
 
 XY_BODY = """\
-/**:
-  ros__parameters:
-    experiment:
-      name: {name}
-      description: "{title}"
-    paper:
-      source: "003 section IV-C, Table {table_number}"
-      mce_um: {mce}
-      rms_um: {rms}
-    sample_time: 0.001
-    axes: ["x", "y"]
-    curve: {curve}
-    schedule: {schedule}
-    initial_state: on_reference
-
+{shared}
 /x/plant:
   ros__parameters: {{model: mass_damper, mass: 1.0, damping: 798.5, gain: 16.23, coulomb_positive: 0.12,
                     coulomb_negative: 0.11, saturation: 10.0}}
@@ -177,6 +152,9 @@ def write_xy_stage(out: Path):
                 title = f"XY stage {curve.replace('_', '-')}, task-frame PD, {label} approximation, f_n = {f_n} Hz"
                 fields = dict(spec, name=name, title=title, mce=mce, rms=rms, estimator=estimator,
                               approximation=approximation, f_n=f"{f_n:.1f}")
+                fields["shared"] = shared_section(
+                    name, title, {"source": f"003 section IV-C, Table {spec['table_number']}", "mce_um": mce,
+                                  "rms_um": rms}, ["x", "y"], spec["curve"], spec["schedule"])
                 (out / f"{name}.yaml").write_text(XY_HEADER.format(**fields) + "\n" + XY_BODY.format(**fields))
                 print(out / f"{name}.yaml")
 
@@ -194,6 +172,10 @@ def main():
                 fields = dict(name=name, title=title, tace=PAPER[approximation, f_n], identified=identified,
                               estimator=estimator, approximation=approximation, f_n=f"{f_n:.1f}", f_b=f"{f_b:.1f}",
                               extra=SENSITIVITY if sensitivity else "")
+                fields["shared"] = shared_section(
+                    name, title, {"source": "003 section IV-A", "tace_um": PAPER[approximation, f_n]}, ["x", "y", "z"],
+                    "{type: helix, a: 0.03, b: 0.01, c: 0.1, omega: 6.283185307179586, length: 4.5}",
+                    "{type: uniform, theta_start: 0.0, theta_end: 4.0, duration: 4.0}")
                 (out / f"{name}.yaml").write_text(HEADER.format(**fields) + "\n" + BODY.format(**fields))
                 print(out / f"{name}.yaml")
 

@@ -7,6 +7,8 @@ template: python tools/make_paper004_configs.py
 """
 from pathlib import Path
 
+from scenario_template import shared_section
+
 HEADER = """\
 # Paper 004 (Wang, Zhou & Wang, ESO-based contour tracking control), section 5, case {case}.
 # {title}
@@ -28,21 +30,7 @@ HEADER = """\
 """
 
 BODY = """\
-/**:
-  ros__parameters:
-    experiment:
-      name: {name}
-      description: "{title}"
-    paper:
-      source: "004 section 5, Table {table}"
-      mce_um: {mce}
-      tace_um: {tace}
-    sample_time: 0.001
-    axes: ["x", "y", "z"]
-    curve: {curve}
-    schedule: {schedule}
-    initial_state: on_reference
-
+{shared}
 /x/plant:
   ros__parameters: {{model: mass_damper, mass: 5.8, damping: 244.0, gain: 10.9, disturbance_unit: acceleration,
                     disturbance: {{type: sinusoid, amplitude: 0.8, frequency: 0.5}}}}
@@ -97,6 +85,9 @@ def main():
             mce, tace = case["results"][eso]
             title = f"{case['label']}, ESO-SMC {'with' if eso else 'without'} disturbance compensation, PID CCC"
             fields = dict(case, name=name, title=title, mce=mce, tace=tace, eso=str(eso).lower())
+            fields["shared"] = shared_section(
+                name, title, {"source": f"004 section 5, Table {case['table']}", "mce_um": mce, "tace_um": tace},
+                ["x", "y", "z"], case["curve"], case["schedule"])
             (out / f"{name}.yaml").write_text(HEADER.format(**fields) + "\n" + BODY.format(**fields))
             print(out / f"{name}.yaml")
 
