@@ -146,6 +146,15 @@ class NewtonEstimator:
         decay, gain = self._filter_decay, self._gain
         coordinates = [float(p) for p in position]
         columns, wrap = curve.columns, curve.wrap_scalar
+        if len(coordinates) == 2 and not curve.closed:       # the common planar case, unrolled
+            (px, py), (lo, hi) = coordinates, curve.domain
+            for _ in range(self.iterations):
+                (rx, ry), (tx, ty) = columns(theta)[:2]
+                gradient = (rx - px) * tx + (ry - py) * ty         # g = E^T R', eq. 9
+                filtered = decay * filtered + (1.0 - decay) * (gradient / (tx * tx + ty * ty))  # h ~= |R'|^2 (11)
+                theta = min(max(theta - gain * filtered, lo), hi)
+            self.theta, self.filtered = theta, filtered
+            return
         for _ in range(self.iterations):
             point, tangent = columns(theta)[:2]
             gradient = hessian = 0.0

@@ -48,6 +48,8 @@ def signed_error(vector: np.ndarray, tangent: np.ndarray) -> np.ndarray:
     of the contour's direction of travel). In more dimensions: |E| (no side is defined).
     """
     vector = np.asarray(vector, dtype=float)
+    if vector.shape == (2,):          # one point: plain floats
+        return float(-vector[0] * tangent[1] + vector[1] * tangent[0])
     if vector.shape[-1] == 2:
         return np.sum(vector * left_normal(tangent), axis=-1)
     return np.linalg.norm(vector, axis=-1)

@@ -29,7 +29,12 @@ class UniformSchedule:
         self.rate = (self.theta_end - self.theta_start) / self.duration
 
     def __call__(self, t):
-        """theta, theta_dot, theta_ddot at time(s) t."""
+        """theta, theta_dot, theta_ddot at time(s) t (floats for a float t: the per-step fast path)."""
+        if np.ndim(t) == 0:
+            t = float(t)
+            if t < self.duration:
+                return self.theta_start + self.rate * max(t, 0.0), self.rate, 0.0
+            return self.theta_end, 0.0, 0.0
         t = np.asarray(t, dtype=float)
         moving = t < self.duration
         theta = np.where(moving, self.theta_start + self.rate * np.clip(t, 0.0, None), self.theta_end)
@@ -139,6 +144,12 @@ class Reference:
 def reference(curve: Curve, schedule, t) -> Reference:
     """The reference of ``curve`` driven by ``schedule`` at time(s) ``t``."""
     theta, theta_dot, theta_ddot = schedule(t)
+    if np.ndim(theta) == 0:          # one step: the curve's scalar path, no array stacking
+        point, d1, d2 = curve.columns(float(theta))[:3]
+        rate, accel = float(theta_dot), float(theta_ddot)
+        return Reference(theta=theta, theta_dot=theta_dot, theta_ddot=theta_ddot, position=np.array(point, dtype=float),
+                         velocity=np.array([v * rate for v in d1]),
+                         acceleration=np.array([a * rate * rate + v * accel for a, v in zip(d2, d1)]))
     d = curve.derivatives(theta, order=2)
     rate = np.asarray(theta_dot)[..., None]
     accel = np.asarray(theta_ddot)[..., None]
