@@ -31,10 +31,8 @@ def _node_classes():
 
 def _lean_spin_once(nodes, wait_set, handles, timeout_ns: int):
     """One turn of the lean loop over every node's subscriptions: wait, take, dispatch."""
-    wait_set.clear_entities()
-    for handle in handles:
-        wait_set.add_subscription(handle)
-    wait_set.wait(timeout_ns)
+    from .nodes.lockstep import wait_on
+    wait_on(wait_set, handles, timeout_ns)
     for node in nodes:
         node.take_all(node.on_message)
 

@@ -234,10 +234,7 @@ class LockstepNode:
         handles = [sub.handle for _, sub, _, _ in self._inputs]
         last_progress = time.monotonic()
         while not done():
-            wait_set.clear_entities()
-            for handle in handles:
-                wait_set.add_subscription(handle)
-            wait_set.wait(200_000_000)
+            wait_on(wait_set, handles, 200_000_000)
             if not rclpy.ok(context=self.node.context):
                 raise ExternalShutdownException()
             if take_progress():
@@ -323,7 +320,6 @@ class LockstepNode:
                        self.node.context)
             self.realtime_tick(tick)
 
-
     def realtime_counters(self) -> dict:
         """Deadline misses, late and missing inputs, loop latency (tick to outputs sent) p50/p99/max and
         wake-up jitter, in microseconds: the end-of-run realtime summary."""
@@ -356,6 +352,15 @@ class LockstepNode:
         self.node.destroy_node()
 
 
+def wait_on(wait_set, handles, timeout_ns: int):
+    """Wait up to ``timeout_ns`` until one of the subscriptions ``handles`` has a message (the persistent
+    wait set is refilled each time, as rcl requires)."""
+    wait_set.clear_entities()
+    for handle in handles:
+        wait_set.add_subscription(handle)
+    wait_set.wait(timeout_ns)
+
+
 def wait_until(deadline: float, wait_set, handles, take, context):
     """Until the wall clock reaches ``deadline``, wait on the subscriptions and ``take()`` what arrives."""
     while True:
@@ -363,10 +368,7 @@ def wait_until(deadline: float, wait_set, handles, take, context):
         if remaining <= 0.0:
             return
         if handles:
-            wait_set.clear_entities()
-            for handle in handles:
-                wait_set.add_subscription(handle)
-            wait_set.wait(int(remaining * 1e9))
+            wait_on(wait_set, handles, int(remaining * 1e9))
             take()
         else:
             time.sleep(remaining)
