@@ -17,6 +17,14 @@ __all__ = ["NoCoupling", "VariableGainCCC", "UnitVectorCCC", "TaskFramePD", "Ada
            "TangentialVelocityCCC"]
 
 
+def per_axis(values, n: int, name: str) -> np.ndarray:
+    """``values`` as a float array of one value per axis, or a ValueError naming ``name``."""
+    values = np.array(np.atleast_1d(values), dtype=float)
+    if values.size != n:
+        raise ValueError(f"{name} needs one value per axis ({n}), got {values.size}")
+    return values
+
+
 class NoCoupling:
     """No cross-coupling: zero corrections (the uncoupled baseline)."""
 
@@ -103,10 +111,10 @@ class TaskFramePD:
                  coulomb_positive=None, coulomb_negative=None):
         n = curve.dimension
         self.curve, self.approximation = curve, approximation
-        self.mass, self.damping, self.gain = (self._per_axis(v, n, name) for v, name in (
+        self.mass, self.damping, self.gain = (per_axis(v, n, name) for v, name in (
             (mass, "mass"), (damping, "damping"), (gain, "gain")))
-        self.coulomb_positive = self._per_axis(coulomb_positive or [0.0] * n, n, "coulomb_positive")
-        self.coulomb_negative = self._per_axis(coulomb_negative or [0.0] * n, n, "coulomb_negative")
+        self.coulomb_positive = per_axis(coulomb_positive or [0.0] * n, n, "coulomb_positive")
+        self.coulomb_negative = per_axis(coulomb_negative or [0.0] * n, n, "coulomb_negative")
         if np.any(self.gain == 0.0):
             raise ValueError("the axis gains K must be non-zero (eq. 25 needs K^-1)")
         bandwidths = np.asarray(bandwidths, dtype=float)[:n]
@@ -114,13 +122,6 @@ class TaskFramePD:
             raise ValueError(f"{n} positive bandwidths (f_t, f_n{', f_b' if n == 3 else ''}) are needed")
         omega = 2.0 * np.pi * bandwidths
         self.kp, self.kd = omega**2, 2.0 * float(zeta) * omega
-
-    @staticmethod
-    def _per_axis(values, n: int, name: str) -> np.ndarray:
-        values = np.atleast_1d(np.asarray(values, dtype=float))
-        if values.size != n:
-            raise ValueError(f"{name} needs one value per axis ({n}), got {values.size}")
-        return values
 
     def step(self, estimate, reference=None, position=None, velocity=None) -> np.ndarray:
         frame = frenet_frame(self.curve, float(reference.theta), float(reference.theta_dot),
@@ -168,11 +169,11 @@ class AdaptiveTNBCCC:
                  sample_time: float):
         n = curve.dimension
         self.curve = curve
-        self.coupling = TaskFramePD._per_axis(coupling, n, "coupling")
-        self.gamma_mass = TaskFramePD._per_axis(gamma_mass, n, "gamma_mass")
-        self.gamma_damping = TaskFramePD._per_axis(gamma_damping, n, "gamma_damping")
-        self.mass = TaskFramePD._per_axis(mass0, n, "mass0").copy()
-        self.damping = TaskFramePD._per_axis(damping0, n, "damping0").copy()
+        self.coupling = per_axis(coupling, n, "coupling")
+        self.gamma_mass = per_axis(gamma_mass, n, "gamma_mass")
+        self.gamma_damping = per_axis(gamma_damping, n, "gamma_damping")
+        self.mass = per_axis(mass0, n, "mass0")
+        self.damping = per_axis(damping0, n, "damping0")
         self.alpha = float(alpha)
         self.sample_time = float(sample_time)
 
