@@ -27,11 +27,10 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from contouring_ros.bag import RUN_METADATA, node_reports, read_metadata  # noqa: E402
-from contouring_ros.config import build_loop, load_experiment, parse_experiment  # noqa: E402
-from contouring_ros.core.simulation import simulate  # noqa: E402
+from contouring_ros.bag import node_reports  # noqa: E402
 from contouring_ros.runner import DomainLease, private_environment, run_graph  # noqa: E402
 from contouring_ros.sweep import run_sweep  # noqa: E402
+from graph_speed import lockstep_run, simulation_rate  # noqa: E402  (bench/ is this script's folder)
 
 DEFAULT = ROOT / "config" / "paper000_b_ismc_h50_newton.yaml"
 THREE_AXES = ROOT / "config" / "line3d_newton_ismc.yaml"
@@ -62,12 +61,8 @@ def floor_hop_us(rounds: int) -> float:
 def lockstep_rate(path: Path, layout: str, seconds: float, tmp: Path, runs: int) -> float:
     config = tmp / f"lockstep_{path.stem}.yaml"
     config.write_text(with_globals(path, duration=seconds))
-    steps = load_experiment(config).n_steps
-    rates = []
-    for i in range(runs):
-        bag = run_graph(config, tmp / f"{path.stem}_{layout}_{i}.mcap", layout=layout)
-        rates.append((steps - 1) / float(read_metadata(bag)[RUN_METADATA]["wall_seconds_first_to_last_message"]))
-    return statistics.median(rates)
+    return statistics.median(lockstep_run(config, tmp / f"{path.stem}_{layout}_{i}.mcap", layout)[1]
+                             for i in range(runs))
 
 
 def realtime(layout: str, seconds: float, tmp: Path) -> dict:
@@ -83,18 +78,8 @@ def realtime(layout: str, seconds: float, tmp: Path) -> dict:
             "p99": max(float(v["latency p99 [us]"]) for v in reports)}
 
 
-def simulation_rate() -> tuple[float, float]:
-    experiment = load_experiment(DEFAULT)
-    loop = build_loop(experiment)
-    start = time.perf_counter()
-    simulate(loop)
-    rate = experiment.n_steps / (time.perf_counter() - start)
-    return rate, rate * experiment.sample_time
-
-
 def sweep_rate(configs: int) -> float:
     text = DEFAULT.read_text()
-    parse_experiment(text)
     grid = {"ccc.kp": [0.5 + 2.0 * i / configs for i in range(configs)]}
     start = time.perf_counter()
     run_sweep(text, grid)
@@ -129,7 +114,7 @@ def main():
             say(f"realtime {layout:8s} 1 kHz, {args.realtime_seconds:g} s: deadline misses {r['miss rate']:.1f}% of "
                 f"all node ticks (worst node {r['worst node miss rate']:.1f}%), latency p50 {r['p50']:.0f} us, "
                 f"p99 {r['p99']:.0f} us")
-        sim, factor = simulation_rate()
+        sim, factor = simulation_rate(DEFAULT)
         say(f"in-process simulation: {sim:.0f} steps/s = {factor:.1f}x real time; "
             f"{sim / rates['2 axes', 'process']:.0f}x the process graph, {sim / rates['2 axes', 'composed']:.0f}x "
             "the composed graph")

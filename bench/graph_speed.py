@@ -25,6 +25,26 @@ from contouring_ros.core.simulation import simulate  # noqa: E402
 from contouring_ros.runner import run_graph  # noqa: E402
 
 
+def simulation_rate(config) -> tuple[float, float]:
+    """The in-process simulation of ``config``: (steps per second, real-time factor)."""
+    experiment = load_experiment(config)
+    loop = build_loop(experiment)
+    start = time.perf_counter()
+    simulate(loop)
+    rate = experiment.n_steps / (time.perf_counter() - start)
+    return rate, rate * experiment.sample_time
+
+
+def lockstep_run(config, bag: Path, layout: str) -> tuple[float, float]:
+    """One run through the graph: (seconds from launch to exit, lockstep steps per second as the
+    recorder measured them between the first and the last message)."""
+    steps = load_experiment(config).n_steps
+    start = time.perf_counter()
+    run_graph(config, bag, layout=layout)
+    total = time.perf_counter() - start
+    return total, (steps - 1) / float(read_metadata(bag)[RUN_METADATA]["wall_seconds_first_to_last_message"])
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("config", nargs="?", default=str(ROOT / "config" / "paper000_b_ismc_h50_newton.yaml"))
@@ -33,22 +53,16 @@ def main():
     args = parser.parse_args()
     experiment = load_experiment(args.config)
     steps = experiment.n_steps
-    loop = build_loop(experiment)
-    start = time.perf_counter()
-    simulate(loop)
-    sim_rate = steps / (time.perf_counter() - start)
-    print(f"in-process simulation: {sim_rate:.0f} steps/s ({sim_rate * experiment.sample_time:.1f}x real time)")
+    sim_rate, factor = simulation_rate(args.config)
+    print(f"in-process simulation: {sim_rate:.0f} steps/s ({factor:.1f}x real time)")
     totals, rates = [], []
     with tempfile.TemporaryDirectory() as tmp:
         for i in range(args.runs):
-            bag = Path(tmp) / f"run{i}.mcap"
-            start = time.perf_counter()
-            run_graph(args.config, bag, layout=args.layout)
-            totals.append(time.perf_counter() - start)
-            lockstep = float(read_metadata(bag)[RUN_METADATA]["wall_seconds_first_to_last_message"])
-            rates.append((steps - 1) / lockstep)
-            print(f"run {i + 1}: {steps} steps, {totals[-1]:.2f} s launch to exit ({steps / totals[-1]:.0f} steps/s "
-                  f"overall), lockstep {lockstep:.2f} s = {rates[-1]:.0f} steps/s ({1e6 / rates[-1]:.0f} us/step)")
+            total, rate = lockstep_run(args.config, Path(tmp) / f"run{i}.mcap", args.layout)
+            totals.append(total)
+            rates.append(rate)
+            print(f"run {i + 1}: {steps} steps, {total:.2f} s launch to exit ({steps / total:.0f} steps/s "
+                  f"overall), lockstep {(steps - 1) / rate:.2f} s = {rate:.0f} steps/s ({1e6 / rate:.0f} us/step)")
     rate = statistics.median(rates)
     print(f"{args.layout} graph, lockstep, median of {args.runs}: {rate:.0f} control steps per wall second "
           f"(real-time factor {rate * experiment.sample_time:.2f}); overall incl. start-up "
