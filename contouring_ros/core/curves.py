@@ -85,6 +85,19 @@ def _stack(columns, theta, order):
     return out
 
 
+class PlanarLoop(Curve):
+    """A closed planar curve over theta in [0, 2 pi), placed at ``center`` (the shared part of the circle,
+    ellipse, figure-8 and butterfly)."""
+
+    dimension = 2
+    closed = True
+
+    def __init__(self, center=(0.0, 0.0)):
+        self.center = np.asarray(center, dtype=float)
+        self._center = tuple(self.center.tolist())
+        self.domain = (0.0, 2.0 * np.pi)
+
+
 class Parabola(Curve):
     """Parabola R = [theta, h theta^2] over theta in [-a, a] (paper 000, section IV).
 
@@ -130,19 +143,14 @@ class Line(Curve):
                 (0.0,) * self.dimension, (0.0,) * self.dimension]
 
 
-class Circle(Curve):
+class Circle(PlanarLoop):
     """Circle R = c + r [cos theta, sin theta], theta in [0, 2 pi), counter-clockwise."""
-
-    dimension = 2
-    closed = True
 
     def __init__(self, radius: float, center=(0.0, 0.0)):
         self.radius = float(radius)
         if self.radius <= 0.0:
             raise ValueError("circle radius must be positive")
-        self.center = np.asarray(center, dtype=float)
-        self._center = tuple(self.center.tolist())
-        self.domain = (0.0, 2.0 * np.pi)
+        super().__init__(center)
 
     def columns(self, t) -> list:
         r, (cx, cy) = self.radius, self._center
@@ -150,23 +158,18 @@ class Circle(Curve):
         return [(cx + c, cy + s), (-s, c), (-c, -s), (s, -c)]
 
 
-class Ellipse(Curve):
+class Ellipse(PlanarLoop):
     """Ellipse R = c + [a cos theta, b sin theta], theta in [0, 2 pi), counter-clockwise.
 
     Paper 003's XY-stage ellipse x = 0.03 (1 - cos wt), y = 0.01 sin wt is a = 0.03, b = 0.01,
     center (0.03, 0) with theta = w t + pi (the start point (0, 0) is theta = pi).
     """
 
-    dimension = 2
-    closed = True
-
     def __init__(self, a: float, b: float, center=(0.0, 0.0)):
         self.a, self.b = float(a), float(b)
         if self.a <= 0.0 or self.b <= 0.0:
             raise ValueError("ellipse semi-axes a and b must be positive")
-        self.center = np.asarray(center, dtype=float)
-        self._center = tuple(self.center.tolist())
-        self.domain = (0.0, 2.0 * np.pi)
+        super().__init__(center)
 
     def columns(self, t) -> list:
         (cx, cy), ca, sb = self._center, self.a * np.cos(t), self.b * np.sin(t)
@@ -174,19 +177,14 @@ class Ellipse(Curve):
         return [(cx + ca, cy + sb), (-sa, cb), (-ca, -sb), (sa, -cb)]
 
 
-class FigureEight(Curve):
+class FigureEight(PlanarLoop):
     """Figure-8 of paper 003, section IV-B: R = c + [a (1 - cos theta), b sin 2 theta], theta in [0, 2 pi)."""
-
-    dimension = 2
-    closed = True
 
     def __init__(self, a: float, b: float, center=(0.0, 0.0)):
         self.a, self.b = float(a), float(b)
         if self.a <= 0.0 or self.b <= 0.0:
             raise ValueError("figure-8 sizes a and b must be positive")
-        self.center = np.asarray(center, dtype=float)
-        self._center = tuple(self.center.tolist())
-        self.domain = (0.0, 2.0 * np.pi)
+        super().__init__(center)
 
     def columns(self, t) -> list:
         (cx, cy), a, b = self._center, self.a, self.b
@@ -238,21 +236,16 @@ class Saddle(Curve):
                 (a * w**3 * s1, -b * w**3 * c1, 8 * h * w**3 * s2)]
 
 
-class Butterfly(Curve):
+class Butterfly(PlanarLoop):
     """Fay's butterfly without its slowly varying term, scaled: R = scale r(u) [sin u, cos u] with
     r(u) = exp(cos u) - 2 cos 4u, u in [0, 2 pi) (closed). The large- and varying-curvature test contour of
     the contouring literature that paper 002 runs (its own parametrisation is lost from the text)."""
-
-    dimension = 2
-    closed = True
 
     def __init__(self, scale: float, center=(0.0, 0.0)):
         self.scale = float(scale)
         if self.scale <= 0.0:
             raise ValueError("butterfly scale must be positive")
-        self.center = np.asarray(center, dtype=float)
-        self._center = tuple(self.center.tolist())
-        self.domain = (0.0, 2.0 * np.pi)
+        super().__init__(center)
 
     def columns(self, u) -> list:
         k, (cx, cy) = self.scale, self._center
