@@ -44,7 +44,8 @@ class Param:
     kind: str                     # float | int | str | bool | floats | strings | dict
     default: object = REQUIRED
     check: str | None = None      # positive | nonnegative
-    choices: dict | None = None   # for kind == "dict" with a 'type': the registry of its types
+    choices: dict | tuple | None = None   # kind "dict" with a 'type': the registry of its types; kind "str": the
+                                          # names allowed
     help: str = ""
 
 
@@ -55,6 +56,13 @@ def _gains(**defaults):
     gains = {name: Param("float", defaults.get(name, REQUIRED), "nonnegative") for name in ("kp", "ki", "kd")}
     return {**gains, "output_limit": LIMIT}
 
+
+TIMINGS = ("lockstep", "realtime")
+INVALID_INPUT_POLICIES = ("stop", "hold")
+INITIAL_STATES = ("on_reference", "at_rest")
+DISTURBANCE_UNITS = ("command", "acceleration")
+# task-frame controllers: the local approximation they act on -> the estimator that reports its errors
+APPROXIMATIONS = {"first_order": "tangent_line", "natural_local": "natural_local"}
 
 # Registries: type name -> expected parameters. Defaults live here and nowhere else.
 DISTURBANCES = {
@@ -103,10 +111,9 @@ PLANTS = {
                     "coulomb_positive": Param("float", 0.0, "nonnegative"),
                     "coulomb_negative": Param("float", 0.0, "nonnegative"),
                     "disturbance": Param("dict", {"type": "none"}, choices=DISTURBANCES),
-                    "disturbance_unit": Param("str", "command"),
+                    "disturbance_unit": Param("str", "command", choices=DISTURBANCE_UNITS),
                     "saturation": LIMIT, "encoder_resolution": Param("float", 0.0, "nonnegative")},
 }
-DISTURBANCE_UNITS = ("command", "acceleration")
 SERVOS = {
     "pid_feedforward": {**_gains(), "gain": Param("float", check="positive"),
                         "time_constant": Param("float", check="nonnegative")},
@@ -142,7 +149,7 @@ CONTROLLERS = {
     "none": {},
     "variable_gain": _gains(),
     "unit_vector": _gains(),
-    "task_frame_pd": {"approximation": Param("str"), "mass": Param("floats"), "damping": Param("floats"),
+    "task_frame_pd": {"approximation": Param("str", choices=tuple(APPROXIMATIONS)), "mass": Param("floats"), "damping": Param("floats"),
                       "gain": Param("floats"), "coulomb_positive": Param("floats", None),
                       "coulomb_negative": Param("floats", None), "f_t": Param("float", check="positive"),
                       "f_n": Param("float", check="positive"), "f_b": Param("float", None, "positive"),
@@ -153,8 +160,6 @@ CONTROLLERS["tvt"] = {"kc": Param("float", check="nonnegative"),
 CONTROLLERS["adaptive_tnb"] = {
     "coupling": Param("floats"), "alpha": Param("float", check="positive"), "gamma_mass": Param("floats"),
     "gamma_damping": Param("floats"), "mass0": Param("floats"), "damping0": Param("floats")}
-# task-frame controllers: the local approximation they act on -> the estimator that reports its errors
-APPROXIMATIONS = {"first_order": "tangent_line", "natural_local": "natural_local"}
 # controllers that compute every axis' whole command (their servos must be 'direct', and only theirs)
 WHOLE_COMMAND_CONTROLLERS = {"task_frame_pd", "tvt"}
 GLOBALS = {
@@ -165,16 +170,14 @@ GLOBALS = {
     "axes": Param("strings"),
     "curve": Param("dict", choices=CURVES),
     "schedule": Param("dict", choices=SCHEDULES),
-    "initial_state": Param("str", "on_reference"),
+    "initial_state": Param("str", "on_reference", choices=INITIAL_STATES),
     "network": Param("bool", False),          # discover nodes beyond localhost
     "stall_timeout": Param("float", 10.0, "positive"),   # s without a complete step before a node gives up
-    "on_invalid_input": Param("str", "stop"),  # stop | hold: a non-finite or malformed input message
-    "timing": Param("str", "lockstep"),        # lockstep | realtime (DESIGN.md, "One control step")
+    "on_invalid_input": Param("str", "stop", choices=INVALID_INPUT_POLICIES),  # what a node does with a
+                                                                             # non-finite or malformed input
+    "timing": Param("str", "lockstep", choices=TIMINGS),   # DESIGN.md, "One control step"
     "start_time": Param("float", 0.0, "nonnegative"),  # realtime: Unix time of tick 0 (the runner sets it)
 }
-TIMINGS = ("lockstep", "realtime")
-INVALID_INPUT_POLICIES = ("stop", "hold")
-INITIAL_STATES = ("on_reference", "at_rest")
 # node section -> (key holding the type name, registry)
 ROLE_TYPES = {"plant": ("model", PLANTS), "servo": ("law", SERVOS),
               "contour_estimator": ("type", ESTIMATORS), "ccc": ("type", CONTROLLERS)}
@@ -252,6 +255,8 @@ def _value(where, key, spec: Param, value):
     elif kind == "str":
         if not isinstance(value, str):
             _fail(where, key, f"expected a string, got {value!r}")
+        if spec.choices is not None and value not in spec.choices:
+            _fail(where, key, f"expected one of {', '.join(spec.choices)}, got {value!r}")
     elif kind == "floats":
         if not isinstance(value, (list, tuple)) or not value or any(
                 isinstance(v, bool) or not isinstance(v, (int, float)) for v in value):
@@ -328,13 +333,6 @@ def _validate_globals(where, given: dict) -> dict:
             _fail(where, "axes", f"axis name {axis!r} must be a plain identifier (it becomes a namespace)")
     if len(set(axes)) != len(axes):
         _fail(where, "axes", f"axis names must be unique, got {axes}")
-    if out["on_invalid_input"] not in INVALID_INPUT_POLICIES:
-        _fail(where, "on_invalid_input", f"expected one of {', '.join(INVALID_INPUT_POLICIES)}, "
-                                         f"got {out['on_invalid_input']!r}")
-    if out["timing"] not in TIMINGS:
-        _fail(where, "timing", f"expected one of {', '.join(TIMINGS)}, got {out['timing']!r}")
-    if out["initial_state"] not in INITIAL_STATES:
-        _fail(where, "initial_state", f"expected one of {', '.join(INITIAL_STATES)}, got {out['initial_state']!r}")
     dimension = build_curve_from(out["curve"], where).dimension
     if dimension != len(axes):
         _fail(where, "axes", f"{len(axes)} axes given but the {out['curve']['type']} curve has {dimension} "
@@ -351,17 +349,11 @@ def _validate_role(where, node: str, role: str, given: dict, globals_: dict) -> 
         return _mapping(where, f"{node}.", OPTIONAL_NODES[role], given)
     type_key, registry = ROLE_TYPES[role]
     section = _typed(where, node, type_key, registry, given)
-    if role == "plant" and section["model"] == "mass_damper" and section["disturbance_unit"] not in DISTURBANCE_UNITS:
-        _fail(where, f"{node}.disturbance_unit", f"expected one of {', '.join(DISTURBANCE_UNITS)}, "
-                                                 f"got {section['disturbance_unit']!r}")
     if role == "contour_estimator" and section["type"] == "osculating_circle" and len(globals_["axes"]) != 2:
         _fail(where, f"{node}.type", "the osculating_circle estimate needs a planar contour (2 axes)")
     if role == "servo" and section["law"] == "eso_smc" and len(section["alphas"]) != 3:
         _fail(where, f"{node}.alphas", f"expected the three ESO gains alpha_1..3, got {len(section['alphas'])}")
     if role == "ccc" and section["type"] == "task_frame_pd":
-        if section["approximation"] not in APPROXIMATIONS:
-            _fail(where, f"{node}.approximation", f"expected one of {', '.join(APPROXIMATIONS)}, "
-                                                  f"got {section['approximation']!r}")
         if len(globals_["axes"]) == 3 and section["f_b"] is None:
             _fail(where, f"{node}.f_b", "missing required key (the binormal bandwidth, for 3 axes)")
     per_axis_keys = {"task_frame_pd": ("mass", "damping", "gain", "coulomb_positive", "coulomb_negative"),

@@ -128,6 +128,8 @@ HELIX = (CONFIG / "paper003_helix_natural_local_f15_10.yaml").read_text()
     ("mass: [1.0, 1.0, 1.0]", "mass: [1.0, 1.0]", "/ccc.mass: expected one value per axis (3), got 2"),
     ("damping: 225.0", "damping: -1.0", "/y/plant.damping: expected a value >= 0"),
     ("length: 4.5", "length: 0.0", "curve.length: expected a positive value"),
+    ("damping: 200.0, gain: 1.0}", "damping: 200.0, gain: 1.0, disturbance_unit: force}",
+     "/x/plant.disturbance_unit: expected one of command, acceleration, got 'force'"),
 ])
 def test_refused_combinations_and_task_frame_keys(old, new, expected):
     assert old in HELIX
