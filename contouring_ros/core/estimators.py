@@ -77,6 +77,8 @@ class BranchCheck:
 
     def restart(self, distance: float, position) -> float | None:
         """The parameter to restart from, or None when the estimate is on the nearest branch."""
+        if distance <= self.tolerance:      # no sample can be nearer by more than the tolerance
+            return None
         squared = np.sum((self.points - position) ** 2, axis=1)
         nearest = int(np.argmin(squared))
         if distance > math.sqrt(squared[nearest]) + self.tolerance:

@@ -86,28 +86,27 @@ def simulate(loop: ControlLoop) -> SimulationResult:
     m, n = loop.n_steps, len(loop.plants)
     time = np.empty(m)
     theta, est_theta, est_signed = np.empty(m), np.empty(m), np.empty(m)
-    arrays = {name: np.empty((m, n)) for name in (
-        "reference_position", "reference_velocity", "reference_acceleration", "position", "velocity",
-        "estimate_vector", "correction", "command")}
+    ref_pos, ref_vel, ref_acc, positions, velocities, est_vector, corrections, commands = (
+        np.empty((m, n)) for _ in range(8))
+    curve, schedule, estimator, controller = loop.curve, loop.schedule, loop.estimator, loop.controller
+    axes = list(zip(range(n), loop.plants, loop.servos))
     for k in range(m):
         t = step_time(k, loop.sample_time)
-        measured = [plant.measure() for plant in loop.plants]
-        position = np.array([p for p, _ in measured])
-        velocity = np.array([v for _, v in measured])
-        ref = reference(loop.curve, loop.schedule, t)
-        estimate = loop.estimator.step(ref, position)
-        correction = loop.controller.step(estimate, ref, position, velocity)
-        command = np.array([servo.step(ref.position[i], ref.velocity[i], ref.acceleration[i],
-                                       position[i], velocity[i], correction[i])
-                            for i, servo in enumerate(loop.servos)])
-        for i, plant in enumerate(loop.plants):
-            plant.step(command[i], t)
-        time[k], theta[k] = t, ref.theta
-        est_theta[k], est_signed[k] = estimate.theta, estimate.signed
-        for name, value in (("reference_position", ref.position), ("reference_velocity", ref.velocity),
-                            ("reference_acceleration", ref.acceleration), ("position", position),
-                            ("velocity", velocity), ("estimate_vector", estimate.vector),
-                            ("correction", correction), ("command", command)):
-            arrays[name][k] = value
-    return SimulationResult(time=time, theta=theta, estimate_theta=est_theta, estimate_signed=est_signed,
-                            **arrays)
+        for i, plant, _ in axes:
+            positions[k, i], velocities[k, i] = plant.measure()
+        position, velocity = positions[k].copy(), velocities[k].copy()
+        ref = reference(curve, schedule, t)
+        estimate = estimator.step(ref, position)
+        correction = controller.step(estimate, ref, position, velocity)
+        rp, rv, ra = ref.position, ref.velocity, ref.acceleration
+        for i, plant, servo in axes:
+            command = servo.step(rp[i], rv[i], ra[i], position[i], velocity[i], correction[i])
+            commands[k, i] = command
+            plant.step(commands[k, i], t)
+        time[k], theta[k], est_theta[k], est_signed[k] = t, ref.theta, estimate.theta, estimate.signed
+        ref_pos[k], ref_vel[k], ref_acc[k] = rp, rv, ra
+        est_vector[k], corrections[k] = estimate.vector, correction
+    return SimulationResult(time=time, theta=theta, reference_position=ref_pos, reference_velocity=ref_vel,
+                            reference_acceleration=ref_acc, position=positions, velocity=velocities,
+                            estimate_theta=est_theta, estimate_vector=est_vector, estimate_signed=est_signed,
+                            correction=corrections, command=commands)
