@@ -26,7 +26,7 @@ from .core.interpolation import FeedrateSchedule, UniformSchedule, reference
 from .core.simulation import ControlLoop
 from .errors import ConfigError
 
-__all__ = ["Experiment", "load_experiment", "parse_experiment", "build_loop", "build_curve",
+__all__ = ["Experiment", "load_experiment", "parse_experiment", "read_yaml", "experiment_from_data", "build_loop", "build_curve",
            "build_schedule", "build_plant", "build_servo", "build_estimator", "build_controller",
            "initial_state", "GLOBAL_SECTION", "node_sections", "section_from_parameters",
            "experiment_for_node"]
@@ -389,6 +389,11 @@ def _validate_combination(where, estimator: dict, controller: dict, servos: dict
 
 def parse_experiment(text: str, where: str = "<experiment>") -> Experiment:
     """Validate the YAML ``text`` of an experiment; ``where`` names it in errors."""
+    return experiment_from_data(read_yaml(text, where), where, text)
+
+
+def read_yaml(text: str, where: str = "<experiment>"):
+    """The data of an experiment's YAML ``text`` (aliases refused, exponent floats read as numbers)."""
     try:
         data = yaml.load(text, Loader=_NoAliasLoader)
     except ConfigError as error:
@@ -398,6 +403,11 @@ def parse_experiment(text: str, where: str = "<experiment>") -> Experiment:
         line = f"line {mark.line + 1}: " if mark is not None else ""
         problem = getattr(error, "problem", None) or str(error).splitlines()[0]
         raise ConfigError(f"{where}: {line}not valid YAML ({problem})") from None
+    return data
+
+
+def experiment_from_data(data, where: str = "<experiment>", text: str = "") -> Experiment:
+    """Validate an experiment already read from YAML (``text``, if given, is kept as its source)."""
     if not isinstance(data, dict) or not data:
         _fail(where, "", "expected a ROS 2 parameter file (a mapping of node names to ros__parameters)")
     if GLOBAL_SECTION not in data:

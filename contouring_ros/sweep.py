@@ -6,6 +6,7 @@ one (``curve.h``, ``schedule.duration``). Every combination is validated like a 
 """
 from __future__ import annotations
 
+import copy
 import csv
 import itertools
 import os
@@ -14,7 +15,7 @@ from dataclasses import dataclass
 
 import yaml
 
-from .config import GLOBAL_SECTION, ROS_PARAMETERS, build_loop, parse_experiment
+from .config import GLOBAL_SECTION, ROS_PARAMETERS, build_loop, experiment_from_data, read_yaml
 from .core.simulation import simulate
 from .errors import ConfigError
 from .scoring import score_run
@@ -48,15 +49,22 @@ def _set(data: dict, key: str, value):
 
 
 def combinations(text: str, grid: dict) -> list:
-    """(settings, experiment text) for every combination of the grid's values."""
-    base = yaml.safe_load(text)
+    """(settings, validated experiment) for every combination of the grid's values.
+
+    The file is read once; each combination is a copy of its data with the grid's values set, validated
+    like a file (an invalid one is refused naming its settings) without another YAML round trip.
+    """
+    base = read_yaml(text, "sweep")
     out = []
     for values in itertools.product(*grid.values()):
-        data = yaml.safe_load(yaml.safe_dump(base))
+        data = copy.deepcopy(base)
         settings = dict(zip(grid, values))
         for key, value in settings.items():
             _set(data, key, value)
-        out.append((settings, yaml.safe_dump(data, sort_keys=False)))
+        try:
+            out.append((settings, experiment_from_data(data, "sweep combination")))
+        except ConfigError as error:
+            raise ConfigError(f"--grid {settings}: {error}") from None
     return out
 
 
@@ -66,8 +74,7 @@ class SweepRow:
     scores: object
 
 
-def _score(text: str):
-    experiment = parse_experiment(text, "sweep combination")
+def _score(experiment):
     loop = build_loop(experiment)
     return score_run(loop.curve, simulate(loop))
 
@@ -76,11 +83,6 @@ def run_sweep(text: str, grid: dict, workers: int | None = None, progress: bool 
     """Score every combination (validated first), ranked by MCE then TACE."""
     from tqdm import tqdm
     combos = combinations(text, grid)
-    for settings, combo in combos:
-        try:
-            parse_experiment(combo, "sweep combination")
-        except ConfigError as error:
-            raise ConfigError(f"--grid {settings}: {error}") from None
     workers = workers or os.cpu_count() or 1
     with ProcessPoolExecutor(max_workers=workers) as pool:
         scores = list(tqdm(pool.map(_score, [combo for _, combo in combos], chunksize=max(1, len(combos) // (8 * workers))),
