@@ -8,10 +8,11 @@ Prints, on this machine, now:
   is plant -> estimator -> CCC -> servo -> plant);
 - realtime mode at 1 kHz for both layouts: deadline-miss rate over all nodes and the worst node's, loop
   latency p50 / p99;
-- the in-process simulation's rate (and real-time factor) and the sweep throughput (configurations per
-  second over a process pool, and the time 1000 configurations would take).
+- the in-process simulation's rate (and real-time factor) and the sweep throughput: 1000 configurations of
+  the default experiment (vectorised batches on a process pool), and the same sweep one configuration at a
+  time on the pool (``--sweep-alone``, 100 configurations), with the ratio.
 
-Usage: python bench/all.py [--seconds 2] [--realtime-seconds 10] [--sweep 200]
+Usage: python bench/all.py [--seconds 2] [--realtime-seconds 10] [--sweep 1000] [--sweep-alone 100]
 Figures vary run to run on a shared machine: compare the ratios within one run.
 """
 from __future__ import annotations
@@ -29,7 +30,7 @@ sys.path.insert(0, str(ROOT))
 
 from contouring_ros.bag import node_reports  # noqa: E402
 from contouring_ros.runner import DomainLease, private_environment, run_graph  # noqa: E402
-from contouring_ros.sweep import run_sweep  # noqa: E402
+from contouring_ros.sweep import BATCH, run_sweep  # noqa: E402
 from graph_speed import lockstep_run, simulation_rate  # noqa: E402  (bench/ is this script's folder)
 
 DEFAULT = ROOT / "config" / "paper000_b_ismc_h50_newton.yaml"
@@ -78,11 +79,13 @@ def realtime(layout: str, seconds: float, tmp: Path) -> dict:
             "p99": max(float(v["latency p99 [us]"]) for v in reports)}
 
 
-def sweep_rate(configs: int) -> float:
+def sweep_rate(configs: int, batch: int | None = None) -> float:
+    """Configurations per second of a sweep over ccc.kp on the default experiment (``batch``: at most
+    that many per vectorised batch; 1 runs every configuration alone)."""
     text = DEFAULT.read_text()
     grid = {"ccc.kp": [0.5 + 2.0 * i / configs for i in range(configs)]}
     start = time.perf_counter()
-    run_sweep(text, grid)
+    run_sweep(text, grid, batch=batch or BATCH)
     return configs / (time.perf_counter() - start)
 
 
@@ -92,7 +95,8 @@ def main():
     parser.add_argument("--runs", type=int, default=3, help="lockstep runs per case (median)")
     parser.add_argument("--realtime-seconds", type=float, default=10.0)
     parser.add_argument("--rounds", type=int, default=5000, help="ping-pong round trips")
-    parser.add_argument("--sweep", type=int, default=200, help="sweep configurations")
+    parser.add_argument("--sweep", type=int, default=1000, help="sweep configurations (vectorised)")
+    parser.add_argument("--sweep-alone", type=int, default=100, help="sweep configurations run one by one")
     args = parser.parse_args()
     say = lambda *a: print(*a, flush=True)  # noqa: E731
     with tempfile.TemporaryDirectory() as directory:
@@ -119,8 +123,10 @@ def main():
             f"{sim / rates['2 axes', 'process']:.0f}x the process graph, {sim / rates['2 axes', 'composed']:.0f}x "
             "the composed graph")
         configs = sweep_rate(args.sweep)
-        say(f"sweep: {configs:.1f} configurations/s ({args.sweep} of the default experiment): 1000 would take "
-            f"{1000 / configs:.0f} s")
+        alone = sweep_rate(args.sweep_alone, batch=1)
+        say(f"sweep: {configs:.1f} configurations/s vectorised ({args.sweep} of the default experiment in "
+            f"{args.sweep / configs:.1f} s); one by one {alone:.1f}/s ({args.sweep_alone} configurations; 1000 "
+            f"would take {1000 / alone:.0f} s); vectorised / one by one: {configs / alone:.1f}x")
 
 
 if __name__ == "__main__":

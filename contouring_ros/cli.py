@@ -139,6 +139,9 @@ def _sweep(args):
     experiment = load_experiment(_experiment_path(args.config))
     rows = run_sweep(experiment.text, parse_grid(args.grid), args.workers, progress=sys.stderr.isatty())
     print(format_sweep(rows))
+    vectorised = sum(row.vectorised for row in rows)
+    print(f"{len(rows)} combinations: {vectorised} ran vectorised in batches, {len(rows) - vectorised} one by one"
+          + ("" if vectorised == len(rows) else " (a class without a batch path, or too few to batch)"))
     out = Path(args.out or f"bags/{experiment.name}_sweep_{datetime.now():%Y%m%d_%H%M%S}.csv")
     out.parent.mkdir(parents=True, exist_ok=True)
     write_sweep_csv(rows, out)

@@ -1,4 +1,8 @@
-"""Parameter sweeps: the in-process simulation over every combination of a grid, on a process pool.
+"""Parameter sweeps: the in-process simulation over every combination of a grid.
+
+Combinations of one structure (the same curve, schedule, plant, servo, estimator and controller classes)
+run vectorised, up to ``BATCH`` at a time along a batch axis (:mod:`contouring_ros.core.batch`), where
+every class has a batch path; the others run one by one. Batches and single runs share a process pool.
 
 A grid key names a place in the experiment file: ``<node section>.<key>[.<subkey>]`` for a node's
 parameter (``ccc.kp``, ``x/servo.a``, ``contour_estimator.k_prime``) or ``<key>[.<subkey>]`` for a shared
@@ -9,6 +13,7 @@ from __future__ import annotations
 import copy
 import csv
 import itertools
+import math
 import os
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
@@ -16,6 +21,7 @@ from dataclasses import dataclass
 import yaml
 
 from .config import GLOBAL_SECTION, ROS_PARAMETERS, build_loop, experiment_from_data, read_yaml
+from .core.batch import NotBatchable, simulate_batch, structure
 from .core.simulation import simulate
 from .errors import ConfigError
 from .scoring import score_run
@@ -68,26 +74,55 @@ def combinations(text: str, grid: dict) -> list:
     return out
 
 
+BATCH = 250      # combinations per vectorised batch (memory: about 0.25 MB per combination and 1000 steps)
+
+
 @dataclass(frozen=True)
 class SweepRow:
     settings: dict
     scores: object
+    vectorised: bool = False   # whether it ran in a vectorised batch
 
 
-def _score(experiment):
-    loop = build_loop(experiment)
-    return score_run(loop.curve, simulate(loop))
+def _score_chunk(experiments: list) -> tuple:
+    """Scores of each experiment of one structure, and whether they ran as one vectorised batch."""
+    loops = [build_loop(e) for e in experiments]
+    try:
+        results = simulate_batch(loops) if len(loops) > 1 else None
+    except NotBatchable:
+        results = None
+    vectorised = results is not None
+    results = results or [simulate(loop) for loop in loops]
+    return [score_run(loop.curve, result) for loop, result in zip(loops, results)], vectorised
 
 
-def run_sweep(text: str, grid: dict, workers: int | None = None, progress: bool = False) -> list:
-    """Score every combination (validated first), ranked by MCE then TACE."""
+def _chunks(experiments: list, workers: int, batch: int) -> list:
+    """Indices of the experiments in chunks of one structure each, at most ``batch`` long, spread so that
+    every worker gets some."""
+    groups = {}
+    for index, experiment in enumerate(experiments):
+        groups.setdefault(structure(build_loop(experiment)), []).append(index)
+    size = max(1, min(batch, math.ceil(len(experiments) / (2 * workers))))
+    return [group[i:i + size] for group in groups.values() for i in range(0, len(group), size)]
+
+
+def run_sweep(text: str, grid: dict, workers: int | None = None, progress: bool = False, batch: int = BATCH) -> list:
+    """Score every combination (validated first), ranked by MCE then TACE; at most ``batch`` combinations
+    per vectorised batch (1: each alone)."""
     from tqdm import tqdm
     combos = combinations(text, grid)
+    experiments = [experiment for _, experiment in combos]
     workers = workers or os.cpu_count() or 1
-    with ProcessPoolExecutor(max_workers=workers) as pool:
-        scores = list(tqdm(pool.map(_score, [combo for _, combo in combos], chunksize=max(1, len(combos) // (8 * workers))),
-                           total=len(combos), desc="sweep", disable=not progress))
-    rows = [SweepRow(settings, s) for (settings, _), s in zip(combos, scores)]
+    chunks = _chunks(experiments, workers, batch)
+    scores, vectorised = [None] * len(combos), [False] * len(combos)
+    with ProcessPoolExecutor(max_workers=workers) as pool, \
+            tqdm(total=len(combos), desc="sweep", disable=not progress) as bar:
+        for chunk, (chunk_scores, batched) in zip(chunks, pool.map(_score_chunk, [[experiments[i] for i in chunk]
+                                                                                   for chunk in chunks])):
+            for i, s in zip(chunk, chunk_scores):
+                scores[i], vectorised[i] = s, batched
+            bar.update(len(chunk))
+    rows = [SweepRow(settings, s, v) for (settings, _), s, v in zip(combos, scores, vectorised)]
     return sorted(rows, key=lambda row: (row.scores.mce, row.scores.tace))
 
 

@@ -28,6 +28,8 @@ def per_axis(values, n: int, name: str) -> np.ndarray:
 class NoCoupling:
     """No cross-coupling: zero corrections (the uncoupled baseline)."""
 
+    batchable = True
+
     def __init__(self, n_axes: int):
         self.n_axes = int(n_axes)
 
@@ -72,6 +74,8 @@ class UnitVectorCCC:
     normalisation all axes share the same gains. u_i = G_i^c(E*_i). An ``output_limit`` saturates each
     correction, with anti-windup (see :meth:`DiscretePID.clamp`); the variable-gain CCC limits G_c's output.
     """
+
+    batchable = True
 
     def __init__(self, n_axes: int, kp: float, ki: float, kd: float, sample_time: float,
                  output_limit: float = 0.0):

@@ -110,6 +110,8 @@ class Parabola(Curve):
     """
 
     dimension = 2
+    #: steps elementwise on arrays with a leading batch axis (:mod:`contouring_ros.core.batch`)
+    batchable = True
 
     def __init__(self, a: float, h: float):
         self.a = float(a)
@@ -123,6 +125,9 @@ class Parabola(Curve):
 
 class Line(Curve):
     """Straight line from ``start`` to ``end`` parametrised by arc length theta in [0, L]."""
+
+    #: steps elementwise on arrays with a leading batch axis (:mod:`contouring_ros.core.batch`)
+    batchable = True
 
     def __init__(self, start, end):
         self.start = np.asarray(start, dtype=float)
@@ -145,6 +150,9 @@ class Line(Curve):
 
 class Circle(PlanarLoop):
     """Circle R = c + r [cos theta, sin theta], theta in [0, 2 pi), counter-clockwise."""
+
+    #: steps elementwise on arrays with a leading batch axis (:mod:`contouring_ros.core.batch`)
+    batchable = True
 
     def __init__(self, radius: float, center=(0.0, 0.0)):
         self.radius = float(radius)

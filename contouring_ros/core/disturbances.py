@@ -14,12 +14,18 @@ __all__ = ["NoDisturbance", "ConstantDisturbance", "SinusoidalDisturbance", "Ran
 class NoDisturbance:
     """D(t) = 0."""
 
+    #: steps elementwise on arrays with a leading batch axis (:mod:`contouring_ros.core.batch`)
+    batchable = True
+
     def __call__(self, t: float) -> float:
         return 0.0
 
 
 class ConstantDisturbance:
     """D(t) = value: a constant load, in actuator command units."""
+
+    #: steps elementwise on arrays with a leading batch axis (:mod:`contouring_ros.core.batch`)
+    batchable = True
 
     def __init__(self, value: float):
         self.value = float(value)

@@ -46,10 +46,26 @@ class TangentLineEstimator:
     theta_r - (E.t) / |R'(theta_r)|.
     """
 
+    #: has a batch path, :meth:`step_batch` (:mod:`contouring_ros.core.batch`)
+    batchable = True
+
     def __init__(self, curve: Curve):
         self.curve = curve
 
+    def step_batch(self, reference, position) -> ContourEstimate:
+        """:meth:`step` for a batch: reference arrays (B, n) and theta (B, 1), positions (B, n)."""
+        return self.step(reference, position)
+
     def step(self, reference, position) -> ContourEstimate:
+        if np.ndim(position) == 2:
+            d = _batch_derivatives(self.curve, reference.theta, 1)
+            speed = np.linalg.norm(d[1], axis=-1, keepdims=True)
+            tangent = d[1] / speed
+            tracking = d[0] - position
+            along = np.sum(tracking * tangent, axis=-1, keepdims=True)
+            vector = tracking - along * tangent
+            return ContourEstimate(theta=reference.theta - along / speed, vector=vector,
+                                   signed=signed_error(vector, tangent))
         d = self.curve.derivatives(reference.theta, order=1)
         speed = math.sqrt(float(d[1] @ d[1]))
         tangent = d[1] / speed
@@ -58,6 +74,11 @@ class TangentLineEstimator:
         vector = tracking - along * tangent
         return ContourEstimate(theta=float(reference.theta) - along / speed, vector=vector,
                                signed=float(signed_error(vector, tangent)))
+
+
+def _batch_derivatives(curve: Curve, theta, order: int) -> np.ndarray:
+    """R and its derivatives at a batch of parameters theta (B, 1): shape (order + 1, B, n)."""
+    return curve.derivatives(np.asarray(theta, dtype=float), order=order)[:, :, 0, :]
 
 
 class BranchCheck:
@@ -69,11 +90,26 @@ class BranchCheck:
     than ``tolerance``, it returns that sample's parameter to restart from.
     """
 
+    #: has a batch path, :meth:`restart_batch` (:mod:`contouring_ros.core.batch`)
+    batchable = True
+
     def __init__(self, curve: Curve, samples: int, tolerance: float):
         lo, hi = curve.domain
         self.grid = np.linspace(lo, hi, int(samples))
         self.points = curve.point(self.grid)
         self.tolerance = float(tolerance)
+
+    def restart_batch(self, distance, position):
+        """:meth:`restart` for a batch: distances (B, 1), positions (B, n). Returns None when no estimate
+        is on a wrong branch, else the parameters to restart from (B, 1) and where to restart (B, 1)."""
+        if np.all(distance <= self.tolerance):      # as in restart: no sample can be nearer by more
+            return None
+        points = self.points if self.points.ndim == 3 else self.points[None]
+        squared = np.sum((points - position[:, None, :]) ** 2, axis=-1)
+        nearest = np.argmin(squared, axis=1)[:, None]
+        closest = np.sqrt(np.take_along_axis(squared, nearest, axis=1))
+        start = np.take_along_axis(np.broadcast_to(self.grid, squared.shape), nearest, axis=1)
+        return start, distance > closest + self.tolerance
 
     def restart(self, distance: float, position) -> float | None:
         """The parameter to restart from, or None when the estimate is on the nearest branch."""
@@ -114,6 +150,9 @@ class NewtonEstimator:
         (counted in ``recoveries``).
     """
 
+    #: has a batch path, :meth:`step_batch` (:mod:`contouring_ros.core.batch`)
+    batchable = True
+
     def __init__(self, curve: Curve, k_prime: float, c_prime: float, theta0: float, iterations: int,
                  inner_step: float, branch_check: BranchCheck | None = None):
         self.curve = curve
@@ -142,13 +181,39 @@ class NewtonEstimator:
         tangent = d[1] / math.sqrt(float(d[1] @ d[1]))
         return ContourEstimate(theta=self.theta, vector=vector, signed=float(signed_error(vector, tangent)))
 
+    def step_batch(self, reference, position) -> ContourEstimate:
+        """:meth:`step` for a batch: positions (B, n); theta_hat (B, 1)."""
+        self._iterate(position)
+        d = _batch_derivatives(self.curve, self.theta, 1)
+        vector = d[0] - position
+        if self.branch_check is not None:
+            distance = np.linalg.norm(vector, axis=-1, keepdims=True)
+            found = self.branch_check.restart_batch(distance, position)
+            start, restart = found if found is not None else (None, np.zeros(distance.shape, dtype=bool))
+            if restart.any():
+                self.recoveries = self.recoveries + restart
+                kept = self.theta, self.filtered
+                self.theta, self.filtered = start, 0.0
+                self._iterate(position)
+                self.theta = np.where(restart, self.theta, kept[0])
+                self.filtered = np.where(restart, self.filtered, kept[1])
+                d = _batch_derivatives(self.curve, self.theta, 1)
+                vector = d[0] - position
+        tangent = d[1] / np.linalg.norm(d[1], axis=-1, keepdims=True)
+        return ContourEstimate(theta=self.theta, vector=vector, signed=signed_error(vector, tangent))
+
     def _iterate(self, position):
-        """Advance the filtered Newton flow ``iterations`` inner steps from the current estimate."""
+        """Advance the filtered Newton flow ``iterations`` inner steps from the current estimate (one
+        position (n,), or a batch of positions (B, n) with estimates (B, 1))."""
         curve, theta, filtered = self.curve, self.theta, self.filtered
         decay, gain = self._filter_decay, self._gain
-        coordinates = [float(p) for p in position]
-        columns, wrap = curve.columns, curve.wrap_scalar
-        if len(coordinates) == 2 and not curve.closed:       # the common planar case, unrolled
+        batch = np.ndim(position) == 2
+        if batch:
+            coordinates, wrap = [position[:, i:i + 1] for i in range(position.shape[1])], curve.wrap
+        else:
+            coordinates, wrap = [float(p) for p in position], curve.wrap_scalar
+        columns = curve.columns
+        if len(coordinates) == 2 and not curve.closed and not batch:       # the common planar case, unrolled
             (px, py), (lo, hi) = coordinates, curve.domain
             for _ in range(self.iterations):
                 (rx, ry), (tx, ty) = columns(theta)[:2]

@@ -20,6 +20,9 @@ class UniformSchedule:
     Paper 000 section IV: theta = 2 a t / T - a for t in [0, T].
     """
 
+    #: steps elementwise on arrays with a leading batch axis (:mod:`contouring_ros.core.batch`)
+    batchable = True
+
     def __init__(self, theta_start: float, theta_end: float, duration: float):
         if duration <= 0.0:
             raise ValueError("schedule duration must be positive")

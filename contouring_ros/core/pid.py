@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .plants import has_limit, symmetric_clip
+
 __all__ = ["DiscretePID"]
 
 
@@ -20,6 +22,8 @@ class DiscretePID:
     sample_time : float
         Ts [s].
     """
+
+    batchable = True
 
     def __init__(self, kp: float, ki: float, kd: float, sample_time: float):
         self.kp, self.ki, self.kd = float(kp), float(ki), float(kd)
@@ -44,9 +48,9 @@ class DiscretePID:
         Where the output saturates and this step's integration pushed it further out, that integration
         is taken back, so the integral does not wind up while the actuator is at its limit.
         """
-        if not limit:
+        if not has_limit(limit):
             return output
-        clipped = np.clip(output, -limit, limit)
+        clipped = symmetric_clip(output, limit)
         pushing = (output != clipped) & (np.sign(self.ki * self._increment) == np.sign(output - clipped))
         self.integral = self.integral - np.where(pushing, self._increment, 0.0)
         return clipped if np.ndim(clipped) else float(clipped)

@@ -7,9 +7,11 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from .disturbances import NoDisturbance
 
-__all__ = ["FirstOrderVelocityAxis", "MassDamperAxis", "coulomb_friction", "quantize"]
+__all__ = ["FirstOrderVelocityAxis", "MassDamperAxis", "coulomb_friction", "quantize", "has_limit", "symmetric_clip"]
 
 
 def quantize(value: float, resolution: float) -> float:
@@ -57,6 +59,9 @@ class FirstOrderVelocityAxis(Axis):
         Actuator limit: the command is clipped to +-saturation before the disturbance adds (0: none).
     """
 
+    #: steps elementwise on arrays with a leading batch axis (:mod:`contouring_ros.core.batch`)
+    batchable = True
+
     def __init__(self, gain: float, time_constant: float, sample_time: float, disturbance=None,
                  position: float = 0.0, velocity: float = 0.0, saturation: float = 0.0,
                  encoder_resolution: float = 0.0):
@@ -78,13 +83,26 @@ class FirstOrderVelocityAxis(Axis):
 
     def step(self, command: float, t: float) -> tuple[float, float]:
         """Apply ``command`` over [t, t + Ts) and return the (position, velocity) at t + Ts."""
-        if self.saturation:
-            command = max(-self.saturation, min(self.saturation, command))
+        if has_limit(self.saturation):
+            command = symmetric_clip(command, self.saturation)
         u = command + self.disturbance(t)
         p, v = self.position, self.velocity
         self.position = p + self._pv * v + self._pu * u
         self.velocity = self._alpha * v + self._vu * u
         return self.position, self.velocity
+
+
+def has_limit(limit) -> bool:
+    """Whether a limit (0: none) limits anything; a batch of limits does when any of them is set."""
+    return bool(np.any(limit)) if isinstance(limit, np.ndarray) else bool(limit)
+
+
+def symmetric_clip(value, limit):
+    """``value`` clipped to +-``limit``; elementwise for arrays, where a limit of 0 means no limit."""
+    if isinstance(value, np.ndarray) or isinstance(limit, np.ndarray):
+        limit = np.where(np.asarray(limit) > 0.0, limit, np.inf)
+        return np.clip(value, -limit, limit)
+    return max(-limit, min(limit, value))
 
 
 def coulomb_friction(velocity: float, positive: float, negative: float) -> float:

@@ -12,15 +12,15 @@ import numpy as np
 from scipy.linalg import expm
 
 from .pid import DiscretePID
-from .plants import coulomb_friction
+from .plants import coulomb_friction, has_limit, symmetric_clip
 
 __all__ = ["PIDFeedforwardServo", "IntegralSlidingModeServo", "DisturbanceObserver", "DirectServo",
            "ExtendedStateObserver", "ESOSlidingModeServo", "PIDServo", "CascadeServo", "saturation"]
 
 
 def saturation(u: float) -> float:
-    """sat(u) = u for |u| <= 1, sign(u) otherwise (paper 000, after eq. 20)."""
-    return max(-1.0, min(1.0, u))
+    """sat(u) = u for |u| <= 1, sign(u) otherwise (paper 000, after eq. 20); elementwise on arrays."""
+    return np.clip(u, -1.0, 1.0) if isinstance(u, np.ndarray) else max(-1.0, min(1.0, u))
 
 
 def _inverse_first_order(ref_vel: float, ref_acc: float, gain: float, time_constant: float) -> float:
@@ -42,6 +42,8 @@ class PIDFeedforwardServo:
     sample_time : float
         Ts [s].
     """
+
+    batchable = True
 
     def __init__(self, kp, ki, kd, gain, time_constant, sample_time, output_limit: float = 0.0):
         self.pid = DiscretePID(kp, ki, kd, sample_time)
@@ -67,6 +69,8 @@ class DisturbanceObserver:
     under a zero-order hold. T is the command applied over the previous step. The filters start in the
     steady state of a motion with the given initial velocity and acceleration and no disturbance.
     """
+
+    batchable = True
 
     def __init__(self, c, d, gain, time_constant, sample_time, velocity=0.0, acceleration=0.0):
         self.c, self.d = float(c), float(d)
@@ -100,6 +104,9 @@ class IntegralSlidingModeServo:
     is saturated and q is held while the command is at the limit (anti-windup).
     """
 
+    #: steps elementwise on arrays with a leading batch axis (:mod:`contouring_ros.core.batch`)
+    batchable = True
+
     def __init__(self, a, b, mu, kappa, gain, time_constant, sample_time, observer=None, output_limit=0.0):
         self.a, self.b, self.mu, self.kappa = float(a), float(b), float(mu), float(kappa)
         self.gain, self.time_constant = float(gain), float(time_constant)
@@ -121,9 +128,11 @@ class IntegralSlidingModeServo:
         if self.observer is not None:
             command -= self.observer.update(velocity)
         command += correction
-        if self.output_limit and abs(command) > self.output_limit:
-            command = math.copysign(self.output_limit, command)
-            self.q = q
+        if has_limit(self.output_limit):
+            limited = symmetric_clip(command, self.output_limit)
+            self.q = np.where(limited != command, q, self.q) if isinstance(limited, np.ndarray) \
+                else (q if limited != command else self.q)        # q held while at the limit
+            command = limited
         if self.observer is not None:
             self.observer.previous_command = command
         return command

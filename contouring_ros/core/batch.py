@@ -1,0 +1,160 @@
+"""Batch simulation: many experiments of the same structure advanced together, one numpy array per signal.
+
+A sweep varies numbers (gains, curve sizes, durations) and keeps the structure (which curve, estimator,
+controller, servo and plant classes). :func:`stack` turns B core objects of one class into one object of
+that class whose differing numbers are arrays of shape (B, 1); their ``step`` code then advances all B
+experiments at once, because every class marked ``batchable`` computes with operations that work
+elementwise on such arrays (the per-axis values of a batch are (B, 1), the vectors (B, n)). The maths stays
+in one place: the same methods run a single experiment on floats and a batch on arrays.
+
+:func:`simulate_batch` runs B control loops with the step semantics of
+:func:`contouring_ros.core.simulation.simulate` and returns one :class:`SimulationResult` per loop, equal
+to the loop's own simulation up to the rounding of vectorised sums.
+"""
+from __future__ import annotations
+
+import copy
+import numbers
+
+import numpy as np
+
+from .interpolation import reference
+from .simulation import ControlLoop, SimulationResult, step_time
+
+__all__ = ["NotBatchable", "stack", "batchable", "structure", "simulate_batch"]
+
+
+class NotBatchable(Exception):
+    """The objects cannot advance as one batch (a class without a batch path, or different structure)."""
+
+
+def _same(values) -> bool:
+    first = values[0]
+    for value in values[1:]:
+        if value is first:
+            continue
+        if isinstance(first, np.ndarray) or isinstance(value, np.ndarray):
+            if not (np.shape(first) == np.shape(value) and np.array_equal(first, value)):
+                return False
+        elif type(value) is not type(first) or value != first:
+            return False
+    return True
+
+
+def _stack_value(name, values):
+    if _same(values):
+        return values[0]
+    first = values[0]
+    if isinstance(first, bool) or not all(isinstance(v, type(first)) for v in values):
+        raise NotBatchable(f"{name} differs in kind across the batch")
+    if isinstance(first, numbers.Real):
+        return np.array(values, dtype=float).reshape(-1, 1)
+    if isinstance(first, np.ndarray) and first.dtype.kind == "f" and all(v.shape == first.shape for v in values):
+        return np.stack(values)
+    if isinstance(first, (tuple, list)) and all(len(v) == len(first) for v in values):
+        return type(first)(_stack_value(f"{name}[{i}]", [v[i] for v in values]) for i in range(len(first)))
+    if hasattr(first, "__dict__"):
+        return stack(values)
+    raise NotBatchable(f"{name} differs across the batch and cannot be stacked")
+
+
+def stack(objects: list):
+    """One object of the objects' class whose attributes that differ are stacked along a batch axis.
+
+    Numbers that differ become arrays of shape (B, 1); nested objects are stacked the same way; equal
+    attributes are kept as they are (so a limit of 0 that no experiment sets stays a plain 0).
+
+    Raises
+    ------
+    NotBatchable
+        When the class has no batch path (``batchable`` is not set) or the objects differ in structure.
+    """
+    first = objects[0]
+    cls = type(first)
+    if not getattr(cls, "batchable", False):
+        raise NotBatchable(f"{cls.__name__} has no batch path")
+    if any(type(o) is not cls for o in objects):
+        raise NotBatchable(f"the batch mixes {cls.__name__} with other classes")
+    out = copy.copy(first)
+    for name in vars(first):
+        setattr(out, name, _stack_value(f"{cls.__name__}.{name}", [vars(o)[name] for o in objects]))
+    return out
+
+
+def structure(loop: ControlLoop) -> tuple:
+    """The step count, sample time and classes a loop is built of, nested objects included: loops with
+    equal structures can be stacked when every class is batchable."""
+    def classes(obj):
+        if not hasattr(obj, "__dict__"):
+            return type(obj).__name__
+        return (type(obj).__name__,) + tuple((name, classes(value)) for name, value in vars(obj).items()
+                                              if hasattr(value, "__dict__") or value is None)
+    return (loop.n_steps, loop.sample_time) + tuple(classes(part) for part in (loop.curve, loop.schedule, *loop.plants, *loop.servos,
+                                             loop.estimator, loop.controller))
+
+
+def batchable(loops: list) -> bool:
+    """Whether ``loops`` can run as one batch (same structure, every component with a batch path)."""
+    try:
+        _stacked(loops)
+    except NotBatchable:
+        return False
+    return True
+
+
+def _stacked(loops):
+    first = loops[0]
+    if any(loop.n_steps != first.n_steps or loop.sample_time != first.sample_time
+           or len(loop.plants) != len(first.plants) for loop in loops):
+        raise NotBatchable("the batch mixes durations, sample times or axis counts")
+    n = len(first.plants)
+    return (stack([loop.curve for loop in loops]), stack([loop.schedule for loop in loops]),
+            [stack([loop.plants[i] for loop in loops]) for i in range(n)],
+            [stack([loop.servos[i] for loop in loops]) for i in range(n)],
+            stack([loop.estimator for loop in loops]), stack([loop.controller for loop in loops]))
+
+
+def simulate_batch(loops: list[ControlLoop]) -> list[SimulationResult]:
+    """Run every loop of ``loops`` (one structure, see :func:`batchable`) in one vectorised pass.
+
+    Each loop's objects are left untouched (the batch works on stacked copies).
+
+    Raises
+    ------
+    NotBatchable
+        When the loops cannot run as one batch.
+    """
+    loops = [copy.deepcopy(loop) for loop in loops]
+    curve, schedule, plants, servos, estimator, controller = _stacked(loops)
+    b, m, n, ts = len(loops), loops[0].n_steps, len(plants), loops[0].sample_time
+    time = np.empty(m)
+    theta, est_theta, est_signed = np.empty((m, b)), np.empty((m, b)), np.empty((m, b))
+    ref_pos, ref_vel, ref_acc, positions, velocities, est_vector, corrections, commands = (
+        np.empty((m, b, n)) for _ in range(8))
+    for k in range(m):
+        t = step_time(k, ts)
+        for i, plant in enumerate(plants):
+            positions[k, :, i], velocities[k, :, i] = (np.broadcast_to(v, (b, 1))[:, 0] for v in plant.measure())
+        position, velocity = positions[k].copy(), velocities[k].copy()
+        ref = reference(curve, schedule, np.full((b, 1), t))
+        ref = type(ref)(theta=ref.theta, theta_dot=ref.theta_dot, theta_ddot=ref.theta_ddot,
+                        position=ref.position[:, 0], velocity=ref.velocity[:, 0], acceleration=ref.acceleration[:, 0])
+        estimate = estimator.step_batch(ref, position)
+        correction = np.broadcast_to(controller.step(estimate, ref, position, velocity), (b, n))
+        for i, (plant, servo) in enumerate(zip(plants, servos)):
+            column = slice(i, i + 1)
+            command = servo.step(ref.position[:, column], ref.velocity[:, column], ref.acceleration[:, column],
+                                 position[:, column], velocity[:, column], correction[:, column])
+            commands[k, :, i] = np.broadcast_to(command, (b, 1))[:, 0]
+            plant.step(commands[k, :, column], t)
+        time[k] = t
+        theta[k] = ref.theta[:, 0]
+        est_theta[k] = np.broadcast_to(estimate.theta, (b, 1))[:, 0]
+        est_signed[k] = estimate.signed
+        ref_pos[k], ref_vel[k], ref_acc[k] = ref.position, ref.velocity, ref.acceleration
+        est_vector[k], corrections[k] = estimate.vector, correction
+    return [SimulationResult(time=time, theta=theta[:, j], reference_position=ref_pos[:, j],
+                             reference_velocity=ref_vel[:, j], reference_acceleration=ref_acc[:, j],
+                             position=positions[:, j], velocity=velocities[:, j], estimate_theta=est_theta[:, j],
+                             estimate_vector=est_vector[:, j], estimate_signed=est_signed[:, j],
+                             correction=corrections[:, j], command=commands[:, j]) for j in range(b)]
