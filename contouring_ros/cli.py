@@ -135,9 +135,12 @@ def _plot(args):
 def _sweep(args):
     from datetime import datetime
     from .config import load_experiment
-    from .sweep import format_sweep, parse_grid, run_sweep, write_sweep_csv
+    from .sweep import BATCH, format_sweep, parse_grid, run_sweep, write_sweep_csv
     experiment = load_experiment(_experiment_path(args.config))
-    rows = run_sweep(experiment.text, parse_grid(args.grid), args.workers, progress=sys.stderr.isatty())
+    if args.batch is not None and args.batch < 1:
+        raise ConfigError(f"--batch {args.batch}: expected a positive number of combinations")
+    rows = run_sweep(experiment.text, parse_grid(args.grid), args.workers, progress=sys.stderr.isatty(),
+                     batch=args.batch or BATCH)
     print(format_sweep(rows))
     vectorised = sum(row.vectorised for row in rows)
     print(f"{len(rows)} combinations: {vectorised} ran vectorised in batches, {len(rows) - vectorised} one by one"
@@ -202,6 +205,8 @@ def main(argv=None):
     p.add_argument("--grid", action="append", required=True,
                    help="KEY=V1,V2,... (repeatable), e.g. ccc.kp=0.5,1,2 or curve.h=50,100")
     p.add_argument("--workers", type=int, help="processes (default: one per core)")
+    p.add_argument("--batch", type=int, default=None,
+                   help="at most this many combinations per vectorised batch (default 250; 1: each alone)")
     p.add_argument("--out", help="CSV of the ranked results (default bags/<experiment>_sweep_<time>.csv)")
     p.set_defaults(func=_sweep)
     p = sub.add_parser("paper", help="run a paper's scenarios and print our numbers beside the paper's")

@@ -85,23 +85,40 @@ class SweepRow:
 
 
 def _score_chunk(experiments: list) -> tuple:
-    """Scores of each experiment of one structure, and whether they ran as one vectorised batch."""
+    """Scores of each experiment, and whether each ran in a vectorised batch (one batch per structure)."""
     loops = [build_loop(e) for e in experiments]
-    try:
-        results = simulate_batch(loops) if len(loops) > 1 else None
-    except NotBatchable:
-        results = None
-    vectorised = results is not None
-    results = results or [simulate(loop) for loop in loops]
+    results, vectorised, groups = [None] * len(loops), [False] * len(loops), {}
+    for i, loop in enumerate(loops):
+        groups.setdefault(structure(loop), []).append(i)
+    for group in groups.values():
+        try:
+            batch = simulate_batch([loops[i] for i in group]) if len(group) > 1 else None
+        except NotBatchable:
+            batch = None
+        for j, i in enumerate(group):
+            results[i], vectorised[i] = (batch[j], True) if batch else (simulate(loops[i]), False)
     return [score_run(loop.curve, result) for loop, result in zip(loops, results)], vectorised
 
 
+def _shape(section):
+    """A section's settings with every number blanked: experiments whose shapes are equal differ only in
+    numbers, and so (almost always) build loops of one structure."""
+    if isinstance(section, dict):
+        return tuple((key, _shape(value)) for key, value in section.items())
+    if isinstance(section, (list, tuple)):
+        return tuple(_shape(value) for value in section)
+    return None if isinstance(section, (int, float)) and not isinstance(section, bool) else section
+
+
 def _chunks(experiments: list, workers: int, batch: int) -> list:
-    """Indices of the experiments in chunks of one structure each, at most ``batch`` long, spread so that
-    every worker gets some."""
+    """Indices of the experiments in chunks of one shape and step count each, at most ``batch`` long,
+    spread so that every worker gets some. (Numbers can still change a loop's structure, say a branch
+    check of 0 samples beside one of 256: the worker batches each structure of its chunk apart.)"""
     groups = {}
-    for index, experiment in enumerate(experiments):
-        groups.setdefault(structure(build_loop(experiment)), []).append(index)
+    for index, e in enumerate(experiments):
+        key = (e.n_steps, e.sample_time, e.axes, _shape([e.curve, e.schedule, e.initial_state, e.plants, e.servos,
+                                                          e.estimator, e.controller]))
+        groups.setdefault(key, []).append(index)
     size = max(1, min(batch, math.ceil(len(experiments) / (2 * workers))))
     return [group[i:i + size] for group in groups.values() for i in range(0, len(group), size)]
 
@@ -119,8 +136,8 @@ def run_sweep(text: str, grid: dict, workers: int | None = None, progress: bool 
             tqdm(total=len(combos), desc="sweep", disable=not progress) as bar:
         for chunk, (chunk_scores, batched) in zip(chunks, pool.map(_score_chunk, [[experiments[i] for i in chunk]
                                                                                    for chunk in chunks])):
-            for i, s in zip(chunk, chunk_scores):
-                scores[i], vectorised[i] = s, batched
+            for i, s, v in zip(chunk, chunk_scores, batched):
+                scores[i], vectorised[i] = s, v
             bar.update(len(chunk))
     rows = [SweepRow(settings, s, v) for (settings, _), s, v in zip(combos, scores, vectorised)]
     return sorted(rows, key=lambda row: (row.scores.mce, row.scores.tace))

@@ -91,3 +91,10 @@ def test_sweep_vectorises_what_it_can_and_runs_the_rest_alone():
 def _mce(loop):
     from contouring_ros.scoring import score_run
     return score_run(loop.curve, simulate(loop)).mce
+
+
+def test_sweep_batches_each_structure_apart_when_numbers_change_it():
+    # 0 branch-check samples means no branch check: a different structure from the same-shaped file
+    text = shortened(DEFAULT, 0.2)
+    rows = run_sweep(text, parse_grid(["ccc.kp=0.5,1,2,4", "contour_estimator.branch_check_samples=0,256"]), workers=1)
+    assert len(rows) == 8 and all(row.vectorised for row in rows)
