@@ -18,7 +18,6 @@ import os
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 
-import yaml
 
 from .config import GLOBAL_SECTION, ROS_PARAMETERS, build_loop, experiment_from_data, read_yaml
 from .core.batch import NotBatchable, simulate_batch, structure
@@ -36,7 +35,7 @@ def parse_grid(specs: list) -> dict:
         key, sep, values = spec.partition("=")
         if not sep or not key or not values:
             raise ConfigError(f"--grid {spec}: expected key=value1,value2,...")
-        grid[key] = [yaml.safe_load(value) for value in values.split(",")]
+        grid[key] = [read_yaml(value, f"--grid {key}") for value in values.split(",")]
     return grid
 
 

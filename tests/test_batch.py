@@ -29,11 +29,22 @@ def _with_estimator(path, **estimator):
     return yaml.safe_dump(data)
 
 
+def _on_ellipse():
+    # a closed curve: the Newton estimate wraps around the period
+    data = yaml.safe_load(shortened(DEFAULT, 0.4))
+    data["/**"]["ros__parameters"]["curve"] = {"type": "ellipse", "a": 0.02, "b": 0.01}
+    data["/**"]["ros__parameters"]["schedule"] = {"type": "uniform", "theta_start": 6.0, "theta_end": 6.8,
+                                                  "duration": 0.4}
+    return yaml.safe_dump(data)
+
+
 @pytest.mark.parametrize("text, specs", [
     (shortened(DEFAULT, 0.4), ["ccc.kp=0.5,4", "x/servo.a=10,12.5", "curve.h=40,50", "y/plant.time_constant=0.03,0.045"]),
     (shortened(CONFIG / "paper000_a_pidff_h50_newton.yaml", 0.4), ["x/servo.kp=5,8.08", "contour_estimator.k_prime=300,500"]),
     (_with_estimator(DEFAULT, type="tangent_line"), ["ccc.kd=0,0.1", "curve.a=0.015,0.02", "schedule.duration=1.5,2"]),
-], ids=["ismc-newton", "pidff-newton", "ismc-tangent-line"])
+    (shortened(CONFIG / "paper000_b_ismc_h50_vgccc.yaml", 0.4), ["ccc.kp=20,40", "curve.h=50,100"]),
+    (_on_ellipse(), ["ccc.kp=0.5,4", "curve.b=0.01,0.015"]),
+], ids=["ismc-newton", "pidff-newton", "ismc-tangent-line", "variable-gain", "ellipse-newton"])
 def test_batch_equals_each_experiment_alone(text, specs):
     loops = _loops(text, specs)
     assert batchable(loops)
@@ -69,8 +80,8 @@ def test_stack_refuses_what_has_no_batch_path_or_mixes_classes():
 
 
 def test_loops_of_a_class_without_batch_path_are_not_batchable():
-    text = shortened(CONFIG / "paper000_b_ismc_h50_vgccc.yaml", 0.2)
-    assert not batchable(_loops(text, ["ccc.kp=1,2"]))
+    text = shortened(CONFIG / "paper001_caseI_pd.yaml", 0.2)     # mass-damper axes have no batch path
+    assert not batchable(_loops(text, ["x/servo.kd=7e5,8e5"]))
 
 
 def test_sweep_vectorises_what_it_can_and_runs_the_rest_alone():
@@ -84,7 +95,8 @@ def test_sweep_vectorises_what_it_can_and_runs_the_rest_alone():
         data["/x/servo"]["ros__parameters"]["observer"] = row.settings["x/servo.observer"]
         loop = build_loop(parse_experiment(yaml.safe_dump(data), "one"))
         np.testing.assert_allclose(row.scores.mce, _mce(loop), rtol=1e-9)
-    rows = run_sweep(shortened(CONFIG / "paper000_b_ismc_h50_vgccc.yaml", 0.2), parse_grid(["ccc.kp=1,2"]), workers=1)
+    rows = run_sweep(shortened(CONFIG / "paper001_caseI_pd.yaml", 0.2), parse_grid(["x/servo.kd=7e5,8e5,9e5,1e6"]),
+                     workers=1)
     assert not any(row.vectorised for row in rows)
 
 

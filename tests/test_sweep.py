@@ -39,3 +39,8 @@ def test_sweep_refuses_an_invalid_combination_naming_it():
 def test_malformed_grid(spec):
     with pytest.raises(ConfigError, match="expected key=value1,value2"):
         parse_grid([spec])
+
+
+def test_grid_values_are_read_like_the_experiment_file():
+    # exponent floats without a dot are numbers, as in the YAML files (YAML 1.2, the ROS parser)
+    assert parse_grid(["x/servo.kd=7e5,1.5e-4,2,true"]) == {"x/servo.kd": [7e5, 1.5e-4, 2, True]}

@@ -50,6 +50,8 @@ class VariableGainCCC:
     part of the tracking error (paper 004 eq. 7-11).
     """
 
+    batchable = True
+
     def __init__(self, curve: Curve, kp: float, ki: float, kd: float, sample_time: float,
                  output_limit: float = 0.0):
         self.curve = curve
@@ -57,6 +59,14 @@ class VariableGainCCC:
         self.output_limit = float(output_limit)
 
     def step(self, estimate, reference=None, position=None, velocity=None) -> np.ndarray:
+        if np.ndim(estimate.signed) == 1:        # a batch: signed (B,), vectors (B, n), theta (B, 1)
+            signed = estimate.signed[:, None]
+            at_zero = np.abs(signed) <= 1e-12
+            gains = np.divide(estimate.vector, signed, out=np.zeros_like(estimate.vector), where=~at_zero)
+            if self.curve.dimension == 2 and at_zero.any():
+                d1 = self.curve.derivatives(np.asarray(estimate.theta, dtype=float), order=1)[1][:, 0, :]
+                gains = np.where(at_zero, left_normal(d1 / np.linalg.norm(d1, axis=-1, keepdims=True)), gains)
+            return gains * self.pid.clamp(self.pid.step(signed), self.output_limit)
         if abs(estimate.signed) > 1e-12:
             gains = np.asarray(estimate.vector, dtype=float) / estimate.signed
         elif self.curve.dimension == 2:

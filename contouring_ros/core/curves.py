@@ -110,7 +110,7 @@ class Parabola(Curve):
     """
 
     dimension = 2
-    #: steps elementwise on arrays with a leading batch axis (:mod:`contouring_ros.core.batch`)
+    #: columns() works elementwise on a batch of parameters and of curve sizes (:mod:`contouring_ros.core.batch`)
     batchable = True
 
     def __init__(self, a: float, h: float):
@@ -126,7 +126,7 @@ class Parabola(Curve):
 class Line(Curve):
     """Straight line from ``start`` to ``end`` parametrised by arc length theta in [0, L]."""
 
-    #: steps elementwise on arrays with a leading batch axis (:mod:`contouring_ros.core.batch`)
+    #: columns() works elementwise on a batch of parameters and of curve sizes (:mod:`contouring_ros.core.batch`)
     batchable = True
 
     def __init__(self, start, end):
@@ -151,7 +151,7 @@ class Line(Curve):
 class Circle(PlanarLoop):
     """Circle R = c + r [cos theta, sin theta], theta in [0, 2 pi), counter-clockwise."""
 
-    #: steps elementwise on arrays with a leading batch axis (:mod:`contouring_ros.core.batch`)
+    #: columns() works elementwise on a batch of parameters and of curve sizes (:mod:`contouring_ros.core.batch`)
     batchable = True
 
     def __init__(self, radius: float, center=(0.0, 0.0)):
@@ -173,6 +173,9 @@ class Ellipse(PlanarLoop):
     center (0.03, 0) with theta = w t + pi (the start point (0, 0) is theta = pi).
     """
 
+    #: columns() works elementwise on a batch of parameters and of curve sizes (:mod:`contouring_ros.core.batch`)
+    batchable = True
+
     def __init__(self, a: float, b: float, center=(0.0, 0.0)):
         self.a, self.b = float(a), float(b)
         if self.a <= 0.0 or self.b <= 0.0:
@@ -187,6 +190,9 @@ class Ellipse(PlanarLoop):
 
 class FigureEight(PlanarLoop):
     """Figure-8 of paper 003, section IV-B: R = c + [a (1 - cos theta), b sin 2 theta], theta in [0, 2 pi)."""
+
+    #: columns() works elementwise on a batch of parameters and of curve sizes (:mod:`contouring_ros.core.batch`)
+    batchable = True
 
     def __init__(self, a: float, b: float, center=(0.0, 0.0)):
         self.a, self.b = float(a), float(b)
@@ -207,6 +213,9 @@ class Helix(Curve):
     With theta the time in seconds this is the paper's reference x = a cos wt, y = b sin wt, z = ct.
     """
 
+    #: columns() works elementwise on a batch of parameters and of curve sizes (:mod:`contouring_ros.core.batch`)
+    batchable = True
+
     dimension = 3
 
     def __init__(self, a: float, b: float, c: float, omega: float, length: float):
@@ -226,6 +235,9 @@ class Helix(Curve):
 class Saddle(Curve):
     """Saddle curve of paper 004 eq. 27: R = [a cos(w theta), b sin(w theta), h cos(2 w theta)],
     theta in [0, 2 pi / w) (closed; with w = 2 pi, theta is the paper's time in seconds)."""
+
+    #: columns() works elementwise on a batch of parameters and of curve sizes (:mod:`contouring_ros.core.batch`)
+    batchable = True
 
     dimension = 3
     closed = True
@@ -248,6 +260,9 @@ class Butterfly(PlanarLoop):
     """Fay's butterfly without its slowly varying term, scaled: R = scale r(u) [sin u, cos u] with
     r(u) = exp(cos u) - 2 cos 4u, u in [0, 2 pi) (closed). The large- and varying-curvature test contour of
     the contouring literature that paper 002 runs (its own parametrisation is lost from the text)."""
+
+    #: columns() works elementwise on a batch of parameters and of curve sizes (:mod:`contouring_ros.core.batch`)
+    batchable = True
 
     def __init__(self, scale: float, center=(0.0, 0.0)):
         self.scale = float(scale)
