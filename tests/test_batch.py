@@ -17,10 +17,11 @@ def _loops(text, specs):
 
 
 def _assert_equal_runs(batch, singles):
-    # the same operations on the same float64 values; a vectorised sum may round differently
+    # the same operations on the same float64 values; a vectorised sum (the ESO's matrix products) may round
+    # differently, and the closed loop carries that rounding on: equal to 1e-10 of each signal's size
     for run, alone in zip(batch, singles):
         for name, value in vars(alone).items():
-            np.testing.assert_allclose(getattr(run, name), value, rtol=1e-12, atol=1e-18, err_msg=name)
+            assert np.max(np.abs(getattr(run, name) - value)) <= 1e-10 * np.max(np.abs(value)), name
 
 
 def _with_estimator(path, **estimator):
@@ -44,7 +45,10 @@ def _on_ellipse():
     (_with_estimator(DEFAULT, type="tangent_line"), ["ccc.kd=0,0.1", "curve.a=0.015,0.02", "schedule.duration=1.5,2"]),
     (shortened(CONFIG / "paper000_b_ismc_h50_vgccc.yaml", 0.4), ["ccc.kp=20,40", "curve.h=50,100"]),
     (_on_ellipse(), ["ccc.kp=0.5,4", "curve.b=0.01,0.015"]),
-], ids=["ismc-newton", "pidff-newton", "ismc-tangent-line", "variable-gain", "ellipse-newton"])
+    (shortened(CONFIG / "paper004_saddle_eso.yaml", 0.3), ["x/servo.k=50,80", "z/plant.mass=1.5,2"]),
+    (shortened(CONFIG / "paper004_screw_no_eso.yaml", 0.3), ["x/servo.c=30,40", "x/plant.disturbance.frequency=0.5,1"]),
+], ids=["ismc-newton", "pidff-newton", "ismc-tangent-line", "variable-gain", "ellipse-newton", "eso-saddle",
+        "no-eso-screw"])
 def test_batch_equals_each_experiment_alone(text, specs):
     loops = _loops(text, specs)
     assert batchable(loops)

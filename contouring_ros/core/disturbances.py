@@ -37,6 +37,9 @@ class ConstantDisturbance:
 class SinusoidalDisturbance:
     """D(t) = offset + amplitude sin(2 pi frequency t + phase)."""
 
+    #: steps elementwise on arrays with a leading batch axis (:mod:`contouring_ros.core.batch`)
+    batchable = True
+
     def __init__(self, amplitude: float, frequency: float, phase: float = 0.0, offset: float = 0.0):
         self.amplitude = float(amplitude)
         self.frequency = float(frequency)
@@ -44,7 +47,8 @@ class SinusoidalDisturbance:
         self.offset = float(offset)
 
     def __call__(self, t: float) -> float:
-        return self.offset + self.amplitude * math.sin(2.0 * math.pi * self.frequency * t + self.phase)
+        angle = 2.0 * math.pi * self.frequency * t + self.phase
+        return self.offset + self.amplitude * (np.sin(angle) if isinstance(angle, np.ndarray) else math.sin(angle))
 
 
 class RandomDisturbance:

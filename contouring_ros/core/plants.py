@@ -106,7 +106,10 @@ def symmetric_clip(value, limit):
 
 
 def coulomb_friction(velocity: float, positive: float, negative: float) -> float:
-    """Coulomb friction in command units: ``positive`` while moving forward, -``negative`` backward, 0 at rest."""
+    """Coulomb friction in command units: ``positive`` while moving forward, -``negative`` backward, 0 at rest
+    (elementwise for arrays)."""
+    if isinstance(velocity, np.ndarray):
+        return np.where(velocity > 0.0, positive, np.where(velocity < 0.0, -np.asarray(negative), 0.0))
     if velocity > 0.0:
         return positive
     if velocity < 0.0:
@@ -138,6 +141,9 @@ class MassDamperAxis(Axis):
     modelled).
     """
 
+    #: steps elementwise on arrays with a leading batch axis (:mod:`contouring_ros.core.batch`)
+    batchable = True
+
     def __init__(self, mass: float, damping: float, gain: float, sample_time: float, disturbance=None,
                  position: float = 0.0, velocity: float = 0.0, saturation: float = 0.0,
                  coulomb_positive: float = 0.0, coulomb_negative: float = 0.0,
@@ -166,8 +172,8 @@ class MassDamperAxis(Axis):
 
     def step(self, command: float, t: float) -> tuple[float, float]:
         """Apply ``command`` over [t, t + Ts) and return the (position, velocity) at t + Ts."""
-        if self.saturation:
-            command = max(-self.saturation, min(self.saturation, command))
+        if has_limit(self.saturation):
+            command = symmetric_clip(command, self.saturation)
         p, v = self.position, self.velocity
         w = self._input_scale * (command + self._disturbance_scale * self.disturbance(t)
                                  - coulomb_friction(v, self.coulomb_positive, self.coulomb_negative))

@@ -143,6 +143,9 @@ class DirectServo:
     ``output_limit``). For task-frame contour controllers that compute every axis' whole actuator
     command, such as :class:`contouring_ros.core.contouring.TaskFramePD` (paper 003 eq. 25)."""
 
+    #: steps elementwise on arrays with a leading batch axis (:mod:`contouring_ros.core.batch`)
+    batchable = True
+
     def __init__(self, output_limit: float = 0.0):
         self.output_limit = float(output_limit)
 
@@ -176,6 +179,9 @@ class ExtendedStateObserver:
     over each sample.
     """
 
+    #: steps elementwise on arrays with a leading batch axis (:mod:`contouring_ros.core.batch`)
+    batchable = True
+
     def __init__(self, mass, damping, gain, alphas, sigma, sample_time, position=0.0, velocity=0.0):
         a1, a2, a3 = (float(a) for a in alphas)
         sigma = float(sigma)
@@ -186,8 +192,20 @@ class ExtendedStateObserver:
         self.state = np.array([float(position), float(velocity), 0.0])
 
     def update(self, command: float, position: float) -> None:
-        """Advance over one sample with the command applied and the position measured at its start."""
-        self.state = self._phi @ self.state + self._gamma @ np.array([command, position])
+        """Advance over one sample with the command applied and the position measured at its start (a batch:
+        commands and positions (B, 1), states (B, 3))."""
+        if np.ndim(command) == 0:
+            self.state = self._phi @ self.state + self._gamma @ np.array([command, position])
+            return
+        inputs = np.concatenate(np.broadcast_arrays(command, position), axis=-1)
+        self.state = np.einsum("...ij,...j->...i", self._phi, self.state) \
+            + np.einsum("...ij,...j->...i", self._gamma, inputs)
+
+    def estimates(self) -> tuple:
+        """(q^, v^, d^): floats, or (B, 1) columns for a batch."""
+        if self.state.ndim == 2:
+            return self.state[:, 0:1], self.state[:, 1:2], self.state[:, 2:3]
+        return tuple(self.state)
 
 
 class ESOSlidingModeServo:
@@ -203,6 +221,9 @@ class ESOSlidingModeServo:
     not mistaken for a disturbance and cancelled.
     """
 
+    #: steps elementwise on arrays with a leading batch axis (:mod:`contouring_ros.core.batch`)
+    batchable = True
+
     def __init__(self, mass, damping, gain, c, k, alphas, sigma, sample_time, position=0.0, velocity=0.0,
                  disturbance_compensation: bool = True, output_limit: float = 0.0):
         self.mass, self.damping, self.gain = float(mass), float(damping), float(gain)
@@ -212,15 +233,15 @@ class ESOSlidingModeServo:
         self.output_limit = float(output_limit)
 
     def step(self, ref_pos, ref_vel, ref_acc, position, velocity, correction) -> float:
-        q_hat, v_hat, d_hat = self.observer.state
+        q_hat, v_hat, d_hat = self.observer.estimates()
         error, error_rate = q_hat - ref_pos, v_hat - ref_vel
         surface = error_rate + self.c * error
         acceleration = ref_acc + self.damping / self.mass * v_hat - self.c * error_rate - self.k * surface
         if self.disturbance_compensation:
             acceleration -= d_hat
         command = self.mass / self.gain * acceleration + correction
-        if self.output_limit:
-            command = max(-self.output_limit, min(self.output_limit, command))
+        if has_limit(self.output_limit):
+            command = symmetric_clip(command, self.output_limit)
         self.observer.update(command, position)
         return command
 
@@ -228,6 +249,9 @@ class ESOSlidingModeServo:
 class PIDServo:
     """PID on the position error with the velocity error as its derivative, no feedforward (the PD baseline
     of paper 001 section 4 with ki = 0): T = kp (R - P) + ki int (R - P) + kd (R' - V) + correction."""
+
+    #: steps elementwise on arrays with a leading batch axis (:mod:`contouring_ros.core.batch`)
+    batchable = True
 
     def __init__(self, kp, ki, kd, sample_time, output_limit: float = 0.0):
         self.pid = DiscretePID(kp, ki, kd, sample_time)
@@ -247,6 +271,9 @@ class CascadeServo:
     with F_c(V*) = coulomb_positive for V* > 0, -coulomb_negative for V* < 0 (in command units). For
     torque-driven axes (model mass_damper); the integral is held while the command is at ``output_limit``.
     """
+
+    #: steps elementwise on arrays with a leading batch axis (:mod:`contouring_ros.core.batch`)
+    batchable = True
 
     def __init__(self, kp_position, kp_velocity, ki_velocity, sample_time, coulomb_positive=0.0,
                  coulomb_negative=0.0, output_limit: float = 0.0):
