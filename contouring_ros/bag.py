@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import os
 import re
-import struct
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -270,7 +269,7 @@ class _TopicColumns:
             if self.width is not None and width != self.width:
                 raise BagError(f"{self.topic}: messages with {width} values after messages with {self.width}")
             self.size, self.width, self.counts = len(data), width, [count for _, count in layout]
-            self.struct = _layout_struct(layout)
+            self.struct = cdr.values_struct(layout)
         self.stamps.append(cdr.stamp_ns(data))
         self.values.extend(self.struct.unpack_from(data, 0))
 
@@ -279,16 +278,6 @@ class _TopicColumns:
         table = np.frombuffer(self.values, dtype=float).reshape(-1, self.width)
         start = sum(self.counts[:index])
         return table[rows, start:start + self.counts[index]]
-
-
-def _layout_struct(layout) -> struct.Struct:
-    """A struct reading the float64 arrays at ``layout`` [(offset, count)] and skipping the bytes between."""
-    fmt, position = ["<"], 0
-    for offset, count in layout:
-        if count:
-            fmt.append(f"{offset - position}x{count}d")
-            position = offset + 8 * count
-    return struct.Struct("".join(fmt))
 
 
 _KEPT_TYPES = {"sensor_msgs/msg/JointState", "trajectory_msgs/msg/JointTrajectory"}

@@ -7,15 +7,21 @@ to its size relative to the end of that header). The tests check the bytes again
 
 Decoded messages are small objects with the field names of the ROS messages they stand for, so the
 conversions in :mod:`contouring_ros.graph` work on them, on rclpy messages and on decoded bag messages alike.
+
+A topic's messages keep their layout (same names, same array lengths), so both directions cache it: an
+encoder fills a cached template with the stamp and the values; a decoder that finds every byte but the
+stamp and the float64 values equal to a message it parsed in full reads the values at that message's
+offsets with one precompiled struct, and parses anything else in full.
 """
 from __future__ import annotations
 
+import copy
 import struct
 from dataclasses import dataclass, field
 
 __all__ = ["Stamp", "Header", "JointStateData", "TrajectoryPointData", "JointTrajectoryData", "stamp_ns",
            "encode_joint_state", "decode_joint_state", "encode_joint_trajectory", "decode_joint_trajectory",
-           "encode_clock", "array_layout"]
+           "encode_clock", "array_layout", "values_struct"]
 
 _ENCAPSULATION = b"\x00\x01\x00\x00"   # CDR, little endian
 _STAMP = struct.Struct("<iI")
@@ -69,6 +75,8 @@ class _Writer:
     def __init__(self):
         self.parts = [_ENCAPSULATION]
         self.size = 0   # bytes after the encapsulation header
+        self.arrays = []  # (byte offset in the message, count) of every float64 array written
+        self.stamps = []  # byte offset in the message of every (sec, nanosec) written
 
     def _align(self, n: int):
         pad = -self.size % n
@@ -97,10 +105,17 @@ class _Writer:
     def doubles(self, values):
         self.pack("I", 4, len(values))
         if len(values):
+            self._align(8)
+            self.arrays.append((4 + self.size, len(values)))
             self.pack(f"{len(values)}d", 8, *values)
 
-    def header(self, sec: int, nanosec: int):
+    def stamp(self, sec: int, nanosec: int):
+        self._align(4)
+        self.stamps.append(4 + self.size)
         self.pack("iI", 4, sec, nanosec)
+
+    def header(self, sec: int, nanosec: int):
+        self.stamp(sec, nanosec)
         self.string("")
 
     def bytes(self) -> bytes:
@@ -112,6 +127,7 @@ class _Reader:
         self.data = data
         self.offset = 0   # after the encapsulation header
         self.arrays = []  # (byte offset in data, count) of every float64 array read
+        self.stamps = []  # byte offset in data of every (sec, nanosec) read
 
     def _align(self, n: int):
         self.offset += -self.offset % n
@@ -143,19 +159,109 @@ class _Reader:
         self.arrays.append((4 + self.offset, n))
         return self.unpack(f"{n}d", 8, 8 * n)
 
+    def stamp(self) -> Stamp:
+        self._align(4)
+        self.stamps.append(4 + self.offset)
+        return Stamp(*self.unpack("iI", 4, 8))
+
     def header(self) -> Header:
-        sec, nanosec = self.unpack("iI", 4, 8)
-        return Header(Stamp(sec, nanosec), self.string())
+        return Header(self.stamp(), self.string())
 
 
-def encode_joint_state(sec: int, nanosec: int, names, position=(), velocity=(), effort=()) -> bytes:
-    """sensor_msgs/msg/JointState."""
-    w = _Writer()
-    w.header(sec, nanosec)
+def values_struct(layout) -> struct.Struct:
+    """A struct reading the float64 arrays at ``layout`` [(offset, count)] of a message and skipping the
+    bytes between them."""
+    fmt, position = ["<"], 0
+    for offset, count in layout:
+        if count:
+            fmt.append(f"{offset - position}x{count}d")
+            position = offset + 8 * count
+    return struct.Struct("".join(fmt))
+
+
+class _Template:
+    """A message's bytes with the offsets of its stamps and float64 arrays, to encode others like it."""
+
+    def __init__(self, writer: _Writer):
+        self.data = writer.bytes()
+        self.stamps = writer.stamps
+        self.arrays = [(offset, struct.Struct(f"<{count}d")) for offset, count in writer.arrays]
+
+    def fill(self, stamps, arrays) -> bytes:
+        out = bytearray(self.data)
+        for offset, stamp in zip(self.stamps, stamps):
+            _STAMP.pack_into(out, offset, *stamp)
+        for (offset, packer), values in zip(self.arrays, (a for a in arrays if len(a))):
+            packer.pack_into(out, offset, *values)
+        return bytes(out)
+
+
+class _Layout:
+    """The layout of one fully parsed message: a message whose bytes other than its stamps and float64
+    values are the same decodes as that message with its own stamps and values."""
+
+    def __init__(self, data: bytes, reader: _Reader, parsed):
+        self.parsed, self.counts, self.stamps = parsed, [count for _, count in reader.arrays], reader.stamps
+        self.struct = values_struct(reader.arrays)
+        variable = sorted([(offset, offset + 8) for offset in reader.stamps]
+                          + [(offset, offset + 8 * count) for offset, count in reader.arrays if count])
+        edges = [0] + [edge for span in variable for edge in span] + [len(data)]
+        self.fixed = [(edges[i], edges[i + 1], data[edges[i]:edges[i + 1]]) for i in range(0, len(edges), 2)]
+        self.size = len(data)
+
+    def read(self, data: bytes):
+        """(the stamps, the float64 arrays as tuples) of ``data``, or None when its layout is another."""
+        if len(data) != self.size or any(data[start:end] != fixed for start, end, fixed in self.fixed):
+            return None
+        values, arrays, start = self.struct.unpack_from(data), [], 0
+        for count in self.counts:
+            arrays.append(values[start:start + count])
+            start += count
+        return [Stamp(*_STAMP.unpack_from(data, offset)) for offset in self.stamps], arrays
+
+
+class _Codec:
+    """Cached templates and layouts of one message type, layouts by message length (topics of one type can
+    share a length: /x/state and /y/state differ only in a name). Bounded: a graph has a few dozen."""
+
+    LIMIT = 64
+
+    def __init__(self, read, write):
+        self.read_full, self.write_full = read, write
+        self.templates, self.layouts = {}, {}
+
+    def encode(self, key, stamps, arrays, *fields) -> bytes:
+        """The message of ``stamps`` [(sec, nanosec)], float64 ``arrays`` and the other ``fields`` (which,
+        with the arrays' lengths, ``key`` names)."""
+        template = self.templates.get(key)
+        if template is None:
+            if len(self.templates) >= self.LIMIT:
+                self.templates.clear()
+            writer = _Writer()
+            self.write_full(writer, *stamps, *fields, *arrays)
+            template = self.templates[key] = _Template(writer)
+        return template.fill(stamps, arrays)
+
+    def decode(self, data: bytes, assemble):
+        candidates = self.layouts.setdefault(len(data), [])
+        for layout in candidates:
+            found = layout.read(data)
+            if found is not None:
+                return assemble(layout.parsed, *found)
+        reader = _Reader(data)
+        parsed = self.read_full(reader)
+        if sum(len(c) for c in self.layouts.values()) >= self.LIMIT:
+            self.layouts.clear()
+            candidates = self.layouts[len(data)] = []
+        candidates.append(_Layout(data, reader, copy.deepcopy(parsed)))
+        return parsed
+
+
+def _write_joint_state(w: _Writer, stamp, names, position, velocity, effort):
+    w.header(*stamp)
     w.strings(names)
     for values in (position, velocity, effort):
         w.doubles(values)
-    return w.bytes()
 
 
 def _read_joint_state(r: _Reader) -> JointStateData:
@@ -164,25 +270,50 @@ def _read_joint_state(r: _Reader) -> JointStateData:
     return JointStateData(header, names, r.doubles(), r.doubles(), r.doubles())
 
 
+def _assemble_joint_state(parsed: JointStateData, stamps, arrays) -> JointStateData:
+    return JointStateData(Header(stamps[0], parsed.header.frame_id), list(parsed.name), *arrays)
+
+
+_JOINT_STATE = _Codec(_read_joint_state, _write_joint_state)
+
+
+def encode_joint_state(sec: int, nanosec: int, names, position=(), velocity=(), effort=()) -> bytes:
+    """sensor_msgs/msg/JointState."""
+    names = tuple(names)
+    return _JOINT_STATE.encode((names, len(position), len(velocity), len(effort)), [(sec, nanosec)],
+                               (position, velocity, effort), names)
+
+
 def decode_joint_state(data: bytes) -> JointStateData:
-    return _read_joint_state(_Reader(data))
+    return _JOINT_STATE.decode(data, _assemble_joint_state)
+
+
+def _write_joint_trajectory(w: _Writer, stamp, time_from_start, joint_names, positions, velocities,
+                            accelerations):
+    w.header(*stamp)
+    w.strings(joint_names)
+    w.pack("I", 4, 1)
+    for values in (positions, velocities, accelerations, ()):
+        w.doubles(values)
+    w.stamp(*time_from_start)
+
+
+def _assemble_joint_trajectory(parsed: JointTrajectoryData, stamps, arrays) -> JointTrajectoryData:
+    points = [TrajectoryPointData(*arrays[4 * i:4 * i + 4], stamps[i + 1]) for i in range(len(parsed.points))]
+    return JointTrajectoryData(Header(stamps[0], parsed.header.frame_id), list(parsed.joint_names), points)
 
 
 def encode_joint_trajectory(sec: int, nanosec: int, joint_names, positions, velocities, accelerations,
                             time_from_start: tuple = (0, 0)) -> bytes:
     """trajectory_msgs/msg/JointTrajectory with a single point (no effort)."""
-    w = _Writer()
-    w.header(sec, nanosec)
-    w.strings(joint_names)
-    w.pack("I", 4, 1)
-    for values in (positions, velocities, accelerations, ()):
-        w.doubles(values)
-    w.pack("iI", 4, *time_from_start)
-    return w.bytes()
+    joint_names = tuple(joint_names)
+    return _JOINT_TRAJECTORY.encode((joint_names, len(positions), len(velocities), len(accelerations)),
+                                    [(sec, nanosec), tuple(time_from_start)], (positions, velocities, accelerations),
+                                    joint_names)
 
 
 def decode_joint_trajectory(data: bytes) -> JointTrajectoryData:
-    return _read_joint_trajectory(_Reader(data))
+    return _JOINT_TRAJECTORY.decode(data, _assemble_joint_trajectory)
 
 
 def _read_joint_trajectory(r: _Reader) -> JointTrajectoryData:
@@ -191,8 +322,11 @@ def _read_joint_trajectory(r: _Reader) -> JointTrajectoryData:
     points = []
     for _ in range(r.u32()):
         arrays = [r.doubles() for _ in range(4)]
-        points.append(TrajectoryPointData(*arrays, Stamp(*r.unpack("iI", 4, 8))))
+        points.append(TrajectoryPointData(*arrays, r.stamp()))
     return JointTrajectoryData(header, names, points)
+
+
+_JOINT_TRAJECTORY = _Codec(_read_joint_trajectory, _write_joint_trajectory)
 
 
 def array_layout(type_name: str, data: bytes) -> list:

@@ -56,3 +56,56 @@ def test_clock_matches_rclpy():
     msg = Clock()
     msg.clock.sec, msg.clock.nanosec = 3, 999_000_000
     assert cdr.encode_clock(3, 999_000_000) == rclpy_serialization.serialize_message(msg)
+
+
+def _full(decode_full, data):
+    return decode_full(cdr._Reader(data))
+
+
+def test_cached_layouts_decode_exactly_like_a_full_parse():
+    # the same topic again and again (fast path), then messages that differ outside the values: other
+    # names of the same length, another frame, a big-endian encapsulation, other array lengths
+    first = cdr.encode_joint_state(1, 2, ["x", "y"], [0.5, -1.0], [2.0, 3.0])
+    assert cdr.decode_joint_state(first) == _full(cdr._read_joint_state, first)
+    for k in range(3):
+        data = cdr.encode_joint_state(k, 5 * k, ["x", "y"], [0.1 * k, -k], [k + 0.5, 1e-9])
+        assert cdr.decode_joint_state(data) == _full(cdr._read_joint_state, data)
+    others = [cdr.encode_joint_state(1, 2, ["a", "b"], [0.5, -1.0], [2.0, 3.0]),
+              cdr.encode_joint_state(1, 2, ["x", "y"], [0.5, -1.0], [], [2.0, 3.0]),
+              cdr.encode_joint_state(1, 2, ["x", "y"], [0.5, -1.0, 7.0], [2.0])]
+    frame = bytearray(first)
+    frame[12 + 4] = ord("f")          # the frame_id's NUL replaced: a malformed string, parsed in full
+    for data in others + [bytes(frame)]:
+        try:
+            expected = _full(cdr._read_joint_state, data)
+        except Exception as error:
+            with pytest.raises(type(error)):
+                cdr.decode_joint_state(data)
+        else:
+            assert cdr.decode_joint_state(data) == expected
+    swapped = b"\x00\x00" + first[2:]
+    assert all(layout.read(swapped) is None for layout in cdr._JOINT_STATE.layouts[len(first)])
+
+
+def test_cached_trajectory_templates_and_layouts_round_trip():
+    for k in range(3):
+        data = cdr.encode_joint_trajectory(k, 0, ["x", "y", "theta"], [k, 1.0, 2.0], [0.0, k, 0.5], [1.0, 2.0, k],
+                                           (0, k))
+        decoded = cdr.decode_joint_trajectory(data)
+        assert decoded == _full(cdr._read_joint_trajectory, data)
+        assert decoded.points[0].velocities == (0.0, k, 0.5)
+        assert (decoded.points[0].time_from_start.nanosec, decoded.header.stamp.sec) == (k, k)
+
+
+def test_decoded_messages_do_not_share_the_cached_template():
+    data = cdr.encode_joint_state(0, 0, ["p", "q"], [1.0, 2.0])
+    first = cdr.decode_joint_state(data)
+    first.name.append("changed")
+    assert cdr.decode_joint_state(data).name == ["p", "q"]
+
+
+def test_topics_of_one_length_keep_their_own_layouts():
+    x, y = (cdr.encode_joint_state(0, 0, [axis], [1.0], [2.0]) for axis in "xy")
+    for _ in range(2):
+        assert cdr.decode_joint_state(x).name == ["x"] and cdr.decode_joint_state(y).name == ["y"]
+    assert len(cdr._JOINT_STATE.layouts[len(x)]) == 2
