@@ -32,6 +32,7 @@ class RecorderNode(LockstepNode):
             self.add_input(topic.name, GRAPH_QOS if topic.name != graph.DIAGNOSTICS else DIAGNOSTICS_QOS)
         self.counts = {topic.name: 0 for topic in self.topic_list}
         self.lockstep_topics = [topic.name for topic in self.topic_list if topic.every_step]
+        self._incomplete = len(self.lockstep_topics)      # lockstep topics still short of n_steps messages
         self.first_receive = self.last_receive = None
         self.writer = BagWriter(options["bag"], [(t.name, t.type) for t in self.topic_list], background=True, metadata={
             EXPERIMENT_METADATA: {"yaml": text, "axes": ",".join(self.axes), "steps": str(self.n_steps),
@@ -41,6 +42,8 @@ class RecorderNode(LockstepNode):
     def file_message(self, topic, data):
         self.writer.write(topic, cdr.stamp_ns(data), data)
         self.counts[topic] += 1
+        if self.counts[topic] == self.n_steps and topic in self.lockstep_topics:
+            self._incomplete -= 1
         self.last_receive = time.monotonic()
         if self.first_receive is None:
             self.first_receive = self.last_receive
@@ -48,7 +51,7 @@ class RecorderNode(LockstepNode):
             self.finished = True
 
     def complete(self) -> bool:
-        return min(self.counts[t] for t in self.lockstep_topics) >= self.n_steps
+        return self._incomplete <= 0
 
     def on_message(self, topic, data):
         self.file_message(topic, data)
