@@ -119,7 +119,7 @@ def main():
                 f"all node ticks (worst node {r['worst node miss rate']:.1f}%), latency p50 {r['p50']:.0f} us, "
                 f"p99 {r['p99']:.0f} us")
         sim, factor = simulation_rate(DEFAULT)
-        say(f"in-process simulation: {sim:.0f} steps/s = {factor:.1f}x real time; "
+        say(f"in-process simulation (median of 5): {sim:.0f} steps/s = {factor:.1f}x real time; "
             f"{sim / rates['2 axes', 'process']:.0f}x the process graph, {sim / rates['2 axes', 'composed']:.0f}x "
             "the composed graph")
         configs = sweep_rate(args.sweep)

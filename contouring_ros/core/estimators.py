@@ -207,7 +207,7 @@ class NewtonEstimator:
         position (n,), or a batch of positions (B, n) with estimates (B, 1))."""
         curve, theta, filtered = self.curve, self.theta, self.filtered
         decay, gain = self._filter_decay, self._gain
-        batch = np.ndim(position) == 2
+        batch = getattr(position, "ndim", 1) == 2
         if batch:
             coordinates, wrap = [position[:, i:i + 1] for i in range(position.shape[1])], curve.wrap
         else:

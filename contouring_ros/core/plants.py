@@ -94,7 +94,7 @@ class FirstOrderVelocityAxis(Axis):
 
 def has_limit(limit) -> bool:
     """Whether a limit (0: none) limits anything; a batch of limits does when any of them is set."""
-    return bool(np.any(limit)) if isinstance(limit, np.ndarray) else bool(limit)
+    return limit != 0.0 if limit.__class__ is float else bool(np.any(limit))
 
 
 def symmetric_clip(value, limit):
