@@ -140,3 +140,19 @@ def test_realtime_run_records_every_step_and_its_timing(layout, tmp_path):
         assert int(values["ticks"]) >= 499 and int(values["deadline misses"]) <= int(values["ticks"])
         assert 0 < float(values["latency p50 [us]"]) <= float(values["latency p99 [us]"])
     assert "miss rate" in format_realtime(reports)
+
+
+def test_wait_until_returns_at_the_deadline_when_spinning():
+    import time
+
+    import rclpy
+    from contouring_ros.nodes.lockstep import wait_until
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    try:
+        for spin in (0.0, 0.005):
+            deadline = time.time() + 0.02
+            wait_until(deadline, None, [], lambda: None, context, spin=spin)
+            assert 0.0 <= time.time() - deadline < 0.005
+    finally:
+        rclpy.shutdown(context=context)
