@@ -64,10 +64,14 @@ def stack(objects: list):
     Numbers that differ become arrays of shape (B, 1); nested objects are stacked the same way; equal
     attributes are kept as they are (so a limit of 0 that no experiment sets stays a plain 0).
 
+    A class can name attributes that its batch path needs equal across the batch (``batch_shared``, e.g. a
+    schedule's profile table).
+
     Raises
     ------
     NotBatchable
-        When the class has no batch path (``batchable`` is not set) or the objects differ in structure.
+        When the class has no batch path (``batchable`` is not set), the objects differ in structure or in
+        a ``batch_shared`` attribute.
     """
     first = objects[0]
     cls = type(first)
@@ -75,6 +79,9 @@ def stack(objects: list):
         raise NotBatchable(f"{cls.__name__} has no batch path")
     if any(type(o) is not cls for o in objects):
         raise NotBatchable(f"the batch mixes {cls.__name__} with other classes")
+    for name in getattr(cls, "batch_shared", ()):
+        if not _same([vars(o)[name] for o in objects]):
+            raise NotBatchable(f"{cls.__name__}.{name} must be the same across a batch")
     out = copy.copy(first)
     for name in vars(first):
         setattr(out, name, _stack_value(f"{cls.__name__}.{name}", [vars(o)[name] for o in objects]))

@@ -298,6 +298,9 @@ class OsculatingCircleEstimator:
     seen in the direction of travel. Exact on circles; where kappa vanishes it is the tangent-line estimate.
     """
 
+    #: has a batch path, :meth:`step_batch` (:mod:`contouring_ros.core.batch`)
+    batchable = True
+
     def __init__(self, curve: Curve, min_curvature: float = 1e-9):
         if curve.dimension != 2:
             raise ValueError("the osculating-circle estimate is defined for planar (2-axis) contours")
@@ -319,6 +322,31 @@ class OsculatingCircleEstimator:
         theta = float(reference.theta) + math.copysign(1.0, kappa) * angle / (abs(kappa) * speed)
         foot_tangent = math.copysign(1.0, kappa) * left_normal(radial / distance)
         return ContourEstimate(theta=theta, vector=vector, signed=float(signed_error(vector, foot_tangent)))
+
+    def step_batch(self, reference, position) -> ContourEstimate:
+        """:meth:`step` for a batch: reference arrays (B, 2) and theta (B, 1), positions (B, 2); the same
+        formulas elementwise (the frame of :func:`~contouring_ros.core.geometry.frenet_axes`), the
+        tangent-line estimate where the curvature vanishes."""
+        d = _batch_derivatives(self.curve, reference.theta, 2)
+        d1, d2 = d[1], d[2]
+        speed = np.sqrt(np.sum(d1 * d1, axis=-1, keepdims=True))
+        kappa = (d1[:, 0:1] * d2[:, 1:2] - d1[:, 1:2] * d2[:, 0:1]) / speed**3
+        straight = np.abs(kappa) < self.min_curvature
+        with np.errstate(divide="ignore", invalid="ignore"):
+            centre = reference.position + left_normal(d1 / speed) / kappa
+            radial = position - centre
+            distance = np.hypot(radial[:, 0:1], radial[:, 1:2])
+            vector = centre + radial / (distance * np.abs(kappa)) - position
+            start = reference.position - centre
+            angle = np.arctan2(start[:, 0:1] * radial[:, 1:2] - start[:, 1:2] * radial[:, 0:1],
+                               np.sum(start * radial, axis=-1, keepdims=True))
+            theta = reference.theta + np.copysign(1.0, kappa) * angle / (np.abs(kappa) * speed)
+            signed = signed_error(vector, np.copysign(1.0, kappa) * left_normal(radial / distance))
+        if straight.any():
+            line = self._tangent_line.step_batch(reference, position)
+            vector, theta = np.where(straight, line.vector, vector), np.where(straight, line.theta, theta)
+            signed = np.where(straight[:, 0], line.signed, signed)
+        return ContourEstimate(theta=theta, vector=vector, signed=signed)
 
 
 class FootPointSearchEstimator:

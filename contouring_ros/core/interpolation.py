@@ -64,6 +64,11 @@ class FeedrateSchedule:
     / |R'| follow from the chain rule.
     """
 
+    #: runs elementwise on a batch of times (:mod:`contouring_ros.core.batch`) when every experiment of the
+    #: batch has the same profile table
+    batchable = True
+    batch_shared = ("_theta", "_arc", "_v", "_t", "_a")
+
     def __init__(self, curve: Curve, theta_start: float, theta_end: float, feedrate: float, acceleration: float,
                  normal_acceleration: float = 0.0, samples: int = 20001):
         if feedrate <= 0.0 or acceleration <= 0.0 or theta_end <= theta_start:
