@@ -143,8 +143,9 @@ def _sweep(args):
                      batch=args.batch or BATCH)
     print(format_sweep(rows))
     vectorised = sum(row.vectorised for row in rows)
+    reasons = sorted({row.alone for row in rows if row.alone})
     print(f"{len(rows)} combinations: {vectorised} ran vectorised in batches, {len(rows) - vectorised} one by one"
-          + ("" if vectorised == len(rows) else " (a class without a batch path, or too few to batch)"))
+          + (f" ({'; '.join(reasons)})" if reasons else ""))
     out = Path(args.out or f"bags/{experiment.name}_sweep_{datetime.now():%Y%m%d_%H%M%S}.csv")
     out.parent.mkdir(parents=True, exist_ok=True)
     write_sweep_csv(rows, out)

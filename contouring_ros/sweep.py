@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 
 from .config import GLOBAL_SECTION, ROS_PARAMETERS, build_loop, experiment_from_data, read_yaml
-from .core.batch import NotBatchable, simulate_batch, structure
+from .core.batch import batch_problem, simulate_batch, structure
 from .core.simulation import simulate
 from .errors import ConfigError
 from .scoring import score_run
@@ -80,23 +80,28 @@ BATCH = 250      # combinations per vectorised batch (memory: about 0.25 MB per 
 class SweepRow:
     settings: dict
     scores: object
-    vectorised: bool = False   # whether it ran in a vectorised batch
+    alone: str = ""            # why it ran one by one ("" when it ran in a vectorised batch)
+
+    @property
+    def vectorised(self) -> bool:
+        return not self.alone
 
 
 def _score_chunk(experiments: list) -> tuple:
-    """Scores of each experiment, and whether each ran in a vectorised batch (one batch per structure)."""
+    """Scores of each experiment, and why each ran alone ("" for those in a vectorised batch, one batch per
+    structure)."""
     loops = [build_loop(e) for e in experiments]
-    results, vectorised, groups = [None] * len(loops), [False] * len(loops), {}
+    results, alone, groups = [None] * len(loops), [""] * len(loops), {}
     for i, loop in enumerate(loops):
         groups.setdefault(structure(loop), []).append(i)
     for group in groups.values():
-        try:
-            batch = simulate_batch([loops[i] for i in group]) if len(group) > 1 else None
-        except NotBatchable:
-            batch = None
+        members = [loops[i] for i in group]
+        why = batch_problem(members if len(members) > 1 else members * 2) \
+            or ("" if len(members) > 1 else "too few combinations of one structure to batch")
+        batch = simulate_batch(members) if not why else None
         for j, i in enumerate(group):
-            results[i], vectorised[i] = (batch[j], True) if batch else (simulate(loops[i]), False)
-    return [score_run(loop.curve, result) for loop, result in zip(loops, results)], vectorised
+            results[i], alone[i] = (batch[j], "") if batch else (simulate(loops[i]), why)
+    return [score_run(loop.curve, result) for loop, result in zip(loops, results)], alone
 
 
 def _shape(section):
@@ -130,15 +135,15 @@ def run_sweep(text: str, grid: dict, workers: int | None = None, progress: bool 
     experiments = [experiment for _, experiment in combos]
     workers = workers or os.cpu_count() or 1
     chunks = _chunks(experiments, workers, batch)
-    scores, vectorised = [None] * len(combos), [False] * len(combos)
+    scores, alone = [None] * len(combos), [""] * len(combos)
     with ProcessPoolExecutor(max_workers=workers) as pool, \
             tqdm(total=len(combos), desc="sweep", disable=not progress) as bar:
         for chunk, (chunk_scores, batched) in zip(chunks, pool.map(_score_chunk, [[experiments[i] for i in chunk]
                                                                                    for chunk in chunks])):
-            for i, s, v in zip(chunk, chunk_scores, batched):
-                scores[i], vectorised[i] = s, v
+            for i, s, why in zip(chunk, chunk_scores, batched):
+                scores[i], alone[i] = s, why
             bar.update(len(chunk))
-    rows = [SweepRow(settings, s, v) for (settings, _), s, v in zip(combos, scores, vectorised)]
+    rows = [SweepRow(settings, s, why) for (settings, _), s, why in zip(combos, scores, alone)]
     return sorted(rows, key=lambda row: (row.scores.mce, row.scores.tace))
 
 

@@ -113,6 +113,7 @@ def test_sweep_vectorises_what_it_can_and_runs_the_rest_alone():
     rows = run_sweep(shortened(CONFIG / "paper001_caseI_adaptive_tnb.yaml", 0.2), parse_grid(["x/servo.kd=7e5,8e5,9e5,1e6"]),
                      workers=1)
     assert not any(row.vectorised for row in rows)
+    assert {row.alone for row in rows} == {"AdaptiveTNBCCC has no batch path"}     # said, for the CLI to print
 
 
 def _mce(loop):

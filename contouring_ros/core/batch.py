@@ -21,7 +21,7 @@ import numpy as np
 from .interpolation import reference
 from .simulation import ControlLoop, SimulationResult, step_time
 
-__all__ = ["NotBatchable", "stack", "batchable", "structure", "simulate_batch"]
+__all__ = ["NotBatchable", "stack", "batch_problem", "batchable", "structure", "simulate_batch"]
 
 
 class NotBatchable(Exception):
@@ -100,13 +100,18 @@ def structure(loop: ControlLoop) -> tuple:
                                              loop.estimator, loop.controller))
 
 
-def batchable(loops: list) -> bool:
-    """Whether ``loops`` can run as one batch (same structure, every component with a batch path)."""
+def batch_problem(loops: list) -> str | None:
+    """Why ``loops`` cannot run as one batch (a class without a batch path, different structures), or None."""
     try:
         _stacked(loops)
-    except NotBatchable:
-        return False
-    return True
+    except NotBatchable as problem:
+        return str(problem)
+    return None
+
+
+def batchable(loops: list) -> bool:
+    """Whether ``loops`` can run as one batch (same structure, every component with a batch path)."""
+    return batch_problem(loops) is None
 
 
 def _stacked(loops):
