@@ -14,6 +14,7 @@ to the loop's own simulation up to the rounding of vectorised sums.
 from __future__ import annotations
 
 import copy
+import dataclasses
 import numbers
 
 import numpy as np
@@ -96,8 +97,8 @@ def structure(loop: ControlLoop) -> tuple:
             return type(obj).__name__
         return (type(obj).__name__,) + tuple((name, classes(value)) for name, value in vars(obj).items()
                                               if hasattr(value, "__dict__") or value is None)
-    return (loop.n_steps, loop.sample_time) + tuple(classes(part) for part in (loop.curve, loop.schedule, *loop.plants, *loop.servos,
-                                             loop.estimator, loop.controller))
+    parts = (loop.curve, loop.schedule, *loop.plants, *loop.servos, loop.estimator, loop.controller)
+    return (loop.n_steps, loop.sample_time) + tuple(classes(part) for part in parts)
 
 
 def batch_problem(loops: list) -> str | None:
@@ -148,9 +149,9 @@ def simulate_batch(loops: list[ControlLoop]) -> list[SimulationResult]:
         for i, plant in enumerate(plants):
             positions[k, :, i], velocities[k, :, i] = (np.broadcast_to(v, (b, 1))[:, 0] for v in plant.measure())
         position, velocity = positions[k].copy(), velocities[k].copy()
-        ref = reference(curve, schedule, np.full((b, 1), t))
-        ref = type(ref)(theta=ref.theta, theta_dot=ref.theta_dot, theta_ddot=ref.theta_ddot,
-                        position=ref.position[:, 0], velocity=ref.velocity[:, 0], acceleration=ref.acceleration[:, 0])
+        ref = reference(curve, schedule, np.full((b, 1), t))      # arrays (b, 1, n): drop the time axis
+        ref = dataclasses.replace(ref, position=ref.position[:, 0], velocity=ref.velocity[:, 0],
+                                  acceleration=ref.acceleration[:, 0])
         estimate = estimator.step_batch(ref, position)
         correction = np.broadcast_to(controller.step(estimate, ref, position, velocity), (b, n))
         for i, (plant, servo) in enumerate(zip(plants, servos)):
