@@ -26,7 +26,8 @@ from .core.interpolation import FeedrateSchedule, UniformSchedule, reference
 from .core.simulation import ControlLoop
 from .errors import ConfigError
 
-__all__ = ["Experiment", "load_experiment", "parse_experiment", "read_yaml", "experiment_from_data", "build_loop", "build_curve",
+__all__ = ["Experiment", "load_experiment", "parse_experiment", "read_yaml", "experiment_from_data", "build_loop",
+           "build_curve",
            "build_schedule", "build_plant", "build_servo", "build_estimator", "build_controller",
            "initial_state", "GLOBAL_SECTION", "node_sections", "section_from_parameters",
            "experiment_for_node"]

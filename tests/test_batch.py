@@ -41,8 +41,10 @@ def _on_ellipse():
 
 
 @pytest.mark.parametrize("text, specs", [
-    (shortened(DEFAULT, 0.4), ["ccc.kp=0.5,4", "x/servo.a=10,12.5", "curve.h=40,50", "y/plant.time_constant=0.03,0.045"]),
-    (shortened(CONFIG / "paper000_a_pidff_h50_newton.yaml", 0.4), ["x/servo.kp=5,8.08", "contour_estimator.k_prime=300,500"]),
+    (shortened(DEFAULT, 0.4),
+     ["ccc.kp=0.5,4", "x/servo.a=10,12.5", "curve.h=40,50", "y/plant.time_constant=0.03,0.045"]),
+    (shortened(CONFIG / "paper000_a_pidff_h50_newton.yaml", 0.4),
+     ["x/servo.kp=5,8.08", "contour_estimator.k_prime=300,500"]),
     (_with_estimator(DEFAULT, type="tangent_line"), ["ccc.kd=0,0.1", "curve.a=0.015,0.02", "schedule.duration=1.5,2"]),
     (shortened(CONFIG / "paper000_b_ismc_h50_vgccc.yaml", 0.4), ["ccc.kp=20,40", "curve.h=50,100"]),
     (_on_ellipse(), ["ccc.kp=0.5,4", "curve.b=0.01,0.015"]),
@@ -110,8 +112,8 @@ def test_sweep_vectorises_what_it_can_and_runs_the_rest_alone():
         data["/x/servo"]["ros__parameters"]["observer"] = row.settings["x/servo.observer"]
         loop = build_loop(parse_experiment(yaml.safe_dump(data), "one"))
         np.testing.assert_allclose(row.scores.mce, _mce(loop), rtol=1e-9)
-    rows = run_sweep(shortened(CONFIG / "paper001_caseI_adaptive_tnb.yaml", 0.2), parse_grid(["x/servo.kd=7e5,8e5,9e5,1e6"]),
-                     workers=1)
+    rows = run_sweep(shortened(CONFIG / "paper001_caseI_adaptive_tnb.yaml", 0.2),
+                     parse_grid(["x/servo.kd=7e5,8e5,9e5,1e6"]), workers=1)
     assert not any(row.vectorised for row in rows)
     assert {row.alone for row in rows} == {"AdaptiveTNBCCC has no batch path"}     # said, for the CLI to print
 
