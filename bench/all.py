@@ -6,6 +6,8 @@ Prints, on this machine, now:
   last message) for the process and the composed layout, with 2 axes (the default experiment) and 3 axes
   (config/line3d_newton_ismc.yaml), and each as a multiple of four floor hops (the lockstep critical path
   is plant -> estimator -> CCC -> servo -> plant);
+- the CPU time the whole graph spends per lockstep step (2 axes, both layouts: a run and one three times as
+  long, differenced) and the rate that caps on this machine's cores;
 - realtime mode at 1 kHz for both layouts: deadline-miss rate over all nodes and the worst node's, loop
   latency p50 / p99;
 - the in-process simulation's rate (and real-time factor) and the sweep throughput: 1000 configurations of
@@ -18,6 +20,8 @@ Figures vary run to run on a shared machine: compare the ratios within one run.
 from __future__ import annotations
 
 import argparse
+import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -29,12 +33,33 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from contouring_ros.bag import node_reports  # noqa: E402
+from contouring_ros.config import load_experiment  # noqa: E402
 from contouring_ros.runner import DomainLease, private_environment, run_graph  # noqa: E402
 from contouring_ros.sweep import BATCH, run_sweep  # noqa: E402
 from graph_speed import lockstep_run, simulation_rate  # noqa: E402  (bench/ is this script's folder)
 
 DEFAULT = ROOT / "config" / "paper000_b_ismc_h50_newton.yaml"
 THREE_AXES = ROOT / "config" / "line3d_newton_ismc.yaml"
+
+
+def children_cpu_seconds() -> float:
+    """User + system CPU time of every child process this one has waited for (the graph's nodes)."""
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
+def cpu_per_step(path: Path, layout: str, seconds: float, tmp: Path) -> float:
+    """CPU seconds the whole graph spends per lockstep step: the difference between a run of ``seconds`` and
+    one three times as long, so start-up and shutdown cancel."""
+    cpu, steps = [], []
+    for duration in (seconds, 3 * seconds):
+        config = tmp / f"cpu_{layout}_{duration:g}.yaml"
+        config.write_text(with_globals(path, duration=duration))
+        before = children_cpu_seconds()
+        run_graph(config, tmp / f"cpu_{layout}_{duration:g}.mcap", layout=layout)
+        cpu.append(children_cpu_seconds() - before)
+        steps.append(load_experiment(config).n_steps)
+    return (cpu[1] - cpu[0]) / (steps[1] - steps[0])
 
 
 def with_globals(path: Path, **keys) -> str:
@@ -113,6 +138,11 @@ def main():
                     f"{1e6 / rate / (4 * hop):.1f} x four floor hops; real-time factor {rate / 1000:.2f})")
         for label in ("2 axes", "3 axes"):
             say(f"composed / process, {label}: {rates[label, 'composed'] / rates[label, 'process']:.1f}x")
+        cores = os.cpu_count() or 1
+        for layout in ("process", "composed"):
+            cpu = cpu_per_step(DEFAULT, layout, args.seconds, tmp)
+            say(f"CPU per lockstep step, {layout:8s} 2 axes: {cpu * 1e6:.0f} us over all nodes = at most "
+                f"{cores / cpu:.0f} steps/s on {cores} cores if nothing else ran")
         for layout in ("process", "composed"):
             r = realtime(layout, args.realtime_seconds, tmp)
             say(f"realtime {layout:8s} 1 kHz, {args.realtime_seconds:g} s: deadline misses {r['miss rate']:.1f}% of "
