@@ -29,7 +29,7 @@ from .errors import ConfigError
 __all__ = ["Experiment", "load_experiment", "parse_experiment", "read_yaml", "experiment_from_data", "build_loop",
            "build_curve",
            "build_schedule", "build_plant", "build_servo", "build_estimator", "build_controller",
-           "initial_state", "GLOBAL_SECTION", "node_sections", "section_from_parameters",
+           "initial_state", "controller_uses_state", "GLOBAL_SECTION", "node_sections", "section_from_parameters",
            "experiment_for_node"]
 
 GLOBAL_SECTION = "/**"
@@ -178,6 +178,9 @@ GLOBALS = {
                                                                              # non-finite or malformed input
     "timing": Param("str", "lockstep", choices=TIMINGS),   # DESIGN.md, "One control step"
     "start_time": Param("float", 0.0, "nonnegative"),  # realtime: Unix time of tick 0 (the runner sets it)
+    # whether the CCC subscribes to /reference and the states: contouring-ros run sets false where the
+    # controller does not use them (3 fewer deliveries a step with 2 axes); true is always safe
+    "ccc_takes_state": Param("bool", True),
 }
 # node section -> (key holding the type name, registry)
 ROLE_TYPES = {"plant": ("model", PLANTS), "servo": ("law", SERVOS),
@@ -203,6 +206,7 @@ class Experiment:
     on_invalid_input: str = "stop"
     timing: str = "lockstep"
     start_time: float = 0.0
+    ccc_takes_state: bool = True
     plants: dict = field(default_factory=dict)     # axis -> plant section
     servos: dict = field(default_factory=dict)     # axis -> servo section
     estimator: dict = field(default_factory=dict)
@@ -428,15 +432,20 @@ def experiment_from_data(data, where: str = "<experiment>", text: str = "") -> E
     axes = globals_["axes"]
     _validate_combination(where, parsed["/contour_estimator"], parsed["/ccc"],
                           {a: parsed[f"/{a}/servo"] for a in axes})
-    return Experiment(
+    experiment = Experiment(
         path=where, text=text, sample_time=globals_["sample_time"], duration=globals_["duration"],
         axes=tuple(axes), curve=globals_["curve"], schedule=globals_["schedule"],
         initial_state=globals_["initial_state"], network=globals_["network"],
         stall_timeout=globals_["stall_timeout"], on_invalid_input=globals_["on_invalid_input"],
         timing=globals_["timing"], start_time=globals_["start_time"],
+        ccc_takes_state=globals_["ccc_takes_state"],
         plants={a: parsed[f"/{a}/plant"] for a in axes}, servos={a: parsed[f"/{a}/servo"] for a in axes},
         estimator=parsed["/contour_estimator"], controller=parsed["/ccc"],
         info={"experiment": globals_["experiment"], "paper": globals_["paper"]})
+    if not experiment.ccc_takes_state and controller_uses_state(experiment):
+        _fail(where, f"{GLOBAL_SECTION}.ccc_takes_state", f"the {experiment.controller['type']} controller uses the "
+              "reference and the axis states: the CCC must take them (true)")
+    return experiment
 
 
 def experiment_for_node(parameters: dict, node: str, role: str, where: str | None = None) -> Experiment:
@@ -455,10 +464,16 @@ def experiment_for_node(parameters: dict, node: str, role: str, where: str | Non
         curve=globals_["curve"], schedule=globals_["schedule"], initial_state=globals_["initial_state"],
         network=globals_["network"], stall_timeout=globals_["stall_timeout"],
         on_invalid_input=globals_["on_invalid_input"], timing=globals_["timing"],
-        start_time=globals_["start_time"],
+        start_time=globals_["start_time"], ccc_takes_state=globals_["ccc_takes_state"],
         plants={axis: section} if role == "plant" else {}, servos={axis: section} if role == "servo" else {},
         estimator=section if role == "contour_estimator" else {}, controller=section if role == "ccc" else {},
         info={"experiment": globals_["experiment"], "paper": globals_["paper"], "node": section})
+
+
+def controller_uses_state(experiment: Experiment) -> bool:
+    """Whether the experiment's contour controller uses the reference and the axis states (``needs_state``),
+    i.e. whether the CCC node must take them (the shared key ``ccc_takes_state``)."""
+    return bool(getattr(build_controller(experiment, build_curve(experiment)), "needs_state", False))
 
 
 def load_experiment(path) -> Experiment:

@@ -63,17 +63,19 @@ def node_names(axes) -> list:
             + [f"/{a}/servo" for a in axes] + ["/recorder"])
 
 
-def topics(axes) -> list:
-    """Every topic of the graph for ``axes``; the recorder takes them all."""
+def topics(axes, ccc_takes_state: bool = True) -> list:
+    """Every topic of the graph for ``axes``; the recorder takes them all. The CCC takes /reference and the
+    states only with ``ccc_takes_state`` (the shared key of that name: its controller uses them)."""
     n = len(axes)
     axis_state = (("position", 1), ("velocity", 1))
+    ccc = ("/ccc",) if ccc_takes_state else ()
     out = [Topic(CLOCK, "rosgraph_msgs/msg/Clock", "/interpolator", ("/recorder",)),
            Topic(REFERENCE, "trajectory_msgs/msg/JointTrajectory", "/interpolator",
-                 ("/contour_estimator", "/ccc") + tuple(f"/{a}/servo" for a in axes) + ("/recorder",),
+                 ("/contour_estimator",) + ccc + tuple(f"/{a}/servo" for a in axes) + ("/recorder",),
                  (("positions", n + 1), ("velocities", n + 1), ("accelerations", n + 1)))]
     for a in axes:
         out.append(Topic(state_topic(a), "sensor_msgs/msg/JointState", f"/{a}/plant",
-                         ("/contour_estimator", "/ccc", f"/{a}/servo", "/recorder"), axis_state))
+                         ("/contour_estimator",) + ccc + (f"/{a}/servo", "/recorder"), axis_state))
     out.append(Topic(CONTOUR_ERROR, "sensor_msgs/msg/JointState", "/contour_estimator",
                      ("/ccc", "/interpolator", "/recorder"), (("position", n + 2),)))
     out.append(Topic(CORRECTION, "sensor_msgs/msg/JointState", "/ccc",
@@ -84,9 +86,9 @@ def topics(axes) -> list:
     return out
 
 
-def recorded_topics(axes) -> list:
+def recorded_topics(axes, ccc_takes_state: bool = True) -> list:
     """What the recorder takes: every lockstep topic, then /diagnostics (event-driven, not counted)."""
-    return topics(axes) + [Topic(DIAGNOSTICS, "diagnostic_msgs/msg/DiagnosticArray", "any node", ("/recorder",),
+    return topics(axes, ccc_takes_state) + [Topic(DIAGNOSTICS, "diagnostic_msgs/msg/DiagnosticArray", "any node", ("/recorder",),
                                   every_step=False)]
 
 

@@ -20,7 +20,7 @@ from datetime import datetime
 from pathlib import Path
 
 from . import graph
-from .config import Experiment, load_experiment
+from .config import Experiment, controller_uses_state, load_experiment
 from .errors import RunError
 
 __all__ = ["NodeProcess", "DomainLease", "graph_commands", "private_environment", "run_graph", "default_bag_path"]
@@ -75,6 +75,12 @@ def private_environment(domain_id: int, network: bool = False) -> dict:
     return env
 
 
+def shared_overrides(experiment: Experiment) -> list:
+    """Shared keys the runner sets for every node from the whole experiment: ``ccc_takes_state`` false where
+    the controller does not use the reference and states (the CCC then does not subscribe to them)."""
+    return [] if controller_uses_state(experiment) else ["-p", "ccc_takes_state:=false"]
+
+
 def graph_commands(experiment_path, experiment: Experiment, bag: Path, start_time: float = 0.0) -> list:
     """One NodeProcess per node of the graph (recorder first), each a `python -m` of its node module;
     realtime runs also get the shared ``start_time`` of tick 0."""
@@ -88,6 +94,7 @@ def graph_commands(experiment_path, experiment: Experiment, bag: Path, start_tim
             command += ["-p", f"bag:={bag}", "-p", f"experiment_file:={experiment_path}"]
         if start_time:
             command += ["-p", f"start_time:={start_time!r}"]
+        command += shared_overrides(experiment)
         out.append(NodeProcess(full_name, command))
     return out
 

@@ -130,6 +130,9 @@ HELIX = (CONFIG / "paper003_helix_natural_local_f15_10.yaml").read_text()
     ("length: 4.5", "length: 0.0", "curve.length: expected a positive value"),
     ("damping: 200.0, gain: 1.0}", "damping: 200.0, gain: 1.0, disturbance_unit: force}",
      "/x/plant.disturbance_unit: expected one of command, acceleration, got 'force'"),
+    ("    sample_time: 0.001\n", "    sample_time: 0.001\n    ccc_takes_state: false\n",
+     "/**.ccc_takes_state: the task_frame_pd controller uses the reference and the axis states: the CCC must "
+     "take them (true)"),
 ])
 def test_refused_combinations_and_task_frame_keys(old, new, expected):
     assert old in HELIX
@@ -152,3 +155,16 @@ def test_osculating_circle_and_adaptive_tnb_keys():
         parse_experiment(re.sub(r"coupling: \[[^\]]*\]", "coupling: [1.0]", circle), "c.yaml")
     with pytest.raises(ConfigError, match="the osculating_circle estimate needs a planar contour"):
         parse_experiment(HELIX.replace("{type: natural_local}", "{type: osculating_circle}"), "h.yaml")
+
+
+def test_the_ccc_takes_reference_and_states_only_where_its_controller_uses_them():
+    from contouring_ros import graph
+    from contouring_ros.config import controller_uses_state, load_experiment
+    from contouring_ros.runner import shared_overrides
+    default, helix = load_experiment(CONFIG / "paper000_b_ismc_h50_newton.yaml"), parse_experiment(HELIX, "helix")
+    assert not controller_uses_state(default) and controller_uses_state(helix)
+    assert shared_overrides(default) == ["-p", "ccc_takes_state:=false"] and shared_overrides(helix) == []
+    subscribers = {t.name: t.subscribers for t in graph.topics(["x", "y"], ccc_takes_state=False)}
+    assert "/ccc" not in subscribers["/reference"] + subscribers["/x/state"] + subscribers["/y/state"]
+    assert "/ccc" in subscribers["/contour_error"]
+    assert all("/ccc" in t.subscribers for t in graph.topics(["x", "y"]) if t.name in ("/reference", "/x/state"))

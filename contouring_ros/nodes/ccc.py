@@ -1,9 +1,10 @@
 """Cross-coupled controller node: the contour error estimate of step k in, per-axis corrections out.
 
-The node also takes /reference and every /<axis>/state of the step, for the controllers that use them
-(``needs_state``, e.g. the task-frame PD of paper 003; the others never decode them). They arrive before
-the estimate, so the critical path stays plant -> estimator -> CCC -> servo. The subscriptions do not
-depend on the controller, so every node knows the graph's topic table from the shared keys alone.
+The node also takes /reference and every /<axis>/state of the step when the shared key
+``ccc_takes_state`` is true (the default; ``contouring-ros run`` sets it false for controllers that do not
+use them, so that every node knows the topic table from the shared keys alone). The controllers that use
+them (``needs_state``, e.g. the task-frame PD of paper 003) need it true; the others never decode them.
+They arrive before the estimate, so the critical path stays plant -> estimator -> CCC -> servo.
 """
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ import numpy as np
 
 from .. import cdr, graph
 from ..config import build_controller, build_curve
+from ..errors import ConfigError
 from .lockstep import LockstepNode, run_node
 
 
@@ -21,11 +23,15 @@ class CCCNode(LockstepNode):
     def setup(self):
         self.controller = build_controller(self.experiment, build_curve(self.experiment))
         self.needs_state = getattr(self.controller, "needs_state", False)
+        if self.needs_state and not self.experiment.ccc_takes_state:
+            raise ConfigError(f"{self.name}: the {self.experiment.controller['type']} controller uses the reference "
+                              "and the axis states: the shared key ccc_takes_state must be true")
         self.add_input(graph.CONTOUR_ERROR)
-        self.add_input(graph.REFERENCE, used=self.needs_state)
         self.state_topics = [graph.state_topic(a) for a in self.axes]
-        for topic in self.state_topics:
-            self.add_input(topic, used=self.needs_state)
+        if self.experiment.ccc_takes_state:
+            self.add_input(graph.REFERENCE, used=self.needs_state)
+            for topic in self.state_topics:
+                self.add_input(topic, used=self.needs_state)
         self.publisher = self.add_output(graph.CORRECTION)
         self.names = list(self.axes)
 

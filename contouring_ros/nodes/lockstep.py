@@ -76,7 +76,7 @@ class LockstepNode:
         self.sample_time_ns = int(round(self.experiment.sample_time * 1e9))
         self.n_steps = self.experiment.n_steps
         self.axes = list(self.experiment.axes)
-        self._topics = {t.name: t for t in graph.recorded_topics(self.axes)}
+        self._topics = {t.name: t for t in graph.recorded_topics(self.axes, self.experiment.ccc_takes_state)}
         self._inputs = []          # (topic name, subscription, msg class, decoder)
         self._outputs = {}         # topic name -> publisher
         self._pending = {}         # step -> {topic: msg}

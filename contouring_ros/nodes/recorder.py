@@ -27,7 +27,7 @@ class RecorderNode(LockstepNode):
         if not options["bag"]:
             raise ConfigError(f"{self.name}: parameter 'bag' (the .mcap file to write) is required")
         text = Path(options["experiment_file"]).read_text() if options["experiment_file"] else ""
-        self.topic_list = graph.recorded_topics(self.axes)
+        self.topic_list = graph.recorded_topics(self.axes, self.experiment.ccc_takes_state)
         for topic in self.topic_list:
             self.add_input(topic.name, GRAPH_QOS if topic.name != graph.DIAGNOSTICS else DIAGNOSTICS_QOS)
         self.counts = {topic.name: 0 for topic in self.topic_list}
