@@ -138,11 +138,10 @@ def main():
                     f"{1e6 / rate / (4 * hop):.1f} x four floor hops; real-time factor {rate / 1000:.2f})")
         for label in ("2 axes", "3 axes"):
             say(f"composed / process, {label}: {rates[label, 'composed'] / rates[label, 'process']:.1f}x")
-        cores = os.cpu_count() or 1
-        for layout in ("process", "composed"):
+        for layout, cores, where in (("process", os.cpu_count() or 1, "cores"), ("composed", 1, "core (one thread)")):
             cpu = cpu_per_step(DEFAULT, layout, args.seconds, tmp)
             say(f"CPU per lockstep step, {layout:8s} 2 axes: {cpu * 1e6:.0f} us over all nodes = at most "
-                f"{cores / cpu:.0f} steps/s on {cores} cores if nothing else ran")
+                f"{cores / cpu:.0f} steps/s on {cores} {where} if nothing else ran")
         for layout in ("process", "composed"):
             r = realtime(layout, args.realtime_seconds, tmp)
             say(f"realtime {layout:8s} 1 kHz, {args.realtime_seconds:g} s: deadline misses {r['miss rate']:.1f}% of "
