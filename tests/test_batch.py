@@ -83,6 +83,14 @@ def test_stack_makes_differing_numbers_batch_columns_and_keeps_equal_ones():
     assert pid.ki == 2.0 and pid.kp[:, 0].tolist() == [1.0, 3.0]
 
 
+def test_a_stacked_direct_servo_clips_each_run_at_its_own_limit():
+    from contouring_ros.core.servo import DirectServo
+    servo = stack([DirectServo(0.0), DirectServo(1.0), DirectServo(3.0)])     # 0: no limit
+    command = servo.step(0.0, 0.0, 0.0, np.zeros((3, 1)), np.zeros((3, 1)), np.array([[2.0], [-2.0], [2.0]]))
+    assert command[:, 0].tolist() == [2.0, -1.0, 2.0]
+    assert DirectServo(1.0).step(0.0, 0.0, 0.0, 0.0, 0.0, -2.0) == -1.0
+
+
 def test_stack_refuses_what_has_no_batch_path_or_mixes_classes():
     with pytest.raises(NotBatchable, match="no batch path"):
         stack([object(), object()])

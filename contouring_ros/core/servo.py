@@ -150,9 +150,9 @@ class DirectServo:
         self.output_limit = float(output_limit)
 
     def step(self, ref_pos, ref_vel, ref_acc, position, velocity, correction) -> float:
-        if self.output_limit:
-            return max(-self.output_limit, min(self.output_limit, correction))
-        return float(correction)
+        if has_limit(self.output_limit):
+            return symmetric_clip(correction, self.output_limit)
+        return correction if isinstance(correction, np.ndarray) else float(correction)
 
 
 def _zero_order_hold(a: np.ndarray, b: np.ndarray, sample_time: float) -> tuple:
