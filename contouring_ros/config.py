@@ -29,7 +29,7 @@ from .errors import ConfigError
 __all__ = ["Experiment", "load_experiment", "parse_experiment", "read_yaml", "experiment_from_data", "build_loop",
            "build_curve",
            "build_schedule", "build_plant", "build_servo", "build_estimator", "build_controller",
-           "initial_state", "controller_uses_state", "GLOBAL_SECTION", "node_sections", "section_from_parameters",
+           "initial_state", "controller_uses_state", "check_ccc_takes_state", "GLOBAL_SECTION", "node_sections", "section_from_parameters",
            "experiment_for_node"]
 
 GLOBAL_SECTION = "/**"
@@ -442,9 +442,8 @@ def experiment_from_data(data, where: str = "<experiment>", text: str = "") -> E
         plants={a: parsed[f"/{a}/plant"] for a in axes}, servos={a: parsed[f"/{a}/servo"] for a in axes},
         estimator=parsed["/contour_estimator"], controller=parsed["/ccc"],
         info={"experiment": globals_["experiment"], "paper": globals_["paper"]})
-    if not experiment.ccc_takes_state and controller_uses_state(experiment):
-        _fail(where, f"{GLOBAL_SECTION}.ccc_takes_state", f"the {experiment.controller['type']} controller uses the "
-              "reference and the axis states: the CCC must take them (true)")
+    if not experiment.ccc_takes_state:
+        check_ccc_takes_state(where, experiment, controller_uses_state(experiment))
     return experiment
 
 
@@ -468,6 +467,14 @@ def experiment_for_node(parameters: dict, node: str, role: str, where: str | Non
         plants={axis: section} if role == "plant" else {}, servos={axis: section} if role == "servo" else {},
         estimator=section if role == "contour_estimator" else {}, controller=section if role == "ccc" else {},
         info={"experiment": globals_["experiment"], "paper": globals_["paper"], "node": section})
+
+
+def check_ccc_takes_state(where: str, experiment: Experiment, uses_state: bool):
+    """Refuse ``ccc_takes_state: false`` for a controller that uses the reference and the axis states (the
+    file's check, and the CCC node's own for nodes started by hand)."""
+    if uses_state and not experiment.ccc_takes_state:
+        _fail(where, f"{GLOBAL_SECTION}.ccc_takes_state", f"the {experiment.controller['type']} controller uses the "
+              "reference and the axis states: the CCC must take them (true)")
 
 
 def controller_uses_state(experiment: Experiment) -> bool:

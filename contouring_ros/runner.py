@@ -84,7 +84,7 @@ def shared_overrides(experiment: Experiment) -> list:
 def graph_commands(experiment_path, experiment: Experiment, bag: Path, start_time: float = 0.0) -> list:
     """One NodeProcess per node of the graph (recorder first), each a `python -m` of its node module;
     realtime runs also get the shared ``start_time`` of tick 0."""
-    out = []
+    out, shared = [], shared_overrides(experiment)
     for full_name in ["/recorder"] + [n for n in graph.node_names(experiment.axes) if n != "/recorder"]:
         parts = full_name.strip("/").split("/")
         namespace, name = ("/" + parts[0], parts[1]) if len(parts) == 2 else ("/", parts[0])
@@ -94,7 +94,7 @@ def graph_commands(experiment_path, experiment: Experiment, bag: Path, start_tim
             command += ["-p", f"bag:={bag}", "-p", f"experiment_file:={experiment_path}"]
         if start_time:
             command += ["-p", f"start_time:={start_time!r}"]
-        command += shared_overrides(experiment)
+        command += shared
         out.append(NodeProcess(full_name, command))
     return out
 

@@ -11,8 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import cdr, graph
-from ..config import build_controller, build_curve
-from ..errors import ConfigError
+from ..config import build_controller, build_curve, check_ccc_takes_state
 from .lockstep import LockstepNode, run_node
 
 
@@ -23,9 +22,7 @@ class CCCNode(LockstepNode):
     def setup(self):
         self.controller = build_controller(self.experiment, build_curve(self.experiment))
         self.needs_state = getattr(self.controller, "needs_state", False)
-        if self.needs_state and not self.experiment.ccc_takes_state:
-            raise ConfigError(f"{self.name}: the {self.experiment.controller['type']} controller uses the reference "
-                              "and the axis states: the shared key ccc_takes_state must be true")
+        check_ccc_takes_state(self.name, self.experiment, self.needs_state)
         self.add_input(graph.CONTOUR_ERROR)
         self.state_topics = [graph.state_topic(a) for a in self.axes]
         if self.experiment.ccc_takes_state:
