@@ -24,6 +24,17 @@ def _experiment_path(name: str) -> Path:
     return path
 
 
+def _seconds(text: str) -> float:
+    """A non-negative finite time in seconds (argparse type)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected seconds, got {text!r}") from None
+    if not 0.0 <= value < float("inf"):
+        raise argparse.ArgumentTypeError(f"expected a non-negative number of seconds, got {text!r}")
+    return value
+
+
 def _warn(run):
     for warning in run.warnings:
         print(f"warning: {warning}", file=sys.stderr)
@@ -79,7 +90,9 @@ def _experiment_text(args):
 def _scored(args):
     from .scoring import score_bag
     text = _experiment_text(args)
-    results = [(Path(bag).stem, *score_bag(bag, text, progress=sys.stderr.isatty())) for bag in args.bags]
+    start = getattr(args, "from_time", 0.0) or 0.0
+    results = [(Path(bag).stem, *score_bag(bag, text, progress=sys.stderr.isatty(), from_time=start))
+               for bag in args.bags]
     for _, _, run in results:
         _warn(run)
     return results
@@ -140,15 +153,18 @@ def _sweep(args):
     if args.batch is not None and args.batch < 1:
         raise ConfigError(f"--batch {args.batch}: expected a positive number of combinations")
     rows = run_sweep(experiment.text, parse_grid(args.grid), args.workers, progress=sys.stderr.isatty(),
-                     batch=args.batch or BATCH)
+                     batch=args.batch or BATCH, from_time=args.from_time)
     print(format_sweep(rows))
     vectorised = sum(row.vectorised for row in rows)
     reasons = sorted({row.alone for row in rows if row.alone})
     print(f"{len(rows)} combinations: {vectorised} ran vectorised in batches, {len(rows) - vectorised} one by one"
           + (f" ({'; '.join(reasons)})" if reasons else ""))
+    failed = [row for row in rows if row.scores is None]
+    if failed:
+        print(f"{len(failed)} without scores (diverged), listed last with the reason")
     out = Path(args.out or f"bags/{experiment.name}_sweep_{datetime.now():%Y%m%d_%H%M%S}.csv")
     out.parent.mkdir(parents=True, exist_ok=True)
-    write_sweep_csv(rows, out)
+    write_sweep_csv(rows, out, experiment.axes)
     print(f"ranked results: {out}")
 
 
@@ -180,6 +196,8 @@ def main(argv=None):
     p = sub.add_parser("score", help="score bags from their contents alone")
     p.add_argument("bags", nargs="+")
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    p.add_argument("--from", dest="from_time", type=_seconds, default=0.0, metavar="T",
+                   help="score only the samples at t >= T seconds (steady state; same keys)")
     p.add_argument("--experiment", help=experiment_help)
     p.set_defaults(func=_score)
     p = sub.add_parser("compare", help="score runs side by side, with ratios to a baseline")
@@ -208,6 +226,8 @@ def main(argv=None):
     p.add_argument("--workers", type=int, help="processes (default: one per core)")
     p.add_argument("--batch", type=int, default=None,
                    help="at most this many combinations per vectorised batch (default 250; 1: each alone)")
+    p.add_argument("--from", dest="from_time", type=_seconds, default=0.0, metavar="T",
+                   help="score only the samples at t >= T seconds (steady state)")
     p.add_argument("--out", help="CSV of the ranked results (default bags/<experiment>_sweep_<time>.csv)")
     p.set_defaults(func=_sweep)
     p = sub.add_parser("paper", help="run a paper's scenarios and print our numbers beside the paper's")

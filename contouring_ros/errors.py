@@ -1,7 +1,7 @@
 """Errors that reach the user as one line."""
 from __future__ import annotations
 
-__all__ = ["ContouringError", "ConfigError", "RunError", "BagError"]
+__all__ = ["ContouringError", "ConfigError", "RunError", "BagError", "ScoreError"]
 
 
 class ContouringError(Exception):
@@ -25,3 +25,7 @@ class RunError(ContouringError):
 
 class BagError(ContouringError):
     """A bag cannot be read or lacks what scoring needs."""
+
+
+class ScoreError(ContouringError):
+    """A run cannot be scored as asked (e.g. no sample after the steady-state start time)."""

@@ -4,6 +4,7 @@ from __future__ import annotations
 from .bag import RecordedRun, read_run
 from .config import build_curve, parse_experiment
 from .core.metrics import Scores, score
+from .errors import ScoreError
 
 __all__ = ["score_run", "score_bag", "curve_of", "format_scores", "format_realtime"]
 
@@ -11,17 +12,22 @@ REALTIME_COLUMNS = ("ticks", "deadline misses", "late inputs", "ticks missing an
                     "latency p99 [us]", "latency max [us]", "jitter [us]")
 
 
-def score_run(curve, run) -> Scores:
-    """Scores of a SimulationResult on ``curve``."""
-    return score(curve, run.time, run.position, run.reference_position, run.estimate_vector, run.command,
-                 theta=run.theta)[0]
+def score_run(curve, run, from_time: float = 0.0) -> Scores:
+    """Scores of a SimulationResult on ``curve``; with ``from_time`` only of its samples at t >= from_time
+    (steady state). A run with no such sample is refused with a ScoreError."""
+    try:
+        return score(curve, run.time, run.position, run.reference_position, run.estimate_vector, run.command,
+                     theta=run.theta, from_time=from_time)[0]
+    except ValueError as error:
+        raise ScoreError(f"--from {from_time:g}: {error}") from None
 
 
-def score_bag(path, experiment_text: str | None = None, progress: bool = False) -> tuple[Scores, RecordedRun]:
+def score_bag(path, experiment_text: str | None = None, progress: bool = False,
+              from_time: float = 0.0) -> tuple[Scores, RecordedRun]:
     """Score a bag from its contents alone: the curve comes from the experiment stored in it (or from
-    ``experiment_text`` for a bag recorded without one)."""
+    ``experiment_text`` for a bag recorded without one); ``from_time`` as in :func:`score_run`."""
     run = read_run(path, experiment_text=experiment_text, progress=progress)
-    return score_run(curve_of(run), run.result), run
+    return score_run(curve_of(run), run.result, from_time), run
 
 
 def curve_of(run: RecordedRun):

@@ -18,14 +18,17 @@ import os
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 
+import numpy as np
+
 
 from .config import GLOBAL_SECTION, ROS_PARAMETERS, build_loop, experiment_from_data, read_yaml
 from .core.batch import batch_problem, simulate_batch, structure
 from .core.simulation import simulate
-from .errors import ConfigError
+from .errors import ConfigError, ScoreError
 from .scoring import score_run
 
-__all__ = ["parse_grid", "combinations", "SweepRow", "run_sweep", "format_sweep", "write_sweep_csv"]
+__all__ = ["parse_grid", "apply_settings", "experiments_for", "combinations", "SweepRow", "score_experiments",
+           "run_sweep", "format_sweep", "write_sweep_csv"]
 
 
 def parse_grid(specs: list) -> dict:
@@ -53,55 +56,135 @@ def _set(data: dict, key: str, value):
     target[path[-1]] = value
 
 
-def combinations(text: str, grid: dict) -> list:
-    """(settings, validated experiment) for every combination of the grid's values.
+def apply_settings(data: dict, settings: dict) -> dict:
+    """Set each of ``settings`` in the experiment file's ``data`` (in place; returned). A key starting with
+    '/' names a node section and replaces that node's whole parameter mapping (``{'/ccc': {'type': 'none'}}``);
+    any other key is a grid key (see the module docstring)."""
+    for key, value in settings.items():
+        if key.startswith("/"):
+            if not isinstance(value, dict):
+                raise ConfigError(f"{key}: a node section needs a mapping of parameters, got {value!r}")
+            data[key] = {ROS_PARAMETERS: copy.deepcopy(value)}
+        else:
+            _set(data, key, value)
+    return data
 
-    The file is read once; each combination is a copy of its data with the grid's values set, validated
+
+def experiments_for(text: str, settings_list: list, where: str = "--grid") -> list:
+    """(settings, validated experiment) for each settings mapping applied to the experiment ``text``.
+
+    The file is read once; each combination is a copy of its data with the settings applied, validated
     like a file (an invalid one is refused naming its settings) without another YAML round trip.
     """
     base = read_yaml(text, "sweep")
     out = []
-    for values in itertools.product(*grid.values()):
-        data = copy.deepcopy(base)
-        settings = dict(zip(grid, values))
-        for key, value in settings.items():
-            _set(data, key, value)
+    for settings in settings_list:
+        data = apply_settings(copy.deepcopy(base), settings)
         try:
             out.append((settings, experiment_from_data(data, "sweep combination")))
         except ConfigError as error:
-            raise ConfigError(f"--grid {settings}: {error}") from None
+            raise ConfigError(f"{where} {settings}: {error}") from None
     return out
 
 
+def combinations(text: str, grid: dict) -> list:
+    """(settings, validated experiment) for every combination of the grid's values."""
+    return experiments_for(text, [dict(zip(grid, values)) for values in itertools.product(*grid.values())])
+
+
 BATCH = 250      # combinations per vectorised batch (memory: about 0.25 MB per combination and 1000 steps)
+RUN_FAILURES = (ArithmeticError, ValueError)   # what a run that diverges raises (non-finite or huge states)
 
 
 @dataclass(frozen=True)
 class SweepRow:
     settings: dict
-    scores: object
+    scores: object             # Scores, or None when the run diverged
     alone: str = ""            # why it ran one by one ("" when it ran in a vectorised batch)
+    failure: str = ""          # why it has no scores (the run diverged)
 
     @property
     def vectorised(self) -> bool:
         return not self.alone
 
 
-def _score_chunk(experiments: list) -> tuple:
-    """Scores of each experiment, and why each ran alone ("" for those in a vectorised batch, one batch per
-    structure)."""
+def _finite(scores) -> bool:
+    return all(math.isfinite(v) for v in (scores.mce, scores.tace, scores.rms))
+
+
+def divergence(result) -> str:
+    """'' for a run that stayed bounded, else ``diverged at t = ... s (step k): <what>``: the first step whose
+    position is not finite or lies farther from the reference than 10 times the reference path's size."""
+    reference = result.reference_position
+    size = float(np.max(np.ptp(reference, axis=0))) if len(reference) else 0.0
+    bound = 10.0 * size + 1e-3
+    with np.errstate(invalid="ignore", over="ignore"):
+        far = np.max(np.abs(result.position - reference), axis=1)
+        bad = ~np.isfinite(far) | (far > bound)
+    if not bad.any():
+        return ""
+    k = int(np.argmax(bad))
+    what = "a position is not finite" if not np.isfinite(far[k]) else \
+        f"an axis is {far[k]:.3g} m from the reference (bound {bound:.3g} m: 10 x the path's size)"
+    return f"diverged at t = {result.time[k]:g} s (step {k}): {what}"
+
+
+def _score_one(loop, result, from_time: float):
+    """(scores, failure): a run's scores, or None and why when it diverged."""
+    failure = divergence(result)
+    if failure:
+        return None, failure
+    try:
+        scores = score_run(loop.curve, result, from_time)
+    except (ScoreError, *RUN_FAILURES) as error:
+        return None, f"cannot be scored: {error}"
+    return (scores, "") if _finite(scores) else (None, "diverged: its contour error is not finite")
+
+
+def _simulate_alone(loop):
+    try:
+        return simulate(loop), ""
+    except RUN_FAILURES as error:
+        return None, f"diverged: {error}"
+
+
+def _score_chunk(experiments: list, from_time: float = 0.0) -> tuple:
+    """Scores of each experiment (None where the run diverged), why each ran alone ("" for those in a
+    vectorised batch, one batch per structure) and why each has no scores ("" where it has)."""
+    with np.errstate(all="ignore"):         # a diverging run overflows; it is reported, not warned about
+        return _score_loops(experiments, from_time)
+
+
+def _score_loops(experiments: list, from_time: float) -> tuple:
     loops = [build_loop(e) for e in experiments]
     results, alone, groups = [None] * len(loops), [""] * len(loops), {}
+    failures = [""] * len(loops)
     for i, loop in enumerate(loops):
         groups.setdefault(structure(loop), []).append(i)
     for group in groups.values():
         members = [loops[i] for i in group]
         why = batch_problem(members if len(members) > 1 else members * 2) \
             or ("" if len(members) > 1 else "too few combinations of one structure to batch")
-        batch = simulate_batch(members) if not why else None
+        batch = None
+        if not why:
+            try:
+                batch = simulate_batch(members)
+            except RUN_FAILURES:        # one member diverged: run each alone to tell which
+                why = "a member of its batch diverged"
+                members = [build_loop(experiments[i]) for i in group]
+                for j, i in enumerate(group):
+                    loops[i] = members[j]
         for j, i in enumerate(group):
-            results[i], alone[i] = (batch[j], "") if batch else (simulate(loops[i]), why)
-    return [score_run(loop.curve, result) for loop, result in zip(loops, results)], alone
+            if batch:
+                results[i] = batch[j]
+            else:
+                results[i], failures[i] = _simulate_alone(loops[i])
+                alone[i] = why
+    scores = [None] * len(loops)
+    for i, (loop, result) in enumerate(zip(loops, results)):
+        if result is not None:
+            scores[i], failures[i] = _score_one(loop, result, from_time)
+    return scores, alone, failures
 
 
 def _shape(section):
@@ -127,24 +210,38 @@ def _chunks(experiments: list, workers: int, batch: int) -> list:
     return [group[i:i + size] for group in groups.values() for i in range(0, len(group), size)]
 
 
-def run_sweep(text: str, grid: dict, workers: int | None = None, progress: bool = False, batch: int = BATCH) -> list:
-    """Score every combination (validated first), ranked by MCE then TACE; at most ``batch`` combinations
-    per vectorised batch (1: each alone)."""
+def score_experiments(experiments: list, workers: int | None = None, progress: bool = False, batch: int = BATCH,
+                      from_time: float = 0.0, desc: str = "sweep") -> list:
+    """(scores or None, why it ran alone, why it has no scores) for each experiment, in order: the
+    in-process simulation on a process pool, vectorised where it can be."""
     from tqdm import tqdm
-    combos = combinations(text, grid)
-    experiments = [experiment for _, experiment in combos]
     workers = workers or os.cpu_count() or 1
     chunks = _chunks(experiments, workers, batch)
-    scores, alone = [None] * len(combos), [""] * len(combos)
+    out = [None] * len(experiments)
     with ProcessPoolExecutor(max_workers=workers) as pool, \
-            tqdm(total=len(combos), desc="sweep", disable=not progress) as bar:
-        for chunk, (chunk_scores, batched) in zip(chunks, pool.map(_score_chunk, [[experiments[i] for i in chunk]
-                                                                                   for chunk in chunks])):
-            for i, s, why in zip(chunk, chunk_scores, batched):
-                scores[i], alone[i] = s, why
+            tqdm(total=len(experiments), desc=desc, disable=not progress, leave=False) as bar:
+        jobs = pool.map(_score_chunk, [[experiments[i] for i in chunk] for chunk in chunks],
+                        [from_time] * len(chunks))
+        for chunk, (scores, alone, failures) in zip(chunks, jobs):
+            for i, s, why, failure in zip(chunk, scores, alone, failures):
+                out[i] = (s, why, failure)
             bar.update(len(chunk))
-    rows = [SweepRow(settings, s, why) for (settings, _), s, why in zip(combos, scores, alone)]
-    return sorted(rows, key=lambda row: (row.scores.mce, row.scores.tace))
+    return out
+
+
+def _rank(row: SweepRow):
+    return (0, row.scores.mce, row.scores.tace) if row.scores else (1, 0.0, 0.0)
+
+
+def run_sweep(text: str, grid: dict, workers: int | None = None, progress: bool = False, batch: int = BATCH,
+              from_time: float = 0.0) -> list:
+    """Score every combination (validated first), ranked by MCE then TACE, diverged runs last; at most
+    ``batch`` combinations per vectorised batch (1: each alone); ``from_time`` as in
+    :func:`contouring_ros.scoring.score_run`."""
+    combos = combinations(text, grid)
+    results = score_experiments([e for _, e in combos], workers, progress, batch, from_time)
+    rows = [SweepRow(settings, *result) for (settings, _), result in zip(combos, results)]
+    return sorted(rows, key=_rank)
 
 
 def format_sweep(rows: list, limit: int = 20) -> str:
@@ -152,19 +249,32 @@ def format_sweep(rows: list, limit: int = 20) -> str:
     head = ["rank"] + keys + ["MCE [um]", "TACE [um]", "RMS [um]"]
     lines = ["  ".join(f"{h:>12}" for h in head)]
     for rank, row in enumerate(rows[:limit], 1):
-        cells = [str(rank)] + [str(row.settings[k]) for k in keys] + \
-            [f"{row.scores.mce * 1e6:.4g}", f"{row.scores.tace * 1e6:.4g}", f"{row.scores.rms * 1e6:.4g}"]
-        lines.append("  ".join(f"{c:>12}" for c in cells))
+        cells = [str(rank)] + [str(row.settings[k]) for k in keys]
+        if row.scores is None:
+            cells += ["-", "-", "-"]
+        else:
+            cells += [f"{row.scores.mce * 1e6:.4g}", f"{row.scores.tace * 1e6:.4g}", f"{row.scores.rms * 1e6:.4g}"]
+        lines.append("  ".join(f"{c:>12}" for c in cells) + (f"  {row.failure}" if row.failure else ""))
     if len(rows) > limit:
         lines.append(f"... {len(rows) - limit} more in the CSV")
     return "\n".join(lines)
 
 
-def write_sweep_csv(rows: list, path) -> None:
+def write_sweep_csv(rows: list, path, axes=None) -> None:
+    """One row per combination: its settings, ``status`` (ok, or why it has no scores), the scores in SI units
+    (lengths in metres, effort in command units, time in seconds; per axis where the score is), and the
+    time the scores start from (``from_s``, 0: the whole run)."""
     keys = list(rows[0].settings) if rows else []
+    n = len(next((row.scores.tracking_max for row in rows if row.scores), ()))
+    axes = list(axes or [f"axis{i}" for i in range(n)])
+    per_axis = [f"{name}_{axis}" for name in ("tracking_max_m", "tracking_rms_m", "effort_rms") for axis in axes]
     with open(path, "w", newline="") as stream:
         writer = csv.writer(stream)
-        writer.writerow(["rank"] + keys + ["mce_m", "tace_m", "rms_m", "estimation_max_m"])
+        writer.writerow(["rank"] + keys + ["status", "mce_m", "tace_m", "rms_m", "estimation_max_m",
+                                           "estimation_rms_m"] + per_axis + ["travel_time_s", "from_s"])
         for rank, row in enumerate(rows, 1):
-            writer.writerow([rank] + [row.settings[k] for k in keys]
-                            + [row.scores.mce, row.scores.tace, row.scores.rms, row.scores.estimation_max])
+            s = row.scores
+            values = [""] * (7 + len(per_axis)) if s is None else \
+                [s.mce, s.tace, s.rms, s.estimation_max, s.estimation_rms, *s.tracking_max, *s.tracking_rms,
+                 *s.effort_rms, s.travel_time, s.from_time]
+            writer.writerow([rank] + [row.settings[k] for k in keys] + [row.failure or "ok"] + values)

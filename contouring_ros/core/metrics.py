@@ -29,6 +29,7 @@ class Scores:
     effort_rms: tuple
     travel_time: float
     steps: int
+    from_time: float = 0.0      # the scores cover t >= from_time [s] (0: the whole run)
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -39,8 +40,11 @@ def _rms(x, axis=None):
 
 
 def score(curve, time, position, reference_position, estimate_vector, command,
-          exact: ExactContourError | None = None, theta=None) -> tuple[Scores, np.ndarray]:
+          exact: ExactContourError | None = None, theta=None, from_time: float = 0.0) -> tuple[Scores, np.ndarray]:
     """Score a run and return (scores, exact contour error per step [m]).
+
+    With ``from_time`` > 0 only the samples with t >= from_time count (steady-state scores: the start-up
+    transient left out); the keys stay the same and ``travel_time`` is the time those samples span.
 
     Parameters
     ----------
@@ -54,7 +58,16 @@ def score(curve, time, position, reference_position, estimate_vector, command,
         A prebuilt solver for ``curve`` (saves rebuilding its search tree).
     theta : (m,) reference curve parameter, optional
         Where the curve has a ``contour_error_window``, the search is restricted around it.
+    from_time : float
+        Score only the samples at t >= from_time [s]; a ValueError when there are none.
     """
+    if from_time > 0.0:
+        kept = np.asarray(time) >= from_time - 1e-9 * max(1.0, abs(from_time))
+        if not kept.any():
+            raise ValueError(f"no samples at t >= {from_time:g} s (the run ends at t = {time[-1]:g} s)")
+        time, position, reference_position, estimate_vector, command = (
+            np.asarray(a)[kept] for a in (time, position, reference_position, estimate_vector, command))
+        theta = None if theta is None else np.asarray(theta)[kept]
     exact = exact or ExactContourError(curve)
     errors = exact(position, near=theta).distance
     estimated = np.linalg.norm(estimate_vector, axis=1)
@@ -66,5 +79,5 @@ def score(curve, time, position, reference_position, estimate_vector, command,
                     tracking_max=tuple(float(v) for v in tracking.max(axis=0)),
                     tracking_rms=tuple(float(v) for v in _rms(tracking, axis=0)),
                     effort_rms=tuple(float(v) for v in _rms(command, axis=0)),
-                    travel_time=travel, steps=int(len(time)))
+                    travel_time=travel, steps=int(len(time)), from_time=float(from_time))
     return scores, errors

@@ -1,0 +1,600 @@
+"""Each paper's central claims, tested under the paper's own reading and where the claim's mechanism acts.
+
+A paper's claims live in ``config/claims/paper<N>.yaml``::
+
+    paper: "000"
+    title: "Authors, short title"
+    readings: ["every reading the scenario files choose where the paper is silent", ...]
+    claims:
+      - id: newton_ccc_vs_vgccc          # the map is reports/maps/paper000_<id>.png
+        claim: "one line: what the paper claims"
+        paper_figure: "the paper's own numbers, and where"
+        paper_ratio: 0.069               # proposed / baseline in the paper, in `metric`
+        metric: tace                     # mce | tace | rms | estimation_max | estimation_rms
+        from_time: 0.0                   # score the samples at t >= from_time [s] (0: the whole run)
+        faithful: {proposed: <scenario>, baseline: <scenario>}   # the paper's experiment, faithful reading
+        mechanism: {proposed: <scenario>, baseline: <scenario>}  # where the claim's mechanism acts
+        expected: {faithful_ratio: 0.52, mechanism_ratio: 0.21, tolerance: 0.1}
+        verdict: {faithful: "holds weaker", mechanism: "holds"}
+        reason: "at most three sentences"
+        maps:
+          - pair: mechanism
+            x: {label: "...", keys: [schedule.duration], values: [...]}
+            y: {label: "...", keys: [x/plant.saturation, y/plant.saturation], values: [...]}
+    ccc_helps:
+      - {scenario: <scenario>, without: {/ccc: {type: none}}, metric: tace, from_time: 0.0, factor: 2.0}
+
+Scenario names are files of ``config/``. A ratio is proposed / baseline of the claim's metric (lower: the
+proposed method better). :func:`verdict` turns a ratio and the paper's into a verdict. ``expected`` and
+``verdict`` are what the tests hold the measurement to. A map sweeps the pair's two files alike over one or
+two variables (grid keys as in :mod:`contouring_ros.sweep`; a variable with several keys sets them all) and
+draws proposed / baseline MCE and TACE with the contour where the paper's ratio is reached.
+"""
+from __future__ import annotations
+
+import math
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from .errors import ConfigError
+from .paper import CONFIG_DIR
+
+__all__ = ["VERDICTS", "METRICS", "verdict", "Pair", "MapAxis", "RegimeMap", "Claim", "CCCHelps", "PaperClaims",
+           "claim_files", "load_claims", "ScenarioScores", "ClaimResult", "evaluate", "ccc_helps_scores",
+           "map_ratios", "draw_map", "claims_report", "write_claims_report"]
+
+VERDICTS = ("holds", "holds weaker", "does not hold", "reversed", "not testable")
+METRICS = {"mce": "MCE", "tace": "TACE", "rms": "RMS", "estimation_max": "estimation deviation max",
+           "estimation_rms": "estimation deviation RMS"}
+VERDICT_RULE = ("A ratio is proposed / baseline in the claim's metric (lower: the proposed method better); r is "
+                "ours, p the paper's. Verdict: **holds** when 1 - r >= 0.75 (1 - p) (our reduction reaches three "
+                "quarters of the paper's), **holds weaker** when r < 0.95, **does not hold** when 0.95 <= r <= "
+                "1.05, **reversed** when r > 1.05, **not testable** when no pair of runs can test it.")
+
+
+def verdict(ratio: float | None, paper_ratio: float) -> str:
+    """The verdict on a claim whose paper reports ``paper_ratio`` (proposed / baseline) when we measure
+    ``ratio`` (see VERDICT_RULE); ``None`` (no measurement) is 'not testable'."""
+    if ratio is None or not math.isfinite(ratio):
+        return "not testable"
+    if 1.0 - ratio >= 0.75 * (1.0 - paper_ratio):
+        return "holds"
+    if ratio < 0.95:
+        return "holds weaker"
+    if ratio <= 1.05:
+        return "does not hold"
+    return "reversed"
+
+
+@dataclass(frozen=True)
+class Pair:
+    proposed: str
+    baseline: str
+
+
+@dataclass(frozen=True)
+class MapAxis:
+    label: str
+    keys: tuple
+    values: tuple
+
+
+@dataclass(frozen=True)
+class RegimeMap:
+    pair: str                   # 'mechanism' or 'faithful'
+    x: MapAxis
+    y: MapAxis | None = None
+
+
+@dataclass(frozen=True)
+class Claim:
+    paper: str
+    id: str
+    claim: str
+    paper_figure: str
+    paper_ratio: float
+    metric: str
+    from_time: float
+    faithful: Pair | None
+    mechanism: Pair | None
+    expected: dict
+    verdict: dict
+    reason: str
+    maps: tuple = ()
+
+    def pair(self, reading: str) -> Pair | None:
+        return self.faithful if reading == "faithful" else self.mechanism
+
+    def map_path(self, index: int, directory) -> Path:
+        suffix = "" if index == 0 else f"_{index + 1}"
+        return Path(directory) / "maps" / f"paper{self.paper}_{self.id}{suffix}.png"
+
+
+@dataclass(frozen=True)
+class CCCHelps:
+    """A CCC lowers ``metric`` on ``scenario`` by ``factor`` against the same run with ``without`` applied."""
+
+    paper: str
+    scenario: str
+    without: dict
+    metric: str
+    from_time: float
+    factor: float
+
+
+@dataclass(frozen=True)
+class PaperClaims:
+    paper: str
+    title: str
+    readings: tuple
+    claims: tuple
+    ccc_helps: tuple
+    path: str = ""
+
+
+# ---------------------------------------------------------------------------------------------- loading
+
+
+def claim_files(directory=None) -> list:
+    return sorted(Path(directory or CONFIG_DIR / "claims").glob("paper???.yaml"))
+
+
+class _Reader:
+    """Typed access to a claims file's mappings; every mistake is a one-line ConfigError naming the key."""
+
+    def __init__(self, path):
+        self.path = str(path)
+
+    def fail(self, where: str, message: str):
+        raise ConfigError(f"{self.path}: {where}: {message}")
+
+    def get(self, data, key: str, where: str, kind, default=...):
+        if not isinstance(data, dict):
+            self.fail(where, "expected a mapping")
+        if key not in data:
+            if default is ...:
+                self.fail(f"{where}.{key}" if where else key, "missing")
+            return default
+        value = data[key]
+        if kind is float:
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+                self.fail(f"{where}.{key}" if where else key, f"expected a number, got {value!r}")
+            return float(value)
+        if not isinstance(value, kind):
+            self.fail(f"{where}.{key}" if where else key, f"expected {getattr(kind, '__name__', kind)}, got {value!r}")
+        return value
+
+    def scenario(self, name, where: str) -> str:
+        if not isinstance(name, str) or not (CONFIG_DIR / f"{name}.yaml").is_file():
+            self.fail(where, f"no scenario file config/{name}.yaml")
+        return name
+
+    def pair(self, data, key: str, where: str) -> Pair | None:
+        given = self.get(data, key, where, (dict, type(None)), None)
+        if given is None:
+            return None
+        return Pair(*(self.scenario(self.get(given, side, f"{where}.{key}", str), f"{where}.{key}.{side}")
+                      for side in ("proposed", "baseline")))
+
+    def metric(self, data, where: str) -> str:
+        metric = self.get(data, "metric", where, str)
+        if metric not in METRICS:
+            self.fail(f"{where}.metric", f"expected one of {', '.join(METRICS)}, got {metric!r}")
+        return metric
+
+    def axis(self, data, where: str) -> MapAxis:
+        keys = self.get(data, "keys", where, list)
+        values = self.get(data, "values", where, list)
+        if not keys or not all(isinstance(k, str) for k in keys):
+            self.fail(f"{where}.keys", "expected a list of grid keys")
+        if len(values) < 2:
+            self.fail(f"{where}.values", "expected at least two values")
+        return MapAxis(self.get(data, "label", where, str), tuple(keys), tuple(values))
+
+
+def load_claims(path) -> PaperClaims:
+    """Read and check a claims file (see the module docstring)."""
+    read = _Reader(path)
+    try:
+        data = yaml.safe_load(Path(path).read_text())
+    except (OSError, yaml.YAMLError) as error:
+        raise ConfigError(f"{path}: cannot be read: {str(error).splitlines()[0]}") from None
+    paper = str(read.get(data, "paper", "", (str, int)))
+    claims = []
+    for i, c in enumerate(read.get(data, "claims", "", list)):
+        where = f"claims[{i}]"
+        maps = []
+        for j, m in enumerate(read.get(c, "maps", where, list, [])):
+            at = f"{where}.maps[{j}]"
+            pair = read.get(m, "pair", at, str, "mechanism")
+            if pair not in ("mechanism", "faithful"):
+                read.fail(f"{at}.pair", f"expected mechanism or faithful, got {pair!r}")
+            y = read.get(m, "y", at, (dict, type(None)), None)
+            maps.append(RegimeMap(pair, read.axis(read.get(m, "x", at, dict), f"{at}.x"),
+                                  read.axis(y, f"{at}.y") if y is not None else None))
+        expected = read.get(c, "expected", where, dict)
+        for key in ("faithful_ratio", "mechanism_ratio", "tolerance"):
+            read.get(expected, key, f"{where}.expected", (float, int, type(None)), None)
+        verdicts = read.get(c, "verdict", where, dict)
+        for reading, given in verdicts.items():
+            if reading not in ("faithful", "mechanism") or given not in VERDICTS:
+                read.fail(f"{where}.verdict.{reading}", f"expected faithful/mechanism: one of {', '.join(VERDICTS)}")
+        claims.append(Claim(
+            paper=paper, id=read.get(c, "id", where, str), claim=read.get(c, "claim", where, str),
+            paper_figure=read.get(c, "paper_figure", where, str),
+            paper_ratio=read.get(c, "paper_ratio", where, float), metric=read.metric(c, where),
+            from_time=read.get(c, "from_time", where, float, 0.0),
+            faithful=read.pair(c, "faithful", where), mechanism=read.pair(c, "mechanism", where),
+            expected=expected, verdict=verdicts, reason=read.get(c, "reason", where, str), maps=tuple(maps)))
+    helps = []
+    for i, h in enumerate(read.get(data, "ccc_helps", "", list, [])):
+        where = f"ccc_helps[{i}]"
+        helps.append(CCCHelps(paper, read.scenario(read.get(h, "scenario", where, str), f"{where}.scenario"),
+                              read.get(h, "without", where, dict), read.metric(h, where),
+                              read.get(h, "from_time", where, float, 0.0), read.get(h, "factor", where, float)))
+    return PaperClaims(paper, read.get(data, "title", "", str), tuple(str(r) for r in read.get(data, "readings", "", list)),
+                       tuple(claims), tuple(helps), str(path))
+
+
+# ---------------------------------------------------------------------------------------------- measuring
+
+
+def _experiment(name: str, settings: dict | None = None):
+    from .config import load_experiment
+    from .sweep import experiments_for
+    experiment = load_experiment(CONFIG_DIR / f"{name}.yaml")
+    if not settings:
+        return experiment
+    return experiments_for(experiment.text, [settings], where=name)[0][1]
+
+
+@dataclass
+class ScenarioScores:
+    """Scores of scenarios (with optional settings applied) at the start times asked for, computed once."""
+
+    workers: int | None = None
+    cache: dict = field(default_factory=dict)
+
+    @staticmethod
+    def _key(name, settings, from_time):
+        return name, repr(sorted((settings or {}).items())), float(from_time)
+
+    def need(self, requests: list) -> None:
+        """Simulate every (scenario, settings, from_time) not yet scored, on the process pool."""
+        from .sweep import score_experiments
+        missing = {}
+        for name, settings, from_time in requests:
+            key = self._key(name, settings, from_time)
+            if key not in self.cache:
+                missing[key] = (name, settings, from_time)
+        by_time = {}
+        for key, (name, settings, from_time) in missing.items():
+            by_time.setdefault(float(from_time), []).append((key, _experiment(name, settings)))
+        for from_time, runs in by_time.items():
+            results = score_experiments([e for _, e in runs], self.workers, from_time=from_time, batch=1)
+            for (key, _), (scores, _, failure) in zip(runs, results):
+                self.cache[key] = (scores, failure)
+
+    def get(self, name: str, from_time: float, settings: dict | None = None):
+        key = self._key(name, settings, from_time)
+        if key not in self.cache:
+            self.need([(name, settings, from_time)])
+        return self.cache[key]
+
+
+@dataclass(frozen=True)
+class ClaimResult:
+    claim: Claim
+    scores: dict        # reading -> (proposed Scores, baseline Scores) or None
+
+    def value(self, reading: str, side: int, metric: str | None = None):
+        pair = self.scores.get(reading)
+        if not pair or pair[side] is None:
+            return None
+        return getattr(pair[side], metric or self.claim.metric)
+
+    def ratio(self, reading: str, metric: str | None = None):
+        proposed, baseline = self.value(reading, 0, metric), self.value(reading, 1, metric)
+        if proposed is None or baseline is None or baseline == 0.0:
+            return None
+        return proposed / baseline
+
+    def verdict(self, reading: str) -> str:
+        return verdict(self.ratio(reading), self.claim.paper_ratio)
+
+
+def evaluate(claims: list, scores: ScenarioScores | None = None) -> list:
+    """A ClaimResult per claim: its pairs simulated under both readings (every scenario once)."""
+    scores = scores or ScenarioScores()
+    scores.need([(name, None, c.from_time) for c in claims for reading in ("faithful", "mechanism")
+                 if c.pair(reading) for name in (c.pair(reading).proposed, c.pair(reading).baseline)])
+    out = []
+    for c in claims:
+        measured = {}
+        for reading in ("faithful", "mechanism"):
+            pair = c.pair(reading)
+            if pair:
+                measured[reading] = tuple(scores.get(name, c.from_time)[0] for name in (pair.proposed, pair.baseline))
+        out.append(ClaimResult(c, measured))
+    return out
+
+
+def ccc_helps_scores(entry: CCCHelps, scores: ScenarioScores | None = None) -> tuple:
+    """(metric with the CCC, metric without it) for a CCCHelps entry."""
+    scores = scores or ScenarioScores()
+    with_ccc = scores.get(entry.scenario, entry.from_time)[0]
+    without = scores.get(entry.scenario, entry.from_time, entry.without)[0]
+    return (getattr(with_ccc, entry.metric) if with_ccc else math.nan,
+            getattr(without, entry.metric) if without else math.nan)
+
+
+# ---------------------------------------------------------------------------------------------- regime maps
+
+
+def _map_settings(spec: RegimeMap) -> list:
+    ys = spec.y.values if spec.y else (None,)
+    out = []
+    for y in ys:
+        for x in spec.x.values:
+            settings = {key: x for key in spec.x.keys}
+            if spec.y:
+                settings.update({key: y for key in spec.y.keys})
+            out.append(settings)
+    return out
+
+
+def map_ratios(claim: Claim, spec: RegimeMap, workers: int | None = None, progress: bool = False) -> dict:
+    """Proposed / baseline MCE and TACE (and the claim's metric) over the map's grid: metric -> (ny, nx) array
+    (NaN where a run diverged), plus 'failures' (ny, nx) of reasons."""
+    from .sweep import experiments_for, score_experiments
+    pair = claim.pair(spec.pair)
+    if pair is None:
+        raise ConfigError(f"claims {claim.paper}/{claim.id}: its map sweeps the {spec.pair} pair, which it lacks")
+    settings = _map_settings(spec)
+    experiments = []
+    for name in (pair.proposed, pair.baseline):
+        text = _experiment(name).text
+        experiments += [e for _, e in experiments_for(text, settings, where=f"{name} map")]
+    results = score_experiments(experiments, workers, progress, from_time=claim.from_time,
+                                desc=f"map {claim.paper}/{claim.id}")
+    n = len(settings)
+    shape = (len(spec.y.values) if spec.y else 1, len(spec.x.values))
+    out = {"failures": np.array([p[2] or b[2] for p, b in zip(results[:n], results[n:])], dtype=object).reshape(shape)}
+    for metric in dict.fromkeys(("tace", "mce", claim.metric)):
+        ratios = [getattr(p[0], metric) / getattr(b[0], metric) if p[0] and b[0] and getattr(b[0], metric) > 0
+                  else math.nan for p, b in zip(results[:n], results[n:])]
+        out[metric] = np.array(ratios, dtype=float).reshape(shape)
+    return out
+
+
+def _base_value(name: str, key: str):
+    """The value a grid key has in a scenario file (None where the file leaves it to a default)."""
+    from .config import GLOBAL_SECTION, ROS_PARAMETERS, read_yaml
+    data = read_yaml((CONFIG_DIR / f"{name}.yaml").read_text(), name)
+    section, _, rest = key.partition(".")
+    if f"/{section}" in data and rest:
+        target, path = data[f"/{section}"][ROS_PARAMETERS], rest.split(".")
+    else:
+        target, path = data[GLOBAL_SECTION][ROS_PARAMETERS], key.split(".")
+    for part in path:
+        if not isinstance(target, dict) or part not in target:
+            return None
+        target = target[part]
+    return target
+
+
+def _nearest(values, value):
+    try:
+        return int(np.argmin([abs(float(v) - float(value)) for v in values]))
+    except (TypeError, ValueError):
+        return None
+
+
+def draw_map(claim: Claim, spec: RegimeMap, ratios: dict, path) -> Path:
+    """A PNG with one heatmap per metric (TACE, MCE): proposed / baseline, blue where the proposed method is
+    better, the contour where the paper's ratio is reached, the scenario's own setting marked."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.colors import TwoSlopeNorm
+
+    metrics = ["tace", "mce"]
+    pair = claim.pair(spec.pair)
+    fig, axes = plt.subplots(1, 2, figsize=(12.5, 5.6), constrained_layout=True)
+    nx, ny = len(spec.x.values), len(spec.y.values) if spec.y else 1
+    here = (_nearest(spec.x.values, _base_value(pair.proposed, spec.x.keys[0])),
+            _nearest(spec.y.values, _base_value(pair.proposed, spec.y.keys[0])) if spec.y else 0)
+    for ax, metric in zip(axes, metrics):
+        grid = ratios[metric]
+        logs = np.log10(np.where(grid > 0, grid, np.nan))
+        span = max(0.05, float(np.nanmax(np.abs(logs))) if np.isfinite(logs).any() else 1.0)
+        image = ax.imshow(logs, origin="lower", cmap="RdBu_r", norm=TwoSlopeNorm(0.0, -span, span), aspect="auto")
+        for j in range(ny):
+            for i in range(nx):
+                value = grid[j, i]
+                text = "diverged" if not math.isfinite(value) else f"{value:.2g}"
+                shade = abs(logs[j, i]) / span if math.isfinite(logs[j, i]) else 0.0
+                ax.text(i, j, text, ha="center", va="center", fontsize=8, color="white" if shade > 0.6 else "black")
+        if ny > 1 and nx > 1 and np.isfinite(logs).sum() >= 4:
+            filled = np.where(np.isfinite(logs), logs, np.nanmax(logs) if np.isfinite(logs).any() else 0.0)
+            target = math.log10(claim.paper_ratio)
+            if filled.min() < target < filled.max():
+                lines = ax.contour(np.arange(nx), np.arange(ny), filled, levels=[target], colors="black",
+                                   linewidths=2.0, linestyles="--")
+                ax.clabel(lines, fmt={target: f"paper {claim.paper_ratio:.2g}"}, fontsize=8)
+        if here[0] is not None and here[1] is not None:
+            from matplotlib.patches import Rectangle
+            ax.add_patch(Rectangle((here[0] - 0.5, here[1] - 0.5), 1.0, 1.0, fill=False, edgecolor="gold",
+                                   linewidth=3.0, label=f"the {spec.pair} scenario's setting"))
+            ax.legend(loc="upper left", bbox_to_anchor=(0.0, -0.12), fontsize=8, framealpha=0.8)
+        ax.set_xticks(range(nx), [f"{v:g}" if isinstance(v, (int, float)) else str(v) for v in spec.x.values])
+        ax.set_xlabel(spec.x.label)
+        if spec.y:
+            ax.set_yticks(range(ny), [f"{v:g}" if isinstance(v, (int, float)) else str(v) for v in spec.y.values])
+            ax.set_ylabel(spec.y.label)
+        else:
+            ax.set_yticks([])
+        ax.set_title(f"{METRICS[metric]}: proposed / baseline" + (f", t >= {claim.from_time:g} s" if claim.from_time else ""))
+        bar = fig.colorbar(image, ax=ax, shrink=0.85)
+        ticks = [t for t in (0.1, 0.2, 0.5, 1.0, 2.0, 5.0, 10.0) if -span <= math.log10(t) <= span]
+        bar.set_ticks([math.log10(t) for t in ticks], labels=[f"{t:g}" for t in ticks])
+        bar.set_label("ratio (blue: proposed better)")
+    fig.suptitle(f"Paper {claim.paper}, {claim.id}: {pair.proposed} vs {pair.baseline}\n"
+                 f"paper's ratio {claim.paper_ratio:.2g} ({METRICS[claim.metric]}), dashed where reached",
+                 fontsize=10)
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+# ---------------------------------------------------------------------------------------------- report
+
+
+def _um(value, metric: str) -> str:
+    return "-" if value is None else f"{value * 1e6:.3g}"
+
+
+def _ratio(value) -> str:
+    return "-" if value is None else f"{value:.3g}"
+
+
+def _files(pair: Pair | None) -> str:
+    return "-" if pair is None else f"`{pair.proposed}` vs `{pair.baseline}`"
+
+
+def paper_section(paper: PaperClaims, results: list, maps: dict, helps: list, directory) -> str:
+    lines = [f"## Paper {paper.paper}: {paper.title}", ""]
+    for result in results:
+        c = result.claim
+        name = METRICS[c.metric] + (f" from t = {c.from_time:g} s" if c.from_time else ", whole run")
+        lines += [f"### {c.id}: {c.claim}", "",
+                  f"| | ratio ({name}) | proposed [um] | baseline [um] | verdict | files |", "|---|---:|---:|---:|---|---|",
+                  f"| paper | {c.paper_ratio:.3g} | | | | {c.paper_figure} |"]
+        for reading, label in (("faithful", "ours, faithful reading"), ("mechanism", "ours, where the mechanism acts")):
+            lines.append(f"| {label} | {_ratio(result.ratio(reading))} | {_um(result.value(reading, 0), c.metric)} | "
+                         f"{_um(result.value(reading, 1), c.metric)} | **{result.verdict(reading)}** | "
+                         f"{_files(c.pair(reading))} |")
+        lines += ["", f"Why: {c.reason}", ""]
+        for i, _ in enumerate(c.maps):
+            png = c.map_path(i, directory)
+            if png in maps or png.exists():
+                lines.append(f"![regime map {c.id}](maps/{png.name})")
+                lines.append("")
+    if helps:
+        lines += ["### The CCCs lower the contour error", "",
+                  "| scenario | without | metric | with CCC [um] | without [um] | ratio | stated factor |",
+                  "|---|---|---|---:|---:|---:|---:|"]
+        for entry, (with_ccc, without) in helps:
+            ratio = with_ccc / without if without else math.nan
+            lines.append(f"| `{entry.scenario}` | `{entry.without}` | {METRICS[entry.metric]}"
+                         f"{f' from {entry.from_time:g} s' if entry.from_time else ''} | {with_ccc * 1e6:.3g} | "
+                         f"{without * 1e6:.3g} | {ratio:.3g} | <= 1/{entry.factor:g} |")
+        lines.append("")
+    lines += ["### Readings the scenario files choose", ""] + [f"- {r}" for r in paper.readings] + [""]
+    return "\n".join(lines)
+
+
+def summary_table(rows: list) -> str:
+    lines = ["| paper | claim | metric | paper ratio | ours, faithful | ours, mechanism | verdict (faithful / mechanism) |",
+             "|---|---|---|---:|---:|---:|---|"]
+    for paper, result in rows:
+        c = result.claim
+        lines.append(f"| {paper} | [{c.id}](#{c.id.replace('_', '-')}) {c.claim} | {METRICS[c.metric]}"
+                     f"{f' (t >= {c.from_time:g} s)' if c.from_time else ''} | {c.paper_ratio:.3g} | "
+                     f"{_ratio(result.ratio('faithful'))} | {_ratio(result.ratio('mechanism'))} | "
+                     f"{result.verdict('faithful')} / {result.verdict('mechanism')} |")
+    return "\n".join(lines)
+
+
+def claims_report(papers: list | None = None, directory="reports", maps: bool = True, workers: int | None = None,
+                  progress=None) -> str:
+    """The claims report (Markdown) of the given papers (default: every claims file); with ``maps`` the regime
+    maps are computed and drawn into ``directory``/maps first."""
+    say = progress or (lambda message: None)
+    started = time.monotonic()
+    files = [load_claims(path) for path in claim_files()]
+    files = [f for f in files if papers is None or f.paper in papers]
+    scores = ScenarioScores(workers)
+    sections, rows, drawn, map_seconds = [], [], {}, 0.0
+    for paper in files:
+        say(f"paper {paper.paper}: {len(paper.claims)} claims")
+        results = evaluate(list(paper.claims), scores)
+        helps = [(entry, ccc_helps_scores(entry, scores)) for entry in paper.ccc_helps]
+        if maps:
+            for c in paper.claims:
+                for i, spec in enumerate(c.maps):
+                    begun = time.monotonic()
+                    png = draw_map(c, spec, map_ratios(c, spec, workers, progress=sys.stderr.isatty()),
+                                   c.map_path(i, directory))
+                    map_seconds += time.monotonic() - begun
+                    drawn[png] = True
+                    say(f"  {png} ({time.monotonic() - begun:.0f} s)")
+        rows += [(paper.paper, r) for r in results]
+        sections.append(paper_section(paper, results, drawn, helps, directory))
+    head = ["# Claims: what each paper claims, and what we measure", "",
+            "Generated by `contouring-ros paper all` from `config/claims/paper<N>.yaml` (in-process simulation; the "
+            "node graph reproduces it to the bit). Each claim is measured twice: under the faithful reading of the "
+            "paper's own experiment, and in a mechanism scenario where the effect the paper relies on is present "
+            "(chosen from the physics; its file header says why). Figures in micrometres; MCE = max, TACE = time "
+            "average, RMS of the exact contour error (distance to the whole curve).", "", VERDICT_RULE, "",
+            summary_table(rows), ""]
+    took = time.monotonic() - started
+    tail = [f"_{len(rows)} claims; {took:.0f} s on this machine"
+            + (f", of which the regime maps {map_seconds:.0f} s" if maps else "") + "._", ""]
+    return "\n".join(head + sections + tail)
+
+
+def write_claims_report(text: str, directory="reports", name: str = "claims.md") -> Path:
+    path = Path(directory) / name
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(text)
+    return path
+
+
+def main(argv=None) -> int:
+    """python -m contouring_ros.claims [FILE ...] [--maps]: evaluate claims files and print each claim's
+    ratios and verdicts against what the file expects (for writing a claims file)."""
+    import argparse
+    parser = argparse.ArgumentParser(prog="python -m contouring_ros.claims", description=main.__doc__)
+    parser.add_argument("files", nargs="*", help="claims files (default: config/claims/paper*.yaml)")
+    parser.add_argument("--maps", action="store_true", help="also compute and draw the regime maps into --out/maps")
+    parser.add_argument("--out", default="reports")
+    args = parser.parse_args(argv)
+    try:
+        scores = ScenarioScores()
+        for path in args.files or claim_files():
+            paper = load_claims(path)
+            for result in evaluate(list(paper.claims), scores):
+                c = result.claim
+                print(f"{paper.paper}/{c.id} [{c.metric}{f' t>={c.from_time:g}' if c.from_time else ''}] paper "
+                      f"{c.paper_ratio:.3g}")
+                for reading in ("faithful", "mechanism"):
+                    expected = c.expected.get(f"{reading}_ratio")
+                    print(f"  {reading:9s} ratio {_ratio(result.ratio(reading)):>8s} (expected {expected}) "
+                          f"verdict {result.verdict(reading)!r} (stated {c.verdict.get(reading)!r}); "
+                          f"proposed {_um(result.value(reading, 0), c.metric)} um, baseline "
+                          f"{_um(result.value(reading, 1), c.metric)} um")
+                if args.maps:
+                    for i, spec in enumerate(c.maps):
+                        print("  map:", draw_map(c, spec, map_ratios(c, spec, progress=sys.stderr.isatty()),
+                                                 c.map_path(i, args.out)))
+            for entry in paper.ccc_helps:
+                with_ccc, without = ccc_helps_scores(entry, scores)
+                print(f"{paper.paper} ccc_helps {entry.scenario} without {entry.without}: {with_ccc * 1e6:.4g} vs "
+                      f"{without * 1e6:.4g} um ({METRICS[entry.metric]}), ratio {with_ccc / without:.3g}, stated "
+                      f"factor {entry.factor:g}")
+    except ConfigError as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
