@@ -98,12 +98,27 @@ def _scored(args):
     return results
 
 
+def _json_scores(scores, axes) -> dict:
+    """A run's scores for JSON: the Scores fields as they are (mce, tace, rms ... in metres), and the same
+    per-axis values keyed by axis name, with the units spelled out."""
+    out = scores.as_dict()
+    out["axes"] = list(axes)
+    for key in ("tracking_max", "tracking_rms", "effort_rms"):
+        out[f"{key}_by_axis"] = dict(zip(axes, out[key]))
+    out["units"] = {"mce": "m", "tace": "m", "rms": "m", "estimation_max": "m", "estimation_rms": "m",
+                    "tracking_max": "m", "tracking_rms": "m", "effort_rms": "command units", "travel_time": "s",
+                    "from_time": "s"}
+    return out
+
+
 def _score(args):
     from .scoring import format_scores
     results = _scored(args)
     if args.json:
-        print(json.dumps({name: scores.as_dict() for name, scores, _ in results}, indent=2))
+        print(json.dumps({name: _json_scores(scores, run.axes) for name, scores, run in results}, indent=2))
     else:
+        if args.from_time:
+            print(f"scores of the samples at t >= {args.from_time:g} s")
         print(format_scores([(name, scores) for name, scores, _ in results], results[0][2].axes))
 
 
@@ -175,10 +190,16 @@ def _paper(args):
         raise ConfigError(f"paper {args.paper!r}: no scenario files config/paper{args.paper}_*.yaml "
                           f"(papers with scenarios: {', '.join(papers)}, or all)")
     say = lambda m: print(m, file=sys.stderr, flush=True)  # noqa: E731
-    text = "\n\n".join(paper_report(p, graph=args.graph, progress=say)
-                        for p in (papers if args.paper == "all" else [args.paper]))
+    chosen = papers if args.paper == "all" else [args.paper]
+    text = "\n\n".join(paper_report(p, graph=args.graph, progress=say) for p in chosen)
     print(text)
     print(f"wrote {write_report(text, args.paper, args.out)}", file=sys.stderr)
+    from .claims import claim_files, claims_report, write_claims_report
+    with_claims = [p for p in chosen if any(path.stem == f"paper{p}" for path in claim_files())]
+    if with_claims:
+        report = claims_report(with_claims, args.out, maps=not args.no_maps, workers=args.workers, progress=say)
+        name = "claims.md" if args.paper == "all" else f"claims_paper{args.paper}.md"
+        print(f"wrote {write_claims_report(report, args.out, name)}", file=sys.stderr)
 
 
 def main(argv=None):
@@ -234,6 +255,8 @@ def main(argv=None):
     p.add_argument("paper", help="paper number with scenario files in config/ (e.g. 000, 003) or 'all'")
     p.add_argument("--out", default="reports", help="folder for the Markdown report (default: reports/)")
     p.add_argument("--graph", action="store_true", help="run each scenario through the node graph too")
+    p.add_argument("--no-maps", action="store_true", help="write the claims report without computing the regime maps")
+    p.add_argument("--workers", type=int, help="processes for the claims and maps (default: one per core)")
     p.set_defaults(func=_paper)
     args = parser.parse_args(argv)
     try:
