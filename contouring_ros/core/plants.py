@@ -16,7 +16,11 @@ __all__ = ["FirstOrderVelocityAxis", "MassDamperAxis", "coulomb_friction", "quan
 
 def quantize(value: float, resolution: float) -> float:
     """``value`` rounded to the nearest multiple of ``resolution`` (0: unchanged), as an encoder reads it."""
-    return round(value / resolution) * resolution if resolution else value
+    if not resolution:
+        return value
+    if np.ndim(value) or np.ndim(resolution):          # a batch (both round half to even)
+        return np.round(value / resolution) * resolution
+    return round(value / resolution) * resolution
 
 
 class Axis:
