@@ -21,7 +21,7 @@ from array import array
 import numpy as np
 
 from . import cdr, graph
-from .core.simulation import SimulationResult, step_time
+from .core.simulation import SimulationResult, first_divergence, step_time
 from .errors import BagError
 
 __all__ = ["message_definition", "BagWriter", "RecordedRun", "read_run", "read_metadata", "node_reports", "write_simulation",
@@ -327,7 +327,7 @@ def read_run(path, keep_payloads: bool = False, experiment_text: str | None = No
     if not experiment_text:
         raise BagError(f"{path}: the bag holds no experiment ('{EXPERIMENT_METADATA}' metadata); give the "
                        "experiment file that produced it")
-    if graph.REFERENCE not in kept:
+    if graph.REFERENCE not in kept or joint_names is None:
         raise BagError(f"{path}: the bag has no {graph.REFERENCE} messages")
     axes = list(joint_names[:-1])
     needed = [graph.REFERENCE, graph.CONTOUR_ERROR, graph.CORRECTION] + \
@@ -335,9 +335,14 @@ def read_run(path, keep_payloads: bool = False, experiment_text: str | None = No
     for topic in needed:
         if topic not in kept:
             raise BagError(f"{path}: the bag has no {topic} messages")
+    silent = [topic for topic in needed if not len(kept[topic].stamps)]
+    if silent:
+        raise BagError(f"{path}: no complete step: {', '.join(silent)} recorded no messages")
     stamps = np.asarray(kept[needed[0]].stamps)
     for topic in needed[1:]:
         stamps = np.intersect1d(stamps, np.asarray(kept[topic].stamps))
+    if not len(stamps):
+        raise BagError(f"{path}: no complete step (no stamp has a message on every one of {', '.join(needed)})")
     rows = {}
     for topic in needed:   # the row of each step's message (the last one where a stamp repeats)
         own = np.asarray(kept[topic].stamps)
@@ -363,8 +368,30 @@ def read_run(path, keep_payloads: bool = False, experiment_text: str | None = No
         position=per_axis(graph.state_topic, 0), velocity=per_axis(graph.state_topic, 1),
         estimate_theta=estimate[:, n + 1], estimate_vector=estimate[:, :n], estimate_signed=estimate[:, n],
         correction=column(graph.CORRECTION, 2), command=per_axis(graph.command_topic, 2))
+    diverged = first_divergence(result.time, result.position, result.reference_position,
+                                _divergence_bound(experiment_text))
+    if diverged:
+        k, diverged = diverged
+        if k == 0:
+            raise BagError(f"{path}: the run {diverged}, before any complete step")
+        warnings.append(f"the run {diverged}; read up to the step before it ({k} steps)")
+        result = SimulationResult(**{name: value[:k] for name, value in vars(result).items()})
     return RecordedRun(experiment_text=experiment_text, axes=axes, result=result, payloads=payloads,
                        warnings=warnings)
+
+
+def _divergence_bound(experiment_text: str) -> float | None:
+    """The bound of the experiment's whole path (as the simulation checks it); None (the recorded
+    reference's own size) when the experiment cannot be built."""
+    from .config import build_curve, build_schedule, parse_experiment
+    from .core.simulation import path_bound
+    from .errors import ContouringError
+    try:
+        experiment = parse_experiment(experiment_text, "the bag's experiment")
+        curve = build_curve(experiment)
+        return path_bound(curve, build_schedule(experiment, curve))
+    except (ContouringError, ValueError, ArithmeticError):
+        return None
 
 
 def _sample_time_of(experiment_text: str) -> float | None:

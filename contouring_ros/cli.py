@@ -75,9 +75,18 @@ def _simulate(args):
     from .config import build_loop, load_experiment
     from .core.simulation import simulate
     from .scoring import format_scores, score_run
+    from .errors import Diverged
     experiment = load_experiment(_experiment_path(args.config))
     loop = build_loop(experiment)
-    print(format_scores([(experiment.name, score_run(loop.curve, simulate(loop)))], list(experiment.axes)))
+    try:
+        result = simulate(loop)
+    except Diverged as error:
+        print(f"error: {error}", file=sys.stderr)
+        if len(error.result.time):
+            print(f"scores of the {len(error.result.time)} steps before it:")
+            print(format_scores([(experiment.name, score_run(loop.curve, error.result))], list(experiment.axes)))
+        raise SystemExit(1)
+    print(format_scores([(experiment.name, score_run(loop.curve, result))], list(experiment.axes)))
 
 
 def _experiment_text(args):
@@ -133,7 +142,12 @@ def _compare(args):
 def _replay(args):
     if args.play:
         from .playback import play_bag
-        play_bag(args.bag, rate=args.rate, progress=sys.stderr.isatty())
+        topics = [t.strip() for t in args.topics.split(",")] if args.topics is not None else None
+        try:
+            play_bag(args.bag, rate=args.rate, progress=sys.stderr.isatty(), loop=args.loop, start=args.start,
+                     topics=topics, wait_subscribers=args.wait_subscribers, wait_timeout=args.wait_timeout)
+        except KeyboardInterrupt:      # the player has said where it stopped
+            raise SystemExit(130)
         return
     from .analysis import parse_estimator_spec, replay_estimators
     from .bag import read_run
@@ -231,6 +245,16 @@ def main(argv=None):
     p.add_argument("--estimator", action="append", help="NAME[:key=value,...], repeatable (e.g. newton:k_prime=800)")
     p.add_argument("--play", action="store_true", help="republish the bag on ROS topics with /clock")
     p.add_argument("--rate", type=float, default=1.0, help="with --play: speed factor, 0 = as fast as possible")
+    p.add_argument("--loop", action="store_true",
+                   help="with --play: play again and again until Ctrl-C (/clock restarts with the bag each pass)")
+    p.add_argument("--start", type=_seconds, default=0.0, metavar="T",
+                   help="with --play: skip the messages before T seconds after the bag's first")
+    p.add_argument("--topics", metavar="/A,/B", help="with --play: play only these topics (/clock is still published)")
+    p.add_argument("--wait-subscribers", type=int, default=1, metavar="N",
+                   help="with --play: wait until N nodes subscribe to the bag's topics before publishing "
+                        "(default 1; 0: start at once)")
+    p.add_argument("--wait-timeout", type=_seconds, default=10.0, metavar="S",
+                   help="with --play: publish anyway after S seconds without them (default 10)")
     p.add_argument("--experiment", help=experiment_help)
     p.set_defaults(func=_replay)
     p = sub.add_parser("plot", help="PNG figures of one run or a comparison, and an HTML report")

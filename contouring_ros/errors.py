@@ -1,7 +1,7 @@
 """Errors that reach the user as one line."""
 from __future__ import annotations
 
-__all__ = ["ContouringError", "ConfigError", "RunError", "BagError", "ScoreError"]
+__all__ = ["ContouringError", "ConfigError", "RunError", "BagError", "ScoreError", "Diverged"]
 
 
 class ContouringError(Exception):
@@ -29,3 +29,15 @@ class BagError(ContouringError):
 
 class ScoreError(ContouringError):
     """A run cannot be scored as asked (e.g. no sample after the steady-state start time)."""
+
+
+class Diverged(ContouringError, ArithmeticError):
+    """A run's state left every plausible bound: ``diverged at t = ... s (step k): <what>``.
+
+    ``step`` is the first step whose state is out of bounds; ``result`` holds the steps before it (a
+    SimulationResult cut there) where the run that raised it kept them.
+    """
+
+    def __init__(self, message: str, step: int = 0, time: float = 0.0, result=None):
+        super().__init__(message)
+        self.step, self.time, self.result = step, time, result

@@ -23,8 +23,8 @@ import numpy as np
 
 from .config import GLOBAL_SECTION, ROS_PARAMETERS, build_loop, experiment_from_data, read_yaml
 from .core.batch import batch_problem, simulate_batch, structure
-from .core.simulation import simulate
-from .errors import ConfigError, ScoreError
+from .core.simulation import first_divergence, simulate
+from .errors import ConfigError, Diverged, ScoreError
 from .scoring import score_run
 
 __all__ = ["parse_grid", "apply_settings", "experiments_for", "combinations", "SweepRow", "score_experiments",
@@ -112,28 +112,11 @@ def _finite(scores) -> bool:
     return all(math.isfinite(v) for v in (scores.mce, scores.tace, scores.rms))
 
 
-def divergence(result) -> str:
-    """'' for a run that stayed bounded, else ``diverged at t = ... s (step k): <what>``: the first step whose
-    position is not finite or lies farther from the reference than 10 times the reference path's size."""
-    reference = result.reference_position
-    size = float(np.max(np.ptp(reference, axis=0))) if len(reference) else 0.0
-    bound = 10.0 * size + 1e-3
-    with np.errstate(invalid="ignore", over="ignore"):
-        far = np.max(np.abs(result.position - reference), axis=1)
-        bad = ~np.isfinite(far) | (far > bound)
-    if not bad.any():
-        return ""
-    k = int(np.argmax(bad))
-    what = "a position is not finite" if not np.isfinite(far[k]) else \
-        f"an axis is {far[k]:.3g} m from the reference (bound {bound:.3g} m: 10 x the path's size)"
-    return f"diverged at t = {result.time[k]:g} s (step {k}): {what}"
-
-
 def _score_one(loop, result, from_time: float):
     """(scores, failure): a run's scores, or None and why when it diverged."""
-    failure = divergence(result)
-    if failure:
-        return None, failure
+    diverged = first_divergence(result.time, result.position, result.reference_position)
+    if diverged:
+        return None, diverged[1]
     try:
         scores = score_run(loop.curve, result, from_time)
     except (ScoreError, *RUN_FAILURES) as error:
@@ -144,6 +127,8 @@ def _score_one(loop, result, from_time: float):
 def _simulate_alone(loop):
     try:
         return simulate(loop), ""
+    except Diverged as error:
+        return None, str(error)
     except RUN_FAILURES as error:
         return None, f"diverged: {error}"
 

@@ -8,13 +8,18 @@ reproduces this loop to floating-point identity.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
+from ..errors import Diverged
 from .interpolation import reference
 
-__all__ = ["ControlLoop", "SimulationResult", "step_time", "simulate"]
+__all__ = ["ControlLoop", "SimulationResult", "step_time", "simulate", "divergence_bound", "path_bound", "first_divergence",
+           "DIVERGENCE_FACTOR"]
+
+DIVERGENCE_FACTOR = 10.0     # a run has diverged once an axis is this many path sizes from its reference
 
 
 def step_time(k: int, sample_time: float) -> float:
@@ -81,9 +86,57 @@ class SimulationResult:
     command: np.ndarray
 
 
-def simulate(loop: ControlLoop) -> SimulationResult:
-    """Run ``loop`` for its n_steps and return every signal."""
+def divergence_bound(reference_positions) -> float:
+    """How far [m] an axis may be from its reference before the run counts as diverged: DIVERGENCE_FACTOR
+    times the size of the reference path (its largest extent along an axis), plus 1 mm."""
+    points = np.asarray(reference_positions, dtype=float)
+    size = float(np.max(np.ptp(points, axis=0))) if points.size else 0.0
+    return DIVERGENCE_FACTOR * size + 1e-3
+
+
+def path_bound(curve, schedule) -> float:
+    """:func:`divergence_bound` of the whole reference path the schedule traverses."""
+    theta = np.linspace(schedule.theta_start, schedule.theta_end, 257)
+    return divergence_bound(curve.point(theta))
+
+
+def _diverged_message(t: float, k: int, distance: float, bound: float) -> str:
+    what = "a position is not finite" if not np.isfinite(distance) else \
+        f"an axis is {distance:.3g} m from its reference (bound {bound:.3g} m: {DIVERGENCE_FACTOR:g} x the path's size)"
+    return f"diverged at t = {t:g} s (step {k}): {what}"
+
+
+def first_divergence(time, position, reference_position, bound: float | None = None) -> tuple | None:
+    """None for a run that stayed within bounds, else (k, ``diverged at t = ... s (step k): <what>``) for its
+    first step k whose position is not finite or farther from the reference than ``bound`` (default:
+    :func:`divergence_bound` of the reference)."""
+    reference_position = np.asarray(reference_position, dtype=float)
+    bound = divergence_bound(reference_position) if bound is None else bound
+    with np.errstate(invalid="ignore", over="ignore"):
+        far = np.max(np.abs(np.asarray(position, dtype=float) - reference_position), axis=1) \
+            if len(reference_position) else np.zeros(0)
+        bad = ~(far <= bound)
+    if not bad.any():
+        return None
+    k = int(np.argmax(bad))
+    return k, _diverged_message(float(time[k]), k, float(far[k]), bound)
+
+
+def _cut(result: SimulationResult, k: int) -> SimulationResult:
+    return SimulationResult(**{name: value[:k] for name, value in vars(result).items()})
+
+
+def simulate(loop: ControlLoop, stop_on_divergence: bool = True) -> SimulationResult:
+    """Run ``loop`` for its n_steps and return every signal.
+
+    Raises
+    ------
+    Diverged
+        When an axis position stops being finite or leaves :func:`divergence_bound` of the path (checked
+        each step with ``stop_on_divergence``); its ``result`` holds the steps before.
+    """
     m, n = loop.n_steps, len(loop.plants)
+    bound = path_bound(loop.curve, loop.schedule) if stop_on_divergence else math.nan
     time = np.empty(m)
     theta, est_theta, est_signed = np.empty(m), np.empty(m), np.empty(m)
     ref_pos, ref_vel, ref_acc, positions, velocities, est_vector, corrections, commands = (
@@ -96,6 +149,15 @@ def simulate(loop: ControlLoop) -> SimulationResult:
             positions[k, i], velocities[k, i] = plant.measure()
         position, velocity = positions[k].copy(), velocities[k].copy()
         ref = reference(curve, schedule, t)
+        for i in range(n if stop_on_divergence else 0):
+            distance = abs(position[i] - ref.position[i])
+            if not distance <= bound:        # also when not finite
+                partial = SimulationResult(time=time, theta=theta, reference_position=ref_pos,
+                                           reference_velocity=ref_vel, reference_acceleration=ref_acc,
+                                           position=positions, velocity=velocities, estimate_theta=est_theta,
+                                           estimate_vector=est_vector, estimate_signed=est_signed,
+                                           correction=corrections, command=commands)
+                raise Diverged(_diverged_message(t, k, distance, bound), k, t, _cut(partial, k))
         estimate = estimator.step(ref, position)
         correction = controller.step(estimate, ref, position, velocity)
         rp, rv, ra = ref.position, ref.velocity, ref.acceleration
