@@ -21,6 +21,7 @@ A paper's claims live in ``config/claims/paper<N>.yaml``::
           - pair: mechanism
             x: {label: "...", keys: [schedule.duration], values: [...]}
             y: {label: "...", keys: [x/plant.saturation, y/plant.saturation], values: [...]}
+            # an axis with `only: proposed` (or baseline) sets its keys in that file alone, e.g. ccc.kp
     ccc_helps:
       - {scenario: <scenario>, without: {/ccc: {type: none}}, metric: tace, from_time: 0.0, factor: 2.0}
 
@@ -82,6 +83,7 @@ class MapAxis:
     label: str
     keys: tuple
     values: tuple
+    only: str | None = None     # 'proposed' or 'baseline': set the keys in that file alone (e.g. a CCC gain)
 
 
 @dataclass(frozen=True)
@@ -194,7 +196,10 @@ class _Reader:
             self.fail(f"{where}.keys", "expected a list of grid keys")
         if len(values) < 2:
             self.fail(f"{where}.values", "expected at least two values")
-        return MapAxis(self.get(data, "label", where, str), tuple(keys), tuple(values))
+        only = self.get(data, "only", where, (str, type(None)), None)
+        if only not in (None, "proposed", "baseline"):
+            self.fail(f"{where}.only", f"expected proposed or baseline, got {only!r}")
+        return MapAxis(self.get(data, "label", where, str), tuple(keys), tuple(values), only)
 
 
 def load_claims(path) -> PaperClaims:
@@ -336,15 +341,14 @@ def ccc_helps_scores(entry: CCCHelps, scores: ScenarioScores | None = None) -> t
 # ---------------------------------------------------------------------------------------------- regime maps
 
 
-def _map_settings(spec: RegimeMap) -> list:
-    ys = spec.y.values if spec.y else (None,)
+def _map_settings(spec: RegimeMap, side: str) -> list:
+    """The settings of each map cell (row by row) for the ``side`` ('proposed' or 'baseline') file."""
+    axes = [a for a in (spec.x, spec.y) if a is not None and a.only in (None, side)]
     out = []
-    for y in ys:
+    for y in (spec.y.values if spec.y else (None,)):
         for x in spec.x.values:
-            settings = {key: x for key in spec.x.keys}
-            if spec.y:
-                settings.update({key: y for key in spec.y.keys})
-            out.append(settings)
+            value = {id(spec.x): x, id(spec.y): y}
+            out.append({key: value[id(axis)] for axis in axes for key in axis.keys})
     return out
 
 
@@ -355,14 +359,13 @@ def map_ratios(claim: Claim, spec: RegimeMap, workers: int | None = None, progre
     pair = claim.pair(spec.pair)
     if pair is None:
         raise ConfigError(f"claims {claim.paper}/{claim.id}: its map sweeps the {spec.pair} pair, which it lacks")
-    settings = _map_settings(spec)
     experiments = []
-    for name in (pair.proposed, pair.baseline):
+    for name, side in ((pair.proposed, "proposed"), (pair.baseline, "baseline")):
         text = _experiment(name).text
-        experiments += [e for _, e in experiments_for(text, settings, where=f"{name} map")]
+        experiments += [e for _, e in experiments_for(text, _map_settings(spec, side), where=f"{name} map")]
     results = score_experiments(experiments, workers, progress, from_time=claim.from_time,
                                 desc=f"map {claim.paper}/{claim.id}")
-    n = len(settings)
+    n = len(experiments) // 2
     shape = (len(spec.y.values) if spec.y else 1, len(spec.x.values))
     out = {"failures": np.array([p[2] or b[2] for p, b in zip(results[:n], results[n:])], dtype=object).reshape(shape)}
     for metric in dict.fromkeys(("tace", "mce", claim.metric)):
