@@ -174,6 +174,19 @@ def _plot(args):
         print(html_report(runs, [scores for _, scores, _ in results], out / "report.html", args.magnification))
 
 
+def _export(args):
+    from .export import export_bag
+    if args.csv is None and args.parquet is None:
+        raise ConfigError("export needs --csv DIR and/or --parquet DIR")
+    text = _experiment_text(args)
+    for bag in args.bags:
+        written, warnings = export_bag(bag, args.csv, args.parquet, text)
+        for warning in warnings:
+            print(f"warning: {warning}", file=sys.stderr)
+        for path in written:
+            print(path)
+
+
 def _sweep(args):
     from datetime import datetime
     from .config import load_experiment
@@ -264,6 +277,12 @@ def main(argv=None):
     p.add_argument("--magnification", type=float, help="contour error magnification in the path plot")
     p.add_argument("--experiment", help=experiment_help)
     p.set_defaults(func=_plot)
+    p = sub.add_parser("export", help="every signal of every step of bags, with the exact contour error, as tables")
+    p.add_argument("bags", nargs="+")
+    p.add_argument("--csv", metavar="DIR", help="write DIR/<bag>.csv (column names carry units and axis names)")
+    p.add_argument("--parquet", metavar="DIR", help="write DIR/<bag>.parquet (needs pyarrow)")
+    p.add_argument("--experiment", help=experiment_help)
+    p.set_defaults(func=_export)
     p = sub.add_parser("sweep", help="in-process runs over a parameter grid, ranked by MCE and TACE")
     p.add_argument("config")
     p.add_argument("--grid", action="append", required=True,

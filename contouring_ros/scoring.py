@@ -1,12 +1,14 @@
 """Scoring of runs (bags or in-process results) and their tables."""
 from __future__ import annotations
 
+import numpy as np
+
 from .bag import RecordedRun, read_run
 from .config import build_curve, parse_experiment
 from .core.metrics import Scores, score
-from .errors import ScoreError
+from .errors import BagError, ScoreError
 
-__all__ = ["score_run", "score_bag", "curve_of", "format_scores", "format_realtime"]
+__all__ = ["score_run", "score_bag", "check_experiment_matches", "curve_of", "format_scores", "format_realtime"]
 
 REALTIME_COLUMNS = ("ticks", "deadline misses", "late inputs", "ticks missing an input", "latency p50 [us]",
                     "latency p99 [us]", "latency max [us]", "jitter [us]")
@@ -27,7 +29,31 @@ def score_bag(path, experiment_text: str | None = None, progress: bool = False,
     """Score a bag from its contents alone: the curve comes from the experiment stored in it (or from
     ``experiment_text`` for a bag recorded without one); ``from_time`` as in :func:`score_run`."""
     run = read_run(path, experiment_text=experiment_text, progress=progress)
-    return score_run(curve_of(run), run.result, from_time), run
+    curve = curve_of(run)
+    if experiment_text is not None:
+        check_experiment_matches(run, curve, path)
+    return score_run(curve, run.result, from_time), run
+
+
+def check_experiment_matches(run: RecordedRun, curve, path) -> None:
+    """Refuse (BagError, one line) an experiment given for a bag that it did not produce: other axes, or a
+    curve the recorded /reference does not lie on (checked at up to 200 steps spread over the run, to within
+    1e-9 of the path's size + 1 nm)."""
+    from .config import parse_experiment
+    experiment = parse_experiment(run.experiment_text, "--experiment")
+    if list(experiment.axes) != list(run.axes):
+        raise BagError(f"{path}: --experiment {experiment.name} has axes {', '.join(experiment.axes)}; the bag "
+                       f"has {', '.join(run.axes)}")
+    from .core.geometry import ExactContourError
+    reference = run.result.reference_position
+    rows = np.unique(np.linspace(0, len(reference) - 1, min(200, len(reference))).astype(int))
+    distance = ExactContourError(curve, window=0.0)(reference[rows]).distance
+    size = float(np.max(np.ptp(reference, axis=0))) if len(reference) > 1 else 0.0
+    worst = int(np.argmax(distance))
+    if distance[worst] > 1e-9 * size + 1e-9:
+        raise BagError(f"{path}: the bag's /reference is not on the curve of --experiment {experiment.name} "
+                       f"({distance[worst] * 1e6:.4g} um off at t = {run.result.time[rows[worst]]:g} s): it was "
+                       "recorded from another experiment")
 
 
 def curve_of(run: RecordedRun):
