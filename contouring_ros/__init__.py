@@ -1,3 +1,16 @@
-"""contouring_ros: multi-axis contouring control of CNC feed drives on ROS 2."""
+"""contouring_ros: multi-axis contouring control of CNC feed drives as a ROS 2 graph of rclpy nodes.
+
+The Python API (:mod:`contouring_ros.api`) is available at the top level: ``load_experiment``, ``simulate``,
+``read_bag``, ``sweep_grid`` and ``Run``; it is imported on first use, so the nodes start without it.
+"""
 
 __version__ = "0.1.0"
+_API = ("Run", "load_experiment", "simulate", "read_bag", "sweep_grid")
+__all__ = list(_API)
+
+
+def __getattr__(name):
+    if name in _API:
+        from . import api
+        return getattr(api, name)
+    raise AttributeError(f"module 'contouring_ros' has no attribute {name!r}")

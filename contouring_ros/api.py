@@ -1,0 +1,124 @@
+"""The Python API: experiments, runs, bags, scores and sweeps without the command line (and without ROS).
+
+    import contouring_ros as cr
+
+    experiment = cr.load_experiment("paper000_b_ismc_h50_newton")   # a file, or a scenario of config/
+    run = cr.simulate(experiment, {"ccc.kp": 2.0})                  # settings as sweep grid keys
+    run.scores().mce, run.scores(from_time=0.3).tace                # metres; steady state from 0.3 s
+    run.result.position, run.exact_contour_error()                  # per-step arrays (m,) / (m, n)
+    table = run.table()                                             # column name -> array, as `export`
+    bag = cr.read_bag("bags/run.mcap")                              # a recorded run, the same Run interface
+    rows = cr.sweep_grid(experiment, {"ccc.kp": [0.5, 1, 2]}, from_time=0.3)
+
+A diverging simulation raises :class:`contouring_ros.errors.Diverged` (its ``result`` holds the steps before);
+bags of diverged runs are read up to the step before, with a warning in ``Run.warnings``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["Run", "load_experiment", "simulate", "read_bag", "sweep_grid"]
+
+
+@dataclass
+class Run:
+    """One run, simulated or read from a bag.
+
+    Attributes
+    ----------
+    experiment : Experiment
+        The validated experiment (``experiment.text`` is its YAML).
+    result : SimulationResult
+        Per-step arrays: time, theta, reference_position/velocity/acceleration, position, velocity,
+        estimate_theta, estimate_vector, estimate_signed, correction, command (SI units).
+    curve : Curve
+        The reference contour.
+    warnings : list of str
+        What a bag reader had to make do with (empty for a simulation).
+    """
+
+    experiment: object
+    result: object
+    curve: object
+    warnings: list = field(default_factory=list)
+
+    @property
+    def axes(self) -> list:
+        return list(self.experiment.axes)
+
+    def scores(self, from_time: float = 0.0):
+        """The run's :class:`~contouring_ros.core.metrics.Scores` (lengths in metres), of the samples at
+        t >= ``from_time`` when given."""
+        from .scoring import score_run
+        return score_run(self.curve, self.result, from_time)
+
+    def exact_contour_error(self) -> np.ndarray:
+        """Distance [m] from each step's position to the whole reference curve."""
+        from .core.geometry import ExactContourError
+        return ExactContourError(self.curve)(self.result.position, near=self.result.theta).distance
+
+    def table(self) -> dict:
+        """Column name (with unit and axis) -> per-step array, the columns of ``contouring-ros export``."""
+        from .export import run_table
+        return run_table(self.result, self.axes, self.curve)
+
+
+def load_experiment(experiment):
+    """A validated Experiment from a path or a scenario name of config/ (an Experiment is returned as is)."""
+    from .config import Experiment, load_experiment as load
+    if isinstance(experiment, Experiment):
+        return experiment
+    from .cli import _experiment_path
+    return load(_experiment_path(str(experiment)))
+
+
+def _with_settings(experiment, settings: dict | None):
+    """The experiment with ``settings`` applied; its ``text`` is the changed file (so a bag keeps it)."""
+    if not settings:
+        return experiment
+    import copy
+
+    import yaml
+
+    from .config import experiment_from_data, read_yaml
+    from .errors import ConfigError
+    from .sweep import apply_settings
+    data = apply_settings(copy.deepcopy(read_yaml(experiment.text, experiment.name)), settings)
+    try:
+        return experiment_from_data(data, f"{experiment.name} with {settings}",
+                                    text=yaml.safe_dump(data, sort_keys=False))
+    except ConfigError as error:
+        raise ConfigError(f"settings {settings}: {error}") from None
+
+
+def simulate(experiment, settings: dict | None = None) -> Run:
+    """Simulate an experiment in-process (the node graph gives the same numbers), with ``settings`` applied
+    first (grid keys as in sweeps, e.g. {"ccc.kp": 2.0, "x/servo.a": 10}, or {"/ccc": {"type": "none"}})."""
+    from .config import build_loop
+    from .core.simulation import simulate as run
+    experiment = _with_settings(load_experiment(experiment), settings)
+    loop = build_loop(experiment)
+    return Run(experiment, run(loop), loop.curve)
+
+
+def read_bag(path, experiment=None) -> Run:
+    """A recorded run from its bag (the experiment stored in it, or ``experiment`` for a bag without one)."""
+    from .bag import read_run
+    from .config import parse_experiment
+    from .scoring import check_experiment_matches, curve_of
+    text = load_experiment(experiment).text if experiment is not None else None
+    recorded = read_run(Path(path), experiment_text=text)
+    curve = curve_of(recorded)
+    if text is not None:
+        check_experiment_matches(recorded, curve, path)
+    return Run(parse_experiment(recorded.experiment_text, str(path)), recorded.result, curve, recorded.warnings)
+
+
+def sweep_grid(experiment, grid: dict, from_time: float = 0.0, workers: int | None = None) -> list:
+    """Every combination of ``grid`` (grid key -> values), ranked by MCE then TACE; each row has
+    ``settings``, ``scores`` (None for a diverged run) and ``failure``."""
+    from .sweep import run_sweep
+    return run_sweep(load_experiment(experiment).text, grid, workers, from_time=from_time)
