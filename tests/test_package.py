@@ -13,14 +13,15 @@ NODES = ["interpolator", "plant", "servo", "contour_estimator", "ccc", "recorder
 
 
 @pytest.mark.slow
-def test_colcon_build_installs_every_node(tmp_path):
+@pytest.mark.parametrize("options", [[], ["--symlink-install"]], ids=["copy", "symlink"])
+def test_colcon_build_installs_every_node(tmp_path, options):
     colcon = shutil.which("colcon") or str(Path(sys.executable).parent / "colcon")
     if not os.path.exists(colcon):
         pytest.fail("colcon is not installed (pip install colcon-core colcon-ros)")
     src = tmp_path / "src" / "contouring_ros"
     shutil.copytree(ROOT, src, ignore=shutil.ignore_patterns(".git", ".venv", "build", "install", "log", "bags",
-                                                              "__pycache__", "*.egg-info"))
-    result = subprocess.run([colcon, "build", "--base-paths", "src"], cwd=tmp_path, capture_output=True,
+                                                              "__pycache__", "*.egg-info", "reports"))
+    result = subprocess.run([colcon, "build", "--base-paths", "src", *options], cwd=tmp_path, capture_output=True,
                             text=True, timeout=600)
     assert result.returncode == 0, result.stdout + result.stderr
     prefix = tmp_path / "install" / "contouring_ros"
