@@ -36,3 +36,15 @@ def test_colcon_build_installs_every_node(tmp_path, options):
         executable = prefix / "lib" / "contouring_ros" / node
         assert executable.is_file() and os.access(executable, os.X_OK), node
     assert list((prefix / "share" / "contouring_ros" / "config").glob("paper000_*.yaml"))
+
+
+def test_the_code_cites_only_documents_in_the_repository():
+    """Docstrings point at docs/ARCHITECTURE.md and its sections, never at a design note outside the project."""
+    import re
+    architecture = (ROOT / "docs" / "ARCHITECTURE.md").read_text()
+    sections = set(re.findall(r"^#+ (.+)$", architecture, re.M))
+    for path in (ROOT / "contouring_ros").rglob("*.py"):
+        text = path.read_text()
+        assert "DESIGN.md" not in text, path
+        for section in re.findall(r'ARCHITECTURE\.md, "([^"]+)"', text):
+            assert section in sections, f"{path.name} cites a section {section!r} that docs/ARCHITECTURE.md lacks"

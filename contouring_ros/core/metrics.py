@@ -1,4 +1,4 @@
-"""Run scores (DESIGN.md, "Scoring"), always from the exact contour error.
+"""Run scores (docs/ARCHITECTURE.md, "Scoring"), always from the exact contour error.
 
 MCE = max |e|, TACE = time average of |e| (paper 000 section IV), RMS of e, estimation deviation
 |estimate - exact| (max and RMS), per-axis tracking error (max and RMS of R_i - P_i), RMS actuator effort

@@ -1,4 +1,4 @@
-"""In-process simulation with exactly the node graph's step semantics (DESIGN.md, "One control step").
+"""In-process simulation with exactly the node graph's step semantics (docs/ARCHITECTURE.md, "One control step").
 
 Step k at t_k = k Ts: the plants hold their state at k; the interpolator gives the reference at k; the
 estimator combines reference and positions; the contour controller turns the estimate into corrections;

@@ -4,7 +4,7 @@ A node declares its inputs (topics it needs for each step) and a step handler. T
 persistent wait set, takes serialised messages directly from the subscriptions (no executor, no
 callbacks, no rclpy message objects: :mod:`contouring_ros.cdr` reads and writes the wire format), files
 them by the step their header stamp names, and calls the handler for step k as soon as every input of
-step k is there (DESIGN.md, "One control step"). Nothing depends on wall-clock arrival order.
+step k is there (docs/ARCHITECTURE.md, "One control step"). Nothing depends on wall-clock arrival order.
 
 QoS, in one place: every graph topic is reliable, volatile, keep-all, so that no message is lost to the
 recorder; nodes start publishing only once every expected subscriber has matched.
@@ -304,7 +304,7 @@ class LockstepNode:
             self.finished = True
 
     def spin_realtime(self):
-        """Tick on the wall clock every Ts from the experiment's ``start_time`` (DESIGN.md, realtime): at
+        """Tick on the wall clock every Ts from the experiment's ``start_time`` (docs/ARCHITECTURE.md, "Other timing modes"): at
         tick k take whatever arrived, hold the newest message of each input (zero-order hold) and handle
         step k + ``realtime_offset`` with them. A tick that starts late is still handled, at once, so every
         step is published; it counts as a deadline miss when its outputs leave after the next tick. An input
