@@ -48,3 +48,20 @@ def test_the_code_cites_only_documents_in_the_repository():
         assert "DESIGN.md" not in text, path
         for section in re.findall(r'ARCHITECTURE\.md, "([^"]+)"', text):
             assert section in sections, f"{path.name} cites a section {section!r} that docs/ARCHITECTURE.md lacks"
+
+
+def test_package_xml_declares_what_setup_py_installs():
+    """Every install requirement has a rosdep key in package.xml, or is one of the two pip-only packages the
+    README's ROS recipe installs with pip."""
+    import re
+    xml = (ROOT / "package.xml").read_text()
+    setup = (ROOT / "setup.py").read_text()
+    required = re.search(r"install_requires=\[(.*?)\]", setup, re.S).group(1)
+    pip_only = {"mcap", "mcap-ros2-support"}
+    keys = {"setuptools": None, "PyYAML": "python3-yaml"}
+    for name in re.findall(r'"([^"]+)"', required):
+        if name in pip_only:
+            assert f"pip install {' '.join(sorted(pip_only))}" in (ROOT / "README.md").read_text()
+            continue
+        key = keys.get(name, f"python3-{name.lower()}")
+        assert key is None or f"<exec_depend>{key}</exec_depend>" in xml, name
