@@ -3,7 +3,11 @@
 Paper 003 (Meng, Lou & Zhou, natural local approximation based contouring control): section IV-A, the
 helix on three mismatched axes under the task-frame PD controller, first-order (tangent line) vs natural
 local approximation, for two bandwidth sets; sections IV-B/C, the ellipse and the figure-8 on the XY stage
-(Tables I-II). Run after changing the templates: python tools/make_paper003_configs.py
+(Tables I-II). Mechanism scenarios (paper003_mech_*): the same experiments where the effect the paper relies
+on is present, a tangential tracking error t under curvature kappa (first order leaves kappa t^2 / 2 as contour
+error, natural local only its cubic remainder); each header says what physics makes t and why each number.
+The claims they back are in config/claims/paper003.yaml. Run after changing the templates:
+python tools/make_paper003_configs.py
 """
 from pathlib import Path
 
@@ -26,11 +30,15 @@ HEADER = """\
 # - Initial state: each axis starts on the reference, moving with it.{extra}
 """
 
-SENSITIVITY = """
-# - SENSITIVITY STUDY, not the paper's reading: the identified z damping is 185 instead of 180, so every axis
-#   is mismatched by the same +5 and the mismatch force 5 w' is purely tangential. Under the paper's own
-#   values the x/y mismatch leaves a binormal force -5 gamma_z z' (about 0.44) that the binormal PD holds
-#   at about 0.44 / (2 pi f_b)^2, some 100 um: a real contour error no approximation can remove."""
+MECHANISM_HELIX = """
+# - MECHANISM SCENARIO (config/claims/paper003.yaml), not the paper's reading: the identified z damping is 185
+#   instead of 180, so the controller over-estimates every axis' damping by the paper's own +5 and the unmodelled
+#   force 5 w' is purely tangential. It pushes the axes ahead of the reference: the tangential PD at f_t = 5 Hz
+#   holds them at t = 5 |w'| / (2 pi f_t)^2, about 1 mm at the helix's 0.1-0.21 m/s, and it is this t that the
+#   paper's mechanism needs (first order leaves kappa t^2 / 2 as contour error, natural local only its cubic
+#   remainder). Under the paper's own values the x/y mismatch instead leaves a binormal force -5 gamma_z z'
+#   (about 0.44) that the binormal PD holds at about 0.44 / (2 pi f_b)^2, some 100 um: a real contour error
+#   no approximation can remove, which hides the approximation's effect."""
 
 BODY = """\
 {shared}
@@ -92,11 +100,11 @@ XY_HEADER = """\
 XY_BODY = """\
 {shared}
 /x/plant:
-  ros__parameters: {{model: mass_damper, mass: 1.0, damping: 798.5, gain: 16.23, coulomb_positive: 0.12,
+  ros__parameters: {{model: mass_damper, mass: 1.0, damping: {plant_x}, gain: 16.23, coulomb_positive: 0.12,
                     coulomb_negative: 0.11, saturation: 10.0}}
 
 /y/plant:
-  ros__parameters: {{model: mass_damper, mass: 1.0, damping: 862.75, gain: 17.58, coulomb_positive: 0.07,
+  ros__parameters: {{model: mass_damper, mass: 1.0, damping: {plant_y}, gain: 17.58, coulomb_positive: 0.07,
                     coulomb_negative: 0.06, saturation: 10.0}}
 
 /x/servo:
@@ -151,7 +159,7 @@ def write_xy_stage(out: Path):
                 mce, rms = spec["results"][approximation, f_n]
                 title = f"XY stage {curve.replace('_', '-')}, task-frame PD, {label} approximation, f_n = {f_n} Hz"
                 fields = dict(spec, name=name, title=title, mce=mce, rms=rms, estimator=estimator,
-                              approximation=approximation, f_n=f"{f_n:.1f}")
+                              approximation=approximation, f_n=f"{f_n:.1f}", plant_x=798.5, plant_y=862.75)
                 fields["shared"] = shared_section(
                     name, title, {"source": f"003 section IV-C, Table {spec['table_number']}", "mce_um": mce,
                                   "rms_um": rms}, ["x", "y"], spec["curve"], spec["schedule"])
@@ -159,19 +167,77 @@ def write_xy_stage(out: Path):
                 print(out / f"{name}.yaml")
 
 
+# The XY stage's viscous damping in the mechanism scenarios, as a fraction of the identified (paper: 798.5, 862.75)
+MECHANISM_DAMPING = 0.94
+
+XY_MECHANISM = """
+# MECHANISM SCENARIO (config/claims/paper003.yaml), not the paper's reading. What the paper's mechanism needs:
+# a tangential tracking error t where the contour bends (first order leaves kappa t^2 / 2 as contour error,
+# natural local only its cubic remainder). Under the faithful reading (the controller's model equals the plant)
+# eq. 25 cancels the plant and t is some 0.02 mm: nothing for the approximation to act on. The paper's machine
+# had t: Table {table_number} reports a tracking error e of {paper_e} mm RMS, the same for every f_n and both methods.
+# - Physics: the running stage's viscous damping is {percent}% below the identified model on both axes
+#   (B = {plant_x}, {plant_y} instead of 798.5, 862.75: a ball screw's viscous friction falls as its lubricant warms
+#   after identification). The controller keeps the paper's identified model, so its feedforward and feedback
+#   linearization push with an unmodelled force dB w' (dB = B_model - B_stage, {percent}% of B) along the
+#   velocity, i.e. along the tangent, and the tangential PD at f_t = 15 Hz holds the axes ahead of the
+#   reference at t = dB |w'| / (M (2 pi f_t)^2).
+# - Why {percent}%: it is the size of mismatch that gives the tracking error the paper's own machine showed on the
+#   ellipse (Table I, e RMS 0.65-0.66 mm; ours 0.69 mm RMS). The sign is the paper's own (its helix controller
+#   also over-estimates the damping, 205 vs 200). The same machine runs the figure-8 with the same {percent}%:
+#   ours then tracks to 0.85 mm RMS against the paper's 2.13 mm, so the mechanism is, if anything, weaker here
+#   than on the paper's machine. The other sign (stage damping 6% above the model) gives a t of the same size and
+#   RMS ratios natural local / first order of 0.08 (ellipse) and 0.07 (figure-8), against 0.10 and 0.15 here.
+# - The paper's control input (Table I, U_x 6.03 V RMS) matches the exact model (ours 6.01 V); with the
+#   mismatch ours is 5.66 V. So part of the paper's t must come from an effect that leaves the RMS voltage
+#   alone (e.g. an unmodelled drive lag); the damping mismatch is the simplest force that produces the same t.
+# - Everything else is the faithful file paper003_{curve}_{approximation}_fn100 (f_n = 100 Hz, the tables'
+#   headline row).
+"""
+
+
+def write_xy_mechanism(out: Path):
+    plant_x, plant_y = round(798.5 * MECHANISM_DAMPING, 6), round(862.75 * MECHANISM_DAMPING, 6)
+    paper_e = {"ellipse": "0.65-0.66", "figure_eight": "2.13-2.18"}
+    for curve, spec in XY_CURVES.items():
+        for approximation, (estimator, label) in APPROXIMATIONS.items():
+            f_n = 100
+            name = f"paper003_mech_{curve}_{approximation}"
+            mce, rms = spec["results"][approximation, f_n]
+            title = (f"XY stage {curve.replace('_', '-')}, task-frame PD, {label} approximation, f_n = {f_n} Hz "
+                     f"(mechanism: stage damping {round(100 * (1 - MECHANISM_DAMPING))}% below the identified)")
+            fields = dict(spec, name=name, title=title, mce=mce, rms=rms, estimator=estimator, curve=curve,
+                          approximation=approximation, f_n=f"{f_n:.1f}", plant_x=plant_x, plant_y=plant_y,
+                          paper_e=paper_e[curve], percent=round(100 * (1 - MECHANISM_DAMPING)))
+            fields["shared"] = shared_section(
+                name, title, {"source": f"003 section IV-C, Table {spec['table_number']} (mechanism scenario)",
+                              "mce_um": mce, "rms_um": rms}, ["x", "y"], spec["curve"], spec["schedule"])
+            header = XY_HEADER.format(**fields).replace(
+                "The controller uses the same model (M, B, K and the friction,\n#   eq. 25), so what remains is the "
+                "sampling, the saturation and the approximation.",
+                "The controller uses this identified model (M, B, K and the\n#   friction, eq. 25); the plant's "
+                "damping differs (below).")
+            (out / f"{name}.yaml").write_text(header + XY_MECHANISM.format(**fields) + "\n"
+                                              + XY_BODY.format(**fields))
+            print(out / f"{name}.yaml")
+
+
 def main():
     out = Path(__file__).resolve().parent.parent / "config"
     write_xy_stage(out)
-    for sensitivity in (False, True):
-        identified = "[205.0, 230.0, 185.0]" if sensitivity else "[205.0, 230.0, 180.0]"
+    write_xy_mechanism(out)
+    for mechanism in (False, True):
+        identified = "[205.0, 230.0, 185.0]" if mechanism else "[205.0, 230.0, 180.0]"
         for approximation, (estimator, label) in APPROXIMATIONS.items():
             for f_n, f_b in ((15, 10), (20, 15)):
-                name = f"paper003_helix_{approximation}_f{f_n}_{f_b}" + ("_tangential_mismatch" if sensitivity else "")
+                name = (f"paper003_mech_helix_{approximation}_f{f_n}_{f_b}" if mechanism
+                        else f"paper003_helix_{approximation}_f{f_n}_{f_b}")
                 title = (f"Helix, task-frame PD, {label} approximation, f_t = 5, f_n = {f_n}, f_b = {f_b} Hz"
-                         + (" (sensitivity: identified B_z = 185)" if sensitivity else ""))
+                         + (" (mechanism: every axis' damping over-estimated by 5, identified B_z = 185)"
+                            if mechanism else ""))
                 fields = dict(name=name, title=title, tace=PAPER[approximation, f_n], identified=identified,
                               estimator=estimator, approximation=approximation, f_n=f"{f_n:.1f}", f_b=f"{f_b:.1f}",
-                              extra=SENSITIVITY if sensitivity else "")
+                              extra=MECHANISM_HELIX if mechanism else "")
                 fields["shared"] = shared_section(
                     name, title, {"source": "003 section IV-A", "tace_um": PAPER[approximation, f_n]}, ["x", "y", "z"],
                     "{type: helix, a: 0.03, b: 0.01, c: 0.1, omega: 6.283185307179586, length: 4.5}",
