@@ -14,7 +14,7 @@ import time
 from . import graph
 from .config import load_experiment
 from .errors import ContouringError, RunError
-from .runner import shared_overrides
+from .runner import override_arguments, shared_overrides
 
 __all__ = ["main"]
 
@@ -56,7 +56,7 @@ def run_composed(experiment_path: str, bag: str, executor_kind: str = "lean", st
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.parameter import Parameter
     experiment = load_experiment(experiment_path)
-    arguments = ["--ros-args", "--params-file", str(experiment_path)] + shared_overrides(experiment)
+    arguments = ["--ros-args", "--params-file", str(experiment_path)] + override_arguments(shared_overrides(experiment))
     if start_time:
         arguments += ["-p", f"start_time:={start_time!r}"]
     rclpy.init(args=arguments)

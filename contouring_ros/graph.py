@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Topic", "topics", "node_names", "CONTOUR_ERROR_NAME", "FOOT_POINT_NAME", "THETA_NAME",
+__all__ = ["Topic", "topics", "node_names", "NodeSpec", "node_specs", "CONTOUR_ERROR_NAME", "FOOT_POINT_NAME", "THETA_NAME",
            "LOOKAHEAD", "step_to_stamp", "reference_from_msg",
            "estimate_from_msg", "estimate_names", "estimate_values", "state_topic", "command_topic",
            "message_problem", "recorded_topics"]
@@ -61,6 +61,42 @@ def node_names(axes) -> list:
     """Fully qualified names of every node of the graph, recorder last."""
     return (["/interpolator"] + [f"/{a}/plant" for a in axes] + ["/contour_estimator", "/ccc"]
             + [f"/{a}/servo" for a in axes] + ["/recorder"])
+
+
+@dataclass(frozen=True)
+class NodeSpec:
+    """How one node of the graph is started: what the runner and launch/contouring.launch.py share.
+
+    ``executable`` is both the console script (``ros2 run contouring_ros <executable>``) and the module
+    ``contouring_ros.nodes.<executable>``; ``overrides`` are parameters set on top of the experiment file.
+    """
+
+    name: str
+    namespace: str
+    executable: str
+    overrides: tuple = ()     # (name, value) pairs
+
+    @property
+    def full_name(self) -> str:
+        return f"{self.namespace.rstrip('/')}/{self.name}"
+
+
+def node_specs(axes, overrides: dict | None = None, bag: str | None = None,
+               experiment_file: str | None = None) -> list:
+    """Every node of the graph for ``axes``, recorder first: its name, namespace, executable and the
+    parameters set on top of the experiment file (``overrides`` for every node; the recorder also gets
+    ``bag`` and ``experiment_file`` where given)."""
+    shared = tuple((overrides or {}).items())
+    out = []
+    for full_name in ["/recorder"] + [n for n in node_names(axes) if n != "/recorder"]:
+        parts = full_name.strip("/").split("/")
+        namespace, name = ("/" + parts[0], parts[1]) if len(parts) == 2 else ("/", parts[0])
+        extra = ()
+        if name == "recorder":
+            extra = tuple((key, value) for key, value in (("bag", bag), ("experiment_file", experiment_file))
+                          if value is not None)
+        out.append(NodeSpec(name, namespace, name, extra + shared))
+    return out
 
 
 def topics(axes, ccc_takes_state: bool = True) -> list:

@@ -30,8 +30,6 @@ SHUTDOWN_GRACE = 10.0
 REALTIME_START_DELAY = 5.0   # s from launch to tick 0 of a realtime run: every node is up and matched by then
 OFF_CRITICAL_PATH = {"/recorder"}
 OFF_CRITICAL_PATH_NICENESS = 5   # s the nodes get to exit on their own once the recorder has the whole run
-_MODULES = {"interpolator": "interpolator", "plant": "plant", "servo": "servo",
-            "contour_estimator": "contour_estimator", "ccc": "ccc", "recorder": "recorder"}
 
 
 @dataclass
@@ -75,27 +73,35 @@ def private_environment(domain_id: int, network: bool = False) -> dict:
     return env
 
 
-def shared_overrides(experiment: Experiment) -> list:
+def shared_overrides(experiment: Experiment) -> dict:
     """Shared keys the runner sets for every node from the whole experiment: ``ccc_takes_state`` false where
     the controller does not use the reference and states (the CCC then does not subscribe to them)."""
-    return [] if controller_uses_state(experiment) else ["-p", "ccc_takes_state:=false"]
+    return {} if controller_uses_state(experiment) else {"ccc_takes_state": False}
+
+
+def override_arguments(overrides) -> list:
+    """ROS command-line arguments (-p name:=value) setting each (name, value) of ``overrides``."""
+    out = []
+    for name, value in dict(overrides).items():
+        text = ("true" if value else "false") if isinstance(value, bool) else \
+            repr(value) if isinstance(value, float) else str(value)
+        out += ["-p", f"{name}:={text}"]
+    return out
 
 
 def graph_commands(experiment_path, experiment: Experiment, bag: Path, start_time: float = 0.0) -> list:
-    """One NodeProcess per node of the graph (recorder first), each a `python -m` of its node module;
-    realtime runs also get the shared ``start_time`` of tick 0."""
-    out, shared = [], shared_overrides(experiment)
-    for full_name in ["/recorder"] + [n for n in graph.node_names(experiment.axes) if n != "/recorder"]:
-        parts = full_name.strip("/").split("/")
-        namespace, name = ("/" + parts[0], parts[1]) if len(parts) == 2 else ("/", parts[0])
-        command = [sys.executable, "-m", f"contouring_ros.nodes.{_MODULES[name]}", "--ros-args",
-                   "-r", f"__ns:={namespace}", "-r", f"__node:={name}", "--params-file", str(experiment_path)]
-        if name == "recorder":
-            command += ["-p", f"bag:={bag}", "-p", f"experiment_file:={experiment_path}"]
-        if start_time:
-            command += ["-p", f"start_time:={start_time!r}"]
-        command += shared
-        out.append(NodeProcess(full_name, command))
+    """One NodeProcess per node of the graph (recorder first, see :func:`graph.node_specs`), each a
+    `python -m` of its node module; realtime runs also get the shared ``start_time`` of tick 0."""
+    shared = shared_overrides(experiment)
+    if start_time:
+        shared = {"start_time": start_time, **shared}
+    out = []
+    for spec in graph.node_specs(experiment.axes, shared, str(bag), str(experiment_path)):
+        command = [sys.executable, "-m", f"contouring_ros.nodes.{spec.executable}", "--ros-args",
+                   "-r", f"__ns:={spec.namespace}", "-r", f"__node:={spec.name}", "--params-file",
+                   str(experiment_path)]
+        command += override_arguments(spec.overrides)
+        out.append(NodeProcess(spec.full_name, command))
     return out
 
 

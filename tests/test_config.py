@@ -163,7 +163,7 @@ def test_the_ccc_takes_reference_and_states_only_where_its_controller_uses_them(
     from contouring_ros.runner import shared_overrides
     default, helix = load_experiment(CONFIG / "paper000_b_ismc_h50_newton.yaml"), parse_experiment(HELIX, "helix")
     assert not controller_uses_state(default) and controller_uses_state(helix)
-    assert shared_overrides(default) == ["-p", "ccc_takes_state:=false"] and shared_overrides(helix) == []
+    assert shared_overrides(default) == {"ccc_takes_state": False} and shared_overrides(helix) == {}
     subscribers = {t.name: t.subscribers for t in graph.topics(["x", "y"], ccc_takes_state=False)}
     assert "/ccc" not in subscribers["/reference"] + subscribers["/x/state"] + subscribers["/y/state"]
     assert "/ccc" in subscribers["/contour_error"]

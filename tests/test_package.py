@@ -36,6 +36,7 @@ def test_colcon_build_installs_every_node(tmp_path, options):
         executable = prefix / "lib" / "contouring_ros" / node
         assert executable.is_file() and os.access(executable, os.X_OK), node
     assert list((prefix / "share" / "contouring_ros" / "config").glob("paper000_*.yaml"))
+    assert (prefix / "share" / "contouring_ros" / "launch" / "contouring.launch.py").is_file()
 
 
 def test_the_code_cites_only_documents_in_the_repository():
