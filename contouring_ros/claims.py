@@ -406,9 +406,9 @@ def draw_map(claim: Claim, spec: RegimeMap, ratios: dict, path) -> Path:
     import matplotlib.pyplot as plt
     from matplotlib.colors import TwoSlopeNorm
 
-    metrics = ["tace", "mce"]
+    metrics = list(dict.fromkeys([claim.metric, "tace", "mce"]))     # the claim's own metric first
     pair = claim.pair(spec.pair)
-    fig, axes = plt.subplots(1, 2, figsize=(12.5, 5.6), constrained_layout=True)
+    fig, axes = plt.subplots(1, len(metrics), figsize=(6.3 * len(metrics), 5.6), constrained_layout=True)
     nx, ny = len(spec.x.values), len(spec.y.values) if spec.y else 1
     here = (_nearest(spec.x.values, _base_value(pair.proposed, spec.x.keys[0])),
             _nearest(spec.y.values, _base_value(pair.proposed, spec.y.keys[0])) if spec.y else 0)
@@ -423,7 +423,7 @@ def draw_map(claim: Claim, spec: RegimeMap, ratios: dict, path) -> Path:
                 text = "diverged" if not math.isfinite(value) else f"{value:.2g}"
                 shade = abs(logs[j, i]) / span if math.isfinite(logs[j, i]) else 0.0
                 ax.text(i, j, text, ha="center", va="center", fontsize=8, color="white" if shade > 0.6 else "black")
-        if ny > 1 and nx > 1 and np.isfinite(logs).sum() >= 4:
+        if metric == claim.metric and ny > 1 and nx > 1 and np.isfinite(logs).sum() >= 4:
             filled = np.where(np.isfinite(logs), logs, np.nanmax(logs) if np.isfinite(logs).any() else 0.0)
             target = math.log10(claim.paper_ratio)
             if filled.min() < target < filled.max():
@@ -442,14 +442,15 @@ def draw_map(claim: Claim, spec: RegimeMap, ratios: dict, path) -> Path:
             ax.set_ylabel(spec.y.label)
         else:
             ax.set_yticks([])
-        ax.set_title(f"{METRICS[metric]}: proposed / baseline" + (f", t >= {claim.from_time:g} s" if claim.from_time else ""))
+        ax.set_title(f"{METRICS[metric]}: proposed / baseline")
         bar = fig.colorbar(image, ax=ax, shrink=0.85)
-        ticks = [t for t in (0.1, 0.2, 0.5, 1.0, 2.0, 5.0, 10.0) if -span <= math.log10(t) <= span]
+        ticks = [t for t in (0.1, 0.2, 0.5, 1.0, 2.0, 5.0, 10.0) if -span <= math.log10(t) <= span] \
+            if span <= 1.3 else [10.0 ** e for e in range(-int(span), int(span) + 1, max(1, int(span) // 4))]
         bar.set_ticks([math.log10(t) for t in ticks], labels=[f"{t:g}" for t in ticks])
         bar.set_label("ratio (blue: proposed better)")
     fig.suptitle(f"Paper {claim.paper}, {claim.id}: {pair.proposed} vs {pair.baseline}\n"
-                 f"paper's ratio {claim.paper_ratio:.2g} ({METRICS[claim.metric]}), dashed where reached",
-                 fontsize=10)
+                 f"paper's ratio {claim.paper_ratio:.2g} ({METRICS[claim.metric]}), dashed where reached"
+                 + (f"; scores from t = {claim.from_time:g} s" if claim.from_time else ""), fontsize=10)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
