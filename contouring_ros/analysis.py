@@ -7,6 +7,8 @@ from __future__ import annotations
 import base64
 import html
 import io
+import weakref
+from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -14,14 +16,14 @@ import numpy as np
 from tqdm import tqdm
 
 from .bag import RecordedRun
-from .config import ESTIMATORS, _typed, build_estimator, parse_experiment
+from .config import ESTIMATORS, _typed, build_curve, build_estimator, parse_experiment
 from .core.geometry import ExactContourError
 from .core.interpolation import Reference
-from .errors import ConfigError
+from .errors import ConfigError, ContouringError
 from .scoring import _ROWS, curve_of, format_scores
 
-__all__ = ["compare_table", "parse_estimator_spec", "EstimatorReplay", "replay_estimators", "figures",
-           "write_figures", "html_report"]
+__all__ = ["compare_table", "parse_estimator_spec", "EstimatorReplay", "replay_estimators", "run_names",
+           "figures", "write_figures", "html_report"]
 
 
 def compare_table(named: list, baseline: int = 0, axes=None) -> str:
@@ -109,116 +111,675 @@ def _replay(name, estimate, exact) -> EstimatorReplay:
 
 
 # --- figures -----------------------------------------------------------------------------------------
+#
+# Every figure is drawn from _Trace objects, one per run (its legend name, its colour, its curve and exact
+# contour error), so that a run has one name and one colour in all of them. Units: paths in mm, errors in
+# um, time in s, actuator signals in the command's units. Non-finite samples (a diverged run) are gaps.
+
+PALETTE = ("#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2", "#17becf",
+           "#bcbd22", "#7f7f7f")
+ERROR_MAP = "viridis"
+DIVERGED = "diverged"         # the gid of a diverged run's lines
+FIGURE_DPI = 130
+
+
+@dataclass
+class _Trace:
+    """One run, ready to draw (lengths in metres)."""
+
+    name: str
+    colour: str
+    run: RecordedRun
+    experiment: object            # the parsed Experiment, or None where the stored YAML does not parse
+    curve: object                 # its reference Curve, or None
+    distance: np.ndarray          # exact contour error per step (nan where the position is not finite)
+    vector: np.ndarray            # foot point - position per step
+    path_length: np.ndarray       # distance travelled along the reference up to each step
+    diverged: bool                # see _diverged
+
+    @property
+    def axes(self) -> list:
+        return list(self.run.axes)
+
+    @property
+    def time(self) -> np.ndarray:
+        return self.run.result.time
+
+
+def _finite(values) -> np.ndarray:
+    """``values`` as floats with every non-finite entry made nan (a gap in a line)."""
+    values = np.asarray(values, dtype=float)
+    return np.where(np.isfinite(values), values, np.nan)
+
+
+def _parsed(run: RecordedRun):
+    try:
+        return parse_experiment(run.experiment_text, "the bag's experiment")
+    except ContouringError:
+        return None
+
+
+def _stored_name(run: RecordedRun) -> str | None:
+    experiment = _parsed(run)
+    name = experiment and (experiment.info.get("experiment") or {}).get("name")
+    return str(name) if name else None
+
+
+def run_names(runs: list) -> list:
+    """Legend names of (label, RecordedRun) pairs: the experiment name stored in each bag (the label where
+    the bag has none); runs of one name are told apart by what their labels add to it (a bag's
+    timestamp) where the labels differ, else numbered."""
+    names = [_stored_name(run) or label for label, run in runs]
+    labels = {name: [label for (label, _), other in zip(runs, names) if other == name] for name in names}
+    out, seen = [], Counter()
+    for (label, _), name in zip(runs, names):
+        seen[name] += 1
+        same = labels[name]
+        if len(same) == 1:
+            out.append(name)
+        elif len(set(same)) == len(same):
+            extra = label[len(name):].strip(" _-") if label.startswith(name) else label
+            out.append(f"{name} ({extra})" if extra else name)
+        else:
+            out.append(f"{name} #{seen[name]}")
+    counts, seen = Counter(out), Counter()
+    for k, name in enumerate(out):          # labels that differ only in separators
+        seen[name] += 1
+        out[k] = f"{name} #{seen[name]}" if counts[name] > 1 else name
+    return out
+
+
+def _trace(name: str, colour: str, run: RecordedRun) -> _Trace:
+    result = run.result
+    steps, n = len(result.time), len(run.axes)
+    experiment = _parsed(run)
+    curve = None
+    if experiment is not None:
+        try:
+            curve = build_curve(experiment)
+        except ContouringError:
+            curve = None
+    distance, vector = np.full(steps, np.nan), np.full((steps, n), np.nan)
+    position, theta = _finite(result.position).reshape(steps, n), _finite(result.theta)
+    ok = np.isfinite(position).all(axis=1) & np.isfinite(theta)
+    if curve is not None and ok.any():
+        with np.errstate(all="ignore"):
+            foot = ExactContourError(curve)(position[ok], near=theta[ok])
+        distance[ok], vector[ok] = _finite(foot.distance), _finite(foot.vector)
+    travelled = np.linalg.norm(np.diff(_finite(result.reference_position).reshape(steps, n), axis=0), axis=1)
+    path_length = np.concatenate([[0.0], np.nancumsum(travelled)])[:steps]
+    trace = _Trace(name, colour, run, experiment, curve, distance, vector, path_length, False)
+    trace.diverged = _diverged(trace)
+    return trace
+
+
+def _diverged(trace: _Trace) -> bool:
+    """Whether a run diverged: its bag says so, a signal is not finite, or its contour error exceeds a
+    tenth of the path's size."""
+    result = trace.run.result
+    if any("diverged" in warning for warning in trace.run.warnings) or not all(
+            np.isfinite(a).all() for a in (result.position, result.command, result.correction)):
+        return True
+    worst = np.nanmax(trace.distance, initial=0.0)
+    return bool(worst > 0.1 * _span(_references([trace]) or [_finite(result.reference_position)]))
+
+
+def _traces(runs: list) -> list:
+    if not runs:
+        raise ValueError("no runs to draw")
+    return [_trace(name, PALETTE[k % len(PALETTE)], run)
+            for k, ((_, run), name) in enumerate(zip(runs, run_names(runs)))]
+
+
+def _axis_union(traces) -> list:
+    """Every axis name of the runs, in order of appearance."""
+    return list(dict.fromkeys(axis for t in traces for axis in t.axes))
+
+
+def _axis_groups(traces) -> list:
+    """(axes, traces) for each set of axes among the runs: runs of one set share a path plot."""
+    groups: dict = {}
+    for t in traces:
+        groups.setdefault(tuple(t.axes), []).append(t)
+    return list(groups.items())
+
+
+def _worst_step(trace: _Trace):
+    """The step of the largest contour error, or None."""
+    return int(np.nanargmax(trace.distance)) if np.isfinite(trace.distance).any() else None
+
+
+def _reference_points(trace: _Trace) -> np.ndarray:
+    """The planned reference path (the schedule's parameter range of the curve), (m, n) in metres."""
+    if trace.curve is None:
+        return np.empty((0, len(trace.axes)))
+    lo, hi = trace.curve.domain
+    schedule = trace.experiment.schedule
+    if schedule.get("theta_start") is not None and schedule.get("theta_end") is not None:
+        lo, hi = sorted((float(schedule["theta_start"]), float(schedule["theta_end"])))
+    return np.asarray(trace.curve.point(np.linspace(lo, hi, 4000)))
+
+
+def _references(traces) -> list:
+    """The distinct reference paths of ``traces`` (runs of one curve and schedule share theirs)."""
+    unique = {}
+    for t in traces:
+        key = repr((t.experiment.curve, t.experiment.schedule)) if t.experiment else id(t)
+        unique.setdefault(key, _reference_points(t))
+    return list(unique.values())
+
+
+def _magnified(trace: _Trace, gain: float) -> np.ndarray:
+    """Actual positions drawn ``gain`` times as far from their foot points: F + gain (P - F)."""
+    return _finite(trace.run.result.position) - (gain - 1.0) * trace.vector
+
+
+def _extents(points: list) -> np.ndarray:
+    """The extent along each axis of some (m, n) point sets (zeros where there are no finite points)."""
+    finite = [p[np.isfinite(p).all(axis=1)] for p in points if len(p)]
+    finite = [p for p in finite if len(p)]
+    return np.max([np.ptp(p, axis=0) for p in finite], axis=0) if finite else np.zeros(1)
+
+
+def _span(points: list) -> float:
+    """The largest extent over the axes of some (m, n) point sets; 1 mm where there is none."""
+    span = float(_extents(points).max())
+    return span if span > 0.0 else 1e-3
+
+
+def _auto_magnification(traces, references: list) -> float:
+    """A round factor that draws the largest contour error at about 15 % of the path's narrowest side
+    (sides under 1 % of the widest left out), at least 1. Runs whose error is that large already (diverged)
+    do not count."""
+    extents = _extents(references)
+    extents = extents[extents > 0.01 * extents.max()] if extents.max() > 0.0 else np.array([1e-3])
+    target = 0.15 * float(extents.min())
+    worst = max((float(np.nanmax(t.distance)) for t in traces if np.isfinite(t.distance).any()
+                 and 0.0 < np.nanmax(t.distance) < target), default=0.0)
+    return float(f"{target / worst:.1g}") if worst > 0.0 else 1.0
+
+
+def _figure(title: str, width: float, height: float):
+    """A matplotlib Figure on the Agg canvas, outside pyplot (nothing to close, no global state)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    fig = Figure(figsize=(width, height), layout="constrained")
+    FigureCanvasAgg(fig)
+    fig.suptitle(title, fontsize=13, fontweight="bold")
+    return fig
+
+
+def _run_legend(fig, traces, extra=()):
+    """One legend for the whole figure: a line of each run's colour with its name, after ``extra``."""
+    from matplotlib.lines import Line2D
+    handles = list(extra) + [Line2D([], [], color=t.colour, lw=2.0, label=t.name) for t in traces]
+    entry = 0.7 + 0.075 * max(len(h.get_label()) for h in handles)       # inches at font size 9
+    columns = max(1, min(len(handles), 3, int(fig.get_figwidth() // entry)))
+    fig.legend(handles=handles, loc="outside lower center", ncols=columns, fontsize=9, frameon=False)
+
+
+def _style(ax, xlabel: str = "", ylabel: str = "", title: str | None = None, zlabel: str | None = None):
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    if zlabel is not None:
+        ax.set_zlabel(zlabel)
+    if title:
+        ax.set_title(title, fontsize=10)
+    ax.grid(True, alpha=0.35, lw=0.6)
+
+
+def _series(ax, traces, x, y, suffix: str = "", signed: bool = False, **style):
+    """One line per run: ``x(trace)`` against ``y(trace)`` in the run's colour, labelled name + suffix;
+    then the y scale that shows them all (see :func:`_fit_scale`)."""
+    for t in traces:
+        ax.plot(_finite(x(t)), _finite(y(t)), color=t.colour, label=t.name + suffix,
+                gid=DIVERGED if t.diverged else None, **{"lw": 1.1, **style})
+    _fit_scale(ax, signed)
+
+
+def _fit_scale(ax, signed: bool):
+    """Scales that keep every run readable beside a diverged one. Magnitudes whose peaks span over two
+    decades get a logarithmic y axis; signed data get limits that fit the runs that did not diverge, a
+    diverged run ten times larger running off them (named in the corner)."""
+    lines = [(line, float(np.nanmax(np.abs(y)))) for line, y in
+             ((line, np.asarray(line.get_ydata(), float)) for line in ax.get_lines()) if np.isfinite(y).any()]
+    if not signed:
+        peaks = sorted(peak for _, peak in lines if peak > 0.0)
+        if len(peaks) > 1 and peaks[-1] > 100.0 * peaks[0]:
+            ax.set_yscale("log", nonpositive="mask")
+        return
+    normal = [peak for line, peak in lines if line.get_gid() != DIVERGED]
+    bound = 1.1 * max(normal, default=0.0)
+    off = [line.get_label() for line, peak in lines if line.get_gid() == DIVERGED and peak > 10.0 * bound]
+    if off and bound > 0.0:
+        ax.set_ylim(-bound, bound)
+        ax.text(0.99, 0.96, "off scale: " + ", ".join(off), transform=ax.transAxes, ha="right", va="top",
+                fontsize=7, color="0.3")
+
+
+def _view_limits(ax, view, references, paths, span):
+    """Axis limits of a path view: the reference paths with a margin, widened to the actual paths by at
+    most half the path's size (a diverged path leaves the frame instead of shrinking the reference)."""
+    setters = (ax.set_xlim, ax.set_ylim, getattr(ax, "set_zlim", None))
+    extents = []
+    for setter, i in zip(setters, view):
+        ref = np.concatenate([r[:, i] for r in references] or [np.empty(0)])
+        shown = np.concatenate([p[:, i] for p in paths] or [np.empty(0)])
+        ref, shown = ref[np.isfinite(ref)], shown[np.isfinite(shown)]
+        lo, hi = (ref.min(), ref.max()) if ref.size else (shown.min(), shown.max()) if shown.size else (0.0, 0.0)
+        if shown.size:
+            lo, hi = max(min(lo, shown.min()), lo - 0.5 * span), min(max(hi, shown.max()), hi + 0.5 * span)
+        pad = 0.04 * span
+        setter((lo - pad) * 1e3, (hi + pad) * 1e3)
+        extents.append(hi - lo + 2 * pad)
+    if len(view) == 3:
+        _style_3d(ax, extents)
+    elif max(extents) < 2.5 * min(extents):
+        ax.set_aspect("equal", adjustable="box")
+
+
+def _style_3d(ax, extents):
+    """A 3-D box close to the path's proportions (no side under half the longest: a tall helix stays
+    readable), with few, small tick labels."""
+    from matplotlib.ticker import MaxNLocator
+    ax.set_box_aspect([max(e, 0.5 * max(extents)) for e in extents], zoom=0.82)
+    for axis in (ax.xaxis, ax.yaxis, ax.zaxis):
+        axis.set_major_locator(MaxNLocator(4))
+        axis.labelpad = 2
+    ax.tick_params(labelsize=7, pad=0)
+
+
+def _new_view(container, position, view):
+    return container.add_subplot(*position, projection="3d" if len(view) == 3 else None)
+
+
+def _label_view(ax, axes, view, title):
+    labels = [f"{axes[i]} [mm]" for i in view]
+    _style(ax, labels[0], labels[1], title, labels[2] if len(view) == 3 else None)
+
+
+def _path_views(n: int) -> list:
+    """Axis index tuples to draw a path of n axes in: 3-D and the three projections, or the plane."""
+    return [(0, 1, 2), (0, 1), (0, 2), (1, 2)] if n >= 3 else [(0, 1)] if n == 2 else []
+
+
+def _draw_path_view(ax, group, axes, view, gains, span):
+    references = _references(group)
+    for ref in references:
+        ax.plot(*(ref[:, i] * 1e3 for i in view), color="black", lw=0.8)
+    paths = []
+    for t, gain in zip(group, gains):
+        shown = _magnified(t, gain)
+        paths.append(shown)
+        ax.plot(*(shown[:, i] * 1e3 for i in view), color=t.colour, lw=1.2, label=t.name)
+        k = _worst_step(t)
+        if k is not None:
+            ax.plot(*([shown[k, i] * 1e3] for i in view), "o", ms=8, mfc="none", mew=1.5, color=t.colour)
+    _view_limits(ax, view, references, paths, span)
+    plane = "3-D path" if len(view) == 3 else f"{axes[view[0]]}{axes[view[1]]} projection" if len(axes) > 2 \
+        else f"{axes[0]}{axes[1]} plane"
+    _label_view(ax, axes, view, plane)
+
+
+def _path_panel(sub, axes, group, magnification):
+    """The path views of runs that share ``axes``, into the subfigure ``sub``. A run whose magnified
+    error would be over half the path's size (a diverged run) is drawn at true scale."""
+    references = _references(group)
+    span = _span(references or [_finite(t.run.result.position) for t in group])
+    gain = magnification or _auto_magnification(group, references)
+    gains = [gain if not np.nanmax(t.distance, initial=0.0) * gain > 0.5 * span else 1.0 for t in group]
+    true_scale = [t.name for t, g in zip(group, gains) if g != gain]
+    sub.suptitle(f"{', '.join(axes)}: contour error magnified {gain:g}x"
+                 + (f"\nat true scale: {', '.join(true_scale)}" if true_scale else ""), fontsize=11)
+    views = _path_views(len(axes))
+    if not views:
+        sub.add_subplot().text(0.5, 0.5, "a path needs two axes", ha="center", va="center")
+    grid = (2, 2) if len(views) > 1 else (1, 1)
+    for k, view in enumerate(views):
+        _draw_path_view(_new_view(sub, (*grid, k + 1), view), group, axes, view, gains, span)
+
+
+def draw_path(traces, magnification: float | None = None):
+    """The reference path and each actual path with its contour error magnified; a circle marks each run's
+    largest error. Runs of three axes: 3-D view and the xy, xz, yz projections; runs of another set of
+    axes side by side."""
+    from matplotlib.lines import Line2D
+    groups = _axis_groups(traces)
+    widths = [2.0 if len(axes) >= 3 else 1.1 for axes, _ in groups]
+    height = 10.0 if max(widths) > 1.5 else 6.2
+    fig = _figure("Path", 5.2 * sum(widths) + 0.6, height)
+    subfigures = fig.subfigures(1, len(groups), width_ratios=widths, squeeze=False)[0]
+    for sub, (axes, group) in zip(subfigures, groups):
+        _path_panel(sub, axes, group, magnification)
+    _run_legend(fig, traces, [Line2D([], [], color="black", lw=0.8, label="reference"),
+                              Line2D([], [], ls="", marker="o", mfc="none", color="0.3", label="largest error")])
+    return fig
+
+
+def _error_norms(traces) -> list:
+    """The colour scale of each run's error map [um]: one shared scale, unless the runs' largest errors
+    differ more than tenfold (a diverged run beside good ones), then one each."""
+    from matplotlib.colors import Normalize
+    worst = [float(np.nanmax(t.distance)) * 1e6 if np.isfinite(t.distance).any() else 0.0 for t in traces]
+    top = [w if w > 0.0 else 1.0 for w in worst]
+    if max(top) <= 10.0 * min(top):
+        shared = Normalize(0.0, max(top))
+        return [shared] * len(traces)
+    return [Normalize(0.0, w) for w in top]
+
+
+def _coloured_segments(ax, points, values, norm):
+    """A path of (m, d) points [mm] as segments coloured by ``values`` (per point) on ``norm``."""
+    from matplotlib.collections import LineCollection
+    segments = np.stack([points[:-1], points[1:]], axis=1)
+    colours = 0.5 * (values[:-1] + values[1:])
+    if points.shape[1] == 3:
+        from mpl_toolkits.mplot3d.art3d import Line3DCollection
+        ax.add_collection3d(Line3DCollection(segments, cmap=ERROR_MAP, norm=norm, array=colours, lw=2.2))
+    else:
+        ax.add_collection(LineCollection(segments, cmap=ERROR_MAP, norm=norm, array=colours, lw=2.2))
+
+
+def _length(metres: float) -> str:
+    """A contour error for a title: um, or mm from 1 mm up."""
+    return f"{metres * 1e3:.3g} mm" if metres >= 1e-3 else f"{metres * 1e6:.3g} um"
+
+
+def _error_map_panel(ax, trace, view, norm):
+    position = _finite(trace.run.result.position)
+    references = _references([trace])
+    for ref in references:
+        ax.plot(*(ref[:, i] * 1e3 for i in view), color="0.6", lw=0.6, ls="--")
+    if len(position) > 1:
+        _coloured_segments(ax, position[:, view] * 1e3, trace.distance * 1e6, norm)
+    k = _worst_step(trace)
+    if k is not None:
+        ax.plot(*([position[k, i] * 1e3] for i in view), "o", ms=9, mfc="none", mew=1.5, color="red")
+        note = f"largest: {_length(trace.distance[k])} at t = {trace.time[k]:.3g} s"
+    else:
+        note = "no steps recorded" if not len(position) else "no finite contour error"
+    _view_limits(ax, view, references, [position], _span(references or [position]))
+    _label_view(ax, trace.axes, view, None)
+    ax.set_title(f"{trace.name}\n{note}", fontsize=10, color=trace.colour)
+
+
+def draw_error_map(traces):
+    """Each run's actual path coloured by its contour error magnitude (3-D for three axes)."""
+    from matplotlib.cm import ScalarMappable
+    columns = min(len(traces), 3)
+    rows = -(-len(traces) // columns)
+    fig = _figure("Contour error along the path", 5.4 * columns + 0.8, 4.9 * rows + 0.6)
+    norms = _error_norms(traces)
+    panels = []
+    for k, (t, norm) in enumerate(zip(traces, norms)):
+        view = (0, 1, 2) if len(t.axes) >= 3 else (0, 1)
+        ax = _new_view(fig, (rows, columns, k + 1), view)
+        _error_map_panel(ax, t, view, norm)
+        panels.append(ax)
+    shared = all(norm is norms[0] for norm in norms)
+    for norm, where in ([(norms[0], panels)] if shared else list(zip(norms, panels))):
+        fig.colorbar(ScalarMappable(norm, ERROR_MAP), ax=where, label="contour error [um]", shrink=0.8)
+    return fig
+
+
+def draw_contour_error(traces):
+    """The exact contour error against time and against the length travelled along the reference."""
+    fig = _figure("Exact contour error", 8.5, 7.0)
+    top, bottom = fig.subplots(2, 1)
+    _series(top, traces, lambda t: t.time, lambda t: t.distance * 1e6)
+    _style(top, "t [s]", "contour error [um]", "against time")
+    _series(bottom, traces, lambda t: t.path_length * 1e3, lambda t: t.distance * 1e6)
+    _style(bottom, "path length along the reference [mm]", "contour error [um]", "along the path")
+    _run_legend(fig, traces)
+    return fig
+
+
+def _estimate(trace: _Trace) -> np.ndarray:
+    return np.linalg.norm(_finite(trace.run.result.estimate_vector), axis=1)
+
+
+def draw_estimate(traces):
+    """The estimated contour error over the exact one, and their difference (log scale)."""
+    from matplotlib.lines import Line2D
+    fig = _figure("Estimated against exact contour error", 8.5, 7.0)
+    top, bottom = fig.subplots(2, 1, sharex=True)
+    _series(top, traces, lambda t: t.time, lambda t: t.distance * 1e6)
+    _series(top, traces, lambda t: t.time, lambda t: _estimate(t) * 1e6, suffix=" estimate", ls="--")
+    _style(top, "", "contour error [um]", "exact (solid) and estimate (dashed)")
+    deviation = {id(t): np.abs(_estimate(t) - t.distance) * 1e6 for t in traces}
+    _series(bottom, traces, lambda t: t.time, lambda t: deviation[id(t)])
+    if any(np.nanmax(d, initial=0.0) > 0.0 for d in deviation.values() if np.isfinite(d).any()):
+        bottom.set_yscale("log", nonpositive="mask")
+    _style(bottom, "t [s]", "|estimate - exact| [um]", "estimation error")
+    _run_legend(fig, traces, [Line2D([], [], color="0.3", label="exact"),
+                              Line2D([], [], color="0.3", ls="--", label="estimate")])
+    return fig
+
+
+def _per_axis_figure(traces, title: str, columns: list):
+    """Rows per axis name (a run is drawn in the rows of its own axes), a column per signal; ``columns``
+    holds (heading, y label with {axis}, signal(trace, axis index))."""
+    axes = _axis_union(traces)
+    fig = _figure(title, 5.0 * len(columns) + 1.5, 2.3 * len(axes) + 1.4)
+    panels = fig.subplots(len(axes), len(columns), sharex=True, squeeze=False)
+    for r, axis in enumerate(axes):
+        for c, (heading, ylabel, signal) in enumerate(columns):
+            owners = [t for t in traces if axis in t.axes]
+            _series(panels[r, c], owners, lambda t: t.time,
+                    lambda t, signal=signal, axis=axis: signal(t, t.axes.index(axis)), signed=True)
+            _style(panels[r, c], "t [s]" if r == len(axes) - 1 else "", ylabel.format(axis=axis),
+                   heading if r == 0 else None)
+    _run_legend(fig, traces)
+    return fig
+
+
+def _tracking_error(trace: _Trace, i: int) -> np.ndarray:
+    """R_i - P_i of axis i [um]."""
+    return (trace.run.result.reference_position[:, i] - trace.run.result.position[:, i]) * 1e6
+
+
+def draw_tracking(traces):
+    """Each axis' tracking error R_i - P_i."""
+    return _per_axis_figure(traces, "Axis tracking error",
+                            [("tracking error R - P", "{axis} tracking error [um]", _tracking_error)])
+
+
+def draw_effort(traces):
+    """Each axis' actuator command, and the cross-coupled correction in it on an axis of its own."""
+    return _per_axis_figure(traces, "Actuator command and cross-coupled correction", [
+        ("actuator command", "u_{axis} [command units]", lambda t, i: t.run.result.command[:, i]),
+        ("CCC correction (part of the command)", "c_{axis} [command units]",
+         lambda t, i: t.run.result.correction[:, i])])
+
+
+def _draw_all(traces, magnification=None) -> dict:
+    with np.errstate(all="ignore"):
+        return {"path": draw_path(traces, magnification), "error_map": draw_error_map(traces),
+                "contour_error": draw_contour_error(traces), "estimate": draw_estimate(traces),
+                "tracking": draw_tracking(traces), "effort": draw_effort(traces)}
+
 
 def figures(runs: list, magnification: float | None = None) -> dict:
     """Matplotlib figures of one run or a comparison: name -> Figure.
 
-    ``runs`` is a list of (label, RecordedRun). Figures: the reference path with each actual path, its
-    contour error magnified; contour error against time; the estimate against the exact error; per-axis
-    tracking error; per-axis actuator effort.
+    ``runs`` is a list of (label, RecordedRun); legends name each run by the experiment name stored in its
+    bag (the label where there is none), and a run has the same colour in every figure. Runs of different
+    axes (2 and 3) may be compared. Figures: ``path`` (error magnified; 3-D and projections for three
+    axes), ``error_map`` (path coloured by contour error), ``contour_error`` (against time and path
+    length), ``estimate`` (estimate against exact), ``tracking`` and ``effort`` (per axis; the CCC
+    correction on its own axes).
     """
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    curve = curve_of(runs[0][1])
-    solver = ExactContourError(curve)
-    exacts = [solver(run.result.position, near=run.result.theta) for _, run in runs]
-    out = {}
-
-    fig, ax = plt.subplots(figsize=(7, 6))
-    dense = curve.point(np.linspace(*curve.domain, 2000))
-    ax.plot(dense[:, 0] * 1e3, dense[:, 1] * 1e3, "k-", lw=1, label="reference")
-    span = float(np.ptp(dense[:, :2], axis=0).max())
-    worst = max(float(foot.distance.max()) for foot in exacts) or 1.0
-    gain = magnification or max(1.0, round(0.05 * span / worst, -int(np.floor(np.log10(0.05 * span / worst)))))
-    for (label, run), foot in zip(runs, exacts):
-        shown = run.result.position - (gain - 1.0) * foot.vector     # foot point - gain * error vector
-        ax.plot(shown[:, 0] * 1e3, shown[:, 1] * 1e3, lw=1, label=f"{label} (error x{gain:g})")
-    ax.set(xlabel="x [mm]", ylabel="y [mm]", title=f"Path, contour error magnified {gain:g}x", aspect="equal")
-    ax.legend(fontsize=8)
-    out["path"] = fig
-
-    fig, ax = plt.subplots(figsize=(8, 4))
-    for (label, run), foot in zip(runs, exacts):
-        ax.plot(run.result.time, foot.distance * 1e6, lw=1, label=f"{label} exact")
-    ax.set(xlabel="t [s]", ylabel="contour error [um]", title="Exact contour error")
-    ax.legend(fontsize=8)
-    out["contour_error"] = fig
-
-    fig, (top, bottom) = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
-    for (label, run), foot in zip(runs, exacts):
-        estimate = np.linalg.norm(run.result.estimate_vector, axis=1)
-        top.plot(run.result.time, foot.distance * 1e6, lw=1, label=f"{label} exact")
-        top.plot(run.result.time, estimate * 1e6, "--", lw=1, label=f"{label} estimate")
-        bottom.plot(run.result.time, np.abs(estimate - foot.distance) * 1e6, lw=1, label=label)
-    top.set(ylabel="contour error [um]", title="Estimate against exact contour error")
-    bottom.set(xlabel="t [s]", ylabel="|estimate - exact| [um]")
-    top.legend(fontsize=8)
-    bottom.legend(fontsize=8)
-    out["estimate"] = fig
-
-    axes = runs[0][1].axes
-    fig, panels = plt.subplots(len(axes), 1, figsize=(8, 2.4 * len(axes)), sharex=True, squeeze=False)
-    for i, axis in enumerate(axes):
-        for label, run in runs:
-            panels[i, 0].plot(run.result.time,
-                              (run.result.reference_position[:, i] - run.result.position[:, i]) * 1e6,
-                              lw=1, label=label)
-        panels[i, 0].set(ylabel=f"{axis} tracking [um]")
-    panels[0, 0].set_title("Tracking error R_i - P_i")
-    panels[-1, 0].set_xlabel("t [s]")
-    panels[0, 0].legend(fontsize=8)
-    out["tracking"] = fig
-
-    fig, panels = plt.subplots(len(axes), 1, figsize=(8, 2.4 * len(axes)), sharex=True, squeeze=False)
-    for i, axis in enumerate(axes):
-        for label, run in runs:
-            panels[i, 0].plot(run.result.time, run.result.command[:, i], lw=1, label=f"{label} command")
-            panels[i, 0].plot(run.result.time, run.result.correction[:, i], ":", lw=1, label=f"{label} CCC")
-        panels[i, 0].set(ylabel=f"{axis} effort")
-    panels[0, 0].set_title("Actuator command and cross-coupled correction [command units]")
-    panels[-1, 0].set_xlabel("t [s]")
-    panels[0, 0].legend(fontsize=8)
-    out["effort"] = fig
-    for fig in out.values():
-        fig.tight_layout()
-    return out
+    return _draw_all(_traces(runs), magnification)
 
 
-def write_figures(runs: list, directory, magnification: float | None = None) -> list:
-    """Write :func:`figures` as PNG files into ``directory``; returns their paths."""
-    import matplotlib.pyplot as plt
+def write_figures(runs: list, directory, magnification: float | None = None, drawn: dict | None = None) -> list:
+    """Write :func:`figures` (or ``drawn``, those figures already drawn) as PNG files into ``directory``;
+    returns their paths."""
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
     paths = []
-    for name, fig in figures(runs, magnification).items():
+    for name, fig in (drawn if drawn is not None else figures(runs, magnification)).items():
         path = directory / f"{name}.png"
-        fig.savefig(path, dpi=110)
-        plt.close(fig)
+        path.write_bytes(_png(fig))
         paths.append(path)
     return paths
 
 
-def html_report(runs: list, scores: list, path, magnification: float | None = None) -> Path:
-    """A self-contained HTML page: the score table and every figure (embedded PNG) of one run or more."""
-    import matplotlib.pyplot as plt
-    images = []
-    for name, fig in figures(runs, magnification).items():
+_RENDERED = weakref.WeakKeyDictionary()     # figure -> its PNG, so that files and report render it once
+
+
+def _png(fig) -> bytes:
+    """A figure as PNG bytes (rendered once per figure)."""
+    if fig not in _RENDERED:
         buffer = io.BytesIO()
-        fig.savefig(buffer, format="png", dpi=100)
-        plt.close(fig)
-        images.append((name, base64.b64encode(buffer.getvalue()).decode()))
-    table = format_scores([(label, s) for (label, _), s in zip(runs, scores)], runs[0][1].axes)
-    experiments = "".join(f"<details><summary>experiment of {html.escape(label)}</summary><pre>"
-                          f"{html.escape(run.experiment_text)}</pre></details>" for label, run in runs)
-    body = "".join(f'<h2>{name.replace("_", " ")}</h2><img alt="{name}" src="data:image/png;base64,{data}">'
-                   for name, data in images)
-    warnings = "".join(f"<p><b>warning:</b> {html.escape(w)}</p>" for _, run in runs for w in run.warnings)
-    page = (f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>contouring_ros report</title>"
-            f"<style>body{{font-family:sans-serif;max-width:60em;margin:auto}}img{{max-width:100%}}</style>"
-            f"</head><body><h1>contouring_ros run report</h1>{warnings}<pre>{html.escape(table)}</pre>"
-            f"{experiments}{body}</body></html>")
+        fig.savefig(buffer, format="png", dpi=FIGURE_DPI)
+        _RENDERED[fig] = buffer.getvalue()
+    return _RENDERED[fig]
+
+
+# --- HTML report -------------------------------------------------------------------------------------
+
+CAPTIONS = {
+    "path": "Reference path (black) and each run's actual path with its contour error magnified by the factor "
+            "in the panel title; a circle marks each run's largest contour error. Runs of three axes: 3-D "
+            "view and the xy, xz and yz projections.",
+    "error_map": "Each run's actual path coloured by the magnitude of its exact contour error; a red circle "
+                 "marks the largest.",
+    "contour_error": "Exact contour error (distance from the actual position to the whole reference curve) "
+                     "against time and against the length travelled along the reference.",
+    "estimate": "The contour error estimate the controller used (dashed) over the exact contour error (solid), "
+                "and the magnitude of their difference.",
+    "tracking": "Each axis' tracking error R - P.",
+    "effort": "Each axis' actuator command, and the cross-coupled (CCC) correction in it on an axis of its own.",
+}
+
+_STYLE = """
+body{font-family:system-ui,sans-serif;max-width:84em;margin:1.5em auto;padding:0 1em;color:#222}
+h1{font-size:1.6em;margin-bottom:.2em} h2{border-bottom:1px solid #ccc;padding-bottom:.2em;margin-top:1.6em}
+table{border-collapse:collapse;margin:.6em 0;font-size:.92em}
+th,td{border:1px solid #d0d0d0;padding:.25em .6em} th{background:#f3f3f3;text-align:left}
+td.num{text-align:right;font-variant-numeric:tabular-nums} td.better{background:#e3f4e3}
+td.worse{background:#f8e1e1} td.base{color:#888}
+.swatch{display:inline-block;width:1.6em;height:.35em;vertical-align:middle;margin-right:.4em;border-radius:2px}
+figure{margin:1em 0} figure img{max-width:100%;border:1px solid #e5e5e5} figcaption{color:#555;font-size:.9em}
+pre{background:#f7f7f7;padding:.8em;overflow-x:auto;font-size:.85em} details{margin:.4em 0}
+summary{cursor:pointer} .warning{color:#a33} .scroll{overflow-x:auto} td.wide{min-width:22em}
+th .swatch{display:block;margin:0 0 .25em 0}
+"""
+
+
+def _score_rows(axes: list) -> list:
+    """(label, value(scores, run axes)) of every score, the per-axis ones by axis name (None for a run
+    without that axis)."""
+    def per_axis(field, axis, scale):
+        return lambda s, own: getattr(s, field)[own.index(axis)] * scale if axis in own else None
+    rows = [(label, lambda s, own, get=get: get(s)) for label, get in _ROWS]
+    for axis in axes:
+        rows += [(f"tracking error max {axis} [um]", per_axis("tracking_max", axis, 1e6)),
+                 (f"tracking error RMS {axis} [um]", per_axis("tracking_rms", axis, 1e6))]
+    rows += [(f"effort RMS {axis} [command units]", per_axis("effort_rms", axis, 1.0)) for axis in axes]
+    return rows + [("travel time [s]", lambda s, own: s.travel_time), ("steps", lambda s, own: s.steps)]
+
+
+def _number(value) -> str:
+    if value is None:
+        return "-"
+    return f"{value:d}" if isinstance(value, (int, np.integer)) else f"{value:.4g}"
+
+
+def _run_header(traces) -> str:
+    return "<tr><th>metric</th>" + "".join(
+        f'<th><span class="swatch" style="background:{t.colour}"></span>{html.escape(t.name)}</th>'
+        for t in traces) + "</tr>"
+
+
+def _html_scores(traces, scores) -> str:
+    """The scores of every run as an HTML table."""
+    rows = []
+    for label, value in _score_rows(_axis_union(traces)):
+        cells = "".join(f'<td class="num">{_number(value(s, t.axes) if s is not None else None)}</td>'
+                        for t, s in zip(traces, scores))
+        rows.append(f"<tr><td>{html.escape(label)}</td>{cells}</tr>")
+    return f'<h2>Scores</h2><div class="scroll"><table>{_run_header(traces)}{"".join(rows)}</table></div>'
+
+
+def _ratio_cell(value, reference, is_baseline: bool) -> str:
+    if value is None or reference is None or not reference or not np.isfinite(reference):
+        return '<td class="num">-</td>'
+    ratio = value / reference
+    kind = "base" if is_baseline else "better" if ratio < 0.95 else "worse" if ratio > 1.05 else ""
+    return f'<td class="num {kind}">{ratio:.3g}</td>'
+
+
+def _html_ratios(traces, scores, baseline: int) -> str:
+    """Each run's main metrics as a ratio to the baseline run's (those of ``compare_table``)."""
+    if scores[baseline] is None:
+        return "<h2>Ratios</h2><p>The baseline run has no scores.</p>"
+    rows = []
+    for label, get in _ROWS:
+        reference = get(scores[baseline])
+        cells = "".join(_ratio_cell(get(s) if s is not None else None, reference, k == baseline)
+                        for k, s in enumerate(scores))
+        rows.append(f"<tr><td>{html.escape(label.split(' [')[0])}</td>{cells}</tr>")
+    return (f"<h2>Ratios to {html.escape(traces[baseline].name)}</h2><p>Below 1: smaller than the baseline's "
+            f'(green); above 1: larger (red).</p><div class="scroll"><table>{_run_header(traces)}{"".join(rows)}'
+            "</table></div>")
+
+
+def _kind(experiment, section: str) -> str:
+    """The type of an experiment's section (curve, estimator, controller), for the runs table."""
+    part = getattr(experiment, section, None) if experiment is not None else None
+    return html.escape(str(part.get("type", "-"))) if part else "-"
+
+
+def _html_runs(traces, runs) -> str:
+    """One row per run: colour, name, bag, axes, steps, curve, estimator, controller, description."""
+    rows = []
+    for t, (label, run) in zip(traces, runs):
+        kinds = "".join(f"<td>{_kind(t.experiment, section)}</td>" for section in ("curve", "estimator", "controller"))
+        description = (t.experiment.info.get("experiment") or {}).get("description", "") if t.experiment else ""
+        rows.append(f'<tr><td><span class="swatch" style="background:{t.colour}"></span>{html.escape(t.name)}'
+                    f"</td><td>{html.escape(label)}</td><td>{', '.join(map(html.escape, t.axes))}</td>"
+                    f'<td class="num">{run.complete_steps}</td>'
+                    f"{kinds}"
+                    f'<td class="wide">{html.escape(str(description))}</td></tr>')
+    warnings = "".join(f'<p class="warning"><b>warning</b> ({html.escape(t.name)}): {html.escape(w)}</p>'
+                       for t, (_, run) in zip(traces, runs) for w in run.warnings)
+    return ('<h2>Runs</h2><div class="scroll"><table><tr><th>run</th><th>bag</th><th>axes</th><th>steps</th>'
+            "<th>curve</th><th>estimator</th><th>CCC</th><th>description</th></tr>"
+            f"{''.join(rows)}</table></div>{warnings}")
+
+
+def _png_base64(fig) -> str:
+    return base64.b64encode(_png(fig)).decode()
+
+
+def _html_figures(drawn: dict) -> str:
+    return "<h2>Figures</h2>" + "".join(
+        f'<figure id="{name}"><img alt="{name}" src="data:image/png;base64,{_png_base64(fig)}">'
+        f"<figcaption>{html.escape(CAPTIONS.get(name, name))}</figcaption></figure>" for name, fig in drawn.items())
+
+
+def _html_experiments(traces) -> str:
+    return "<h2>Experiments</h2>" + "".join(
+        f"<details><summary>{html.escape(t.name)}: experiment YAML</summary>"
+        f"<pre>{html.escape(t.run.experiment_text)}</pre></details>" for t in traces)
+
+
+def html_report(runs: list, scores: list, path, magnification: float | None = None, baseline: int = 0,
+                drawn: dict | None = None) -> Path:
+    """A self-contained HTML page of one run or a comparison: the runs, their scores and the ratios to the
+    ``baseline`` run as tables, every figure (embedded PNG; ``drawn``: the :func:`figures` of these runs,
+    when already drawn) and each run's experiment YAML (collapsible). ``scores`` holds a Scores or None
+    (not scored) per run."""
+    traces = _traces(runs)
+    drawn = drawn if drawn is not None else _draw_all(traces, magnification)
+    title = "Contouring report: " + (" vs ".join(t.name for t in traces) if len(traces) <= 2 else
+                                      f"{traces[0].name} and {len(traces) - 1} other runs")
+    page = (f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>"
+            f"<style>{_STYLE}</style></head><body><h1>{html.escape(title)}</h1>"
+            f"{_html_runs(traces, runs)}{_html_scores(traces, scores)}{_html_ratios(traces, scores, baseline)}"
+            f"{_html_figures(drawn)}{_html_experiments(traces)}</body></html>")
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(page)

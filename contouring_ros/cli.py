@@ -164,14 +164,31 @@ def _replay(args):
 
 
 def _plot(args):
-    from .analysis import html_report, write_figures
-    results = _scored(args)
-    runs = [(name, run) for name, _, run in results]
+    import numpy as np
+
+    from .analysis import figures, html_report, write_figures
+    from .bag import read_run
+    from .scoring import curve_of, score_run
+    if args.baseline:
+        args.bags = [args.baseline] + [bag for bag in args.bags if bag != args.baseline]
+    text = _experiment_text(args)
+    runs, scores = [], []
+    for bag in args.bags:        # a run that cannot be scored (diverged, no steps) is still drawn
+        run = read_run(bag, experiment_text=text, progress=sys.stderr.isatty())
+        _warn(run)
+        try:
+            with np.errstate(all="ignore"):
+                scores.append(score_run(curve_of(run), run.result))
+        except (ContouringError, ValueError, ArithmeticError) as error:
+            print(f"warning: {bag}: not scored ({error})", file=sys.stderr)
+            scores.append(None)
+        runs.append((Path(bag).stem, run))
     out = Path(args.out or (Path(args.bags[0]).with_suffix("")))
-    for path in write_figures(runs, out, args.magnification):
+    drawn = figures(runs, args.magnification)
+    for path in write_figures(runs, out, drawn=drawn):
         print(path)
     if args.html:
-        print(html_report(runs, [scores for _, scores, _ in results], out / "report.html", args.magnification))
+        print(html_report(runs, scores, out / "report.html", drawn=drawn))
 
 
 def _export(args):
@@ -275,6 +292,7 @@ def main(argv=None):
     p.add_argument("--out", help="directory for the figures (default: next to the first bag)")
     p.add_argument("--html", action="store_true", help="also write a self-contained report.html")
     p.add_argument("--magnification", type=float, help="contour error magnification in the path plot")
+    p.add_argument("--baseline", help="with --html: the bag the ratios refer to (default: the first)")
     p.add_argument("--experiment", help=experiment_help)
     p.set_defaults(func=_plot)
     p = sub.add_parser("export", help="every signal of every step of bags, with the exact contour error, as tables")

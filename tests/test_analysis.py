@@ -1,4 +1,5 @@
-"""Analysis of bags without ROS: other writers, truncated files, replay, comparisons, figures, playback."""
+"""Analysis of bags without ROS: other writers, truncated files, replay, comparisons, playback (figures:
+test_figures.py)."""
 import json
 import subprocess
 import sys
@@ -7,7 +8,7 @@ import time
 import numpy as np
 import pytest
 
-from contouring_ros.analysis import compare_table, html_report, replay_estimators, write_figures
+from contouring_ros.analysis import compare_table, replay_estimators
 from contouring_ros.bag import read_run, write_simulation
 from contouring_ros.config import build_loop, parse_experiment
 from contouring_ros.core.simulation import simulate
@@ -106,21 +107,6 @@ def test_compare_gives_ratios_to_the_baseline(short_bag):
     assert "ratio to base:" in table
     ratio_lines = table.split("ratio to base:")[1].strip().splitlines()[1:]
     assert all(line.split()[-2:] == ["1", "1"] for line in ratio_lines if "deviation" not in line)
-
-
-def test_figures_and_report_are_written(short_bag, tmp_path):
-    import matplotlib.image
-    path, expected = short_bag
-    run = read_run(path)
-    paths = write_figures([("short", run)], tmp_path / "figures")
-    assert sorted(p.stem for p in paths) == ["contour_error", "effort", "estimate", "path", "tracking"]
-    for png in paths:
-        assert png.stat().st_size > 10_000
-        pixels = matplotlib.image.imread(png)
-        assert pixels.std() > 0.05            # not a blank canvas
-    report = html_report([("short", run)], [expected], tmp_path / "report.html")
-    page = report.read_text()
-    assert page.count("data:image/png;base64,") == 5 and "MCE [um]" in page
 
 
 @pytest.mark.graph
