@@ -168,6 +168,7 @@ GLOBALS = {
     "paper": Param("dict", {}),
     "sample_time": Param("float", check="positive"),
     "duration": Param("float", 0.0, "nonnegative"),
+    "settle_time": Param("float", 0.0, "nonnegative"),   # s run past the schedule's end (duration left to it)
     "axes": Param("strings"),
     "curve": Param("dict", choices=CURVES),
     "schedule": Param("dict", choices=SCHEDULES),
@@ -343,7 +344,7 @@ def _validate_globals(where, given: dict) -> dict:
         _fail(where, "axes", f"{len(axes)} axes given but the {out['curve']['type']} curve has {dimension} "
                              "coordinates")
     if out["duration"] == 0.0:
-        out["duration"] = _schedule_duration(where, out["curve"], out["schedule"])
+        out["duration"] = _schedule_duration(where, out["curve"], out["schedule"]) + out["settle_time"]
     if out["sample_time"] > out["duration"]:
         _fail(where, "sample_time", f"expected at most the duration ({out['duration']} s)")
     return out

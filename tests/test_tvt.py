@@ -74,3 +74,50 @@ def test_paper002_tvt_below_osculating_below_tangent_line_in_max_contour_error()
     tangent, osculating, tvt = (_paper002(m) for m in ("c1_tangent_line", "c2_osculating_circle", "c3_tvt"))
     assert tvt.mce < osculating.mce < tangent.mce
     assert tvt.estimation_max < 1e-6
+
+
+CIRCLE_LAP = """\
+/**:
+  ros__parameters:
+    sample_time: 0.001
+    axes: ["x", "y"]
+    curve: {type: circle, radius: 0.005}
+    schedule: {type: feedrate, theta_start: 0.0, theta_end: 6.283185307179586, feedrate: 0.05, acceleration: 1.0,
+               normal_acceleration: 0.5}
+    settle_time: SETTLE
+/x/plant:
+  ros__parameters: {model: first_order_velocity, gain: 1.0, time_constant: 0.005}
+/y/plant:
+  ros__parameters: {model: first_order_velocity, gain: 1.0, time_constant: 0.005}
+/x/servo:
+  ros__parameters: {law: direct}
+/y/servo:
+  ros__parameters: {law: direct}
+/contour_estimator:
+  ros__parameters: {type: foot_point_search, max_iterations: 10, tolerance: 1.0e-6}
+/ccc:
+  ros__parameters: {type: tvt, kc: 140.0, min_feedrate: 0.001}
+"""
+
+
+def test_settle_time_runs_past_the_schedule():
+    from contouring_ros.config import parse_experiment
+    plain = parse_experiment(CIRCLE_LAP.replace("SETTLE", "0.0"), "lap")
+    settled = parse_experiment(CIRCLE_LAP.replace("SETTLE", "0.4"), "lap")
+    assert settled.duration == pytest.approx(plain.duration + 0.4, abs=1e-12)
+    assert settled.n_steps == plain.n_steps + 400
+
+
+def test_tvt_stops_at_the_end_of_a_closed_path():
+    """The foot point's parameter wraps from 2 pi to 0 on a closed curve; the TVT follows it unwrapped, so past
+    the end the commanded feedrate is 0 and the axes stay at the end point (they used to start a second lap,
+    at the profile's start feedrate)."""
+    from contouring_ros.config import parse_experiment
+    loop = build_loop(parse_experiment(CIRCLE_LAP.replace("SETTLE", "0.5"), "lap"))
+    run = simulate(loop)
+    end = loop.curve.point(2 * np.pi)
+    assert np.linalg.norm(run.position[-1] - end) < 1e-4          # at the end point, +- a small overshoot
+    assert np.linalg.norm(run.velocity[-1]) < 1e-6                 # and at rest
+    assert loop.controller.theta == pytest.approx(2 * np.pi, abs=0.02)
+    travelled = np.sum(np.linalg.norm(np.diff(run.position, axis=0), axis=1))
+    assert travelled == pytest.approx(2 * np.pi * 0.005, rel=0.01)  # one lap, not more

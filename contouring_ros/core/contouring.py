@@ -221,6 +221,11 @@ class TangentialVelocityCCC:
     from the actual point to the tangent line at the foot point, eq. 4-5 of the text's step 4): a P-type
     contour controller of gain ``kc`` [1/s] on velocity loops. The output is every axis' whole velocity
     command (servo law 'direct' over closed velocity loops).
+
+    On a closed curve the estimator reports theta* wrapped into one period; the controller follows it
+    unwrapped from the schedule's start (each step's change taken within half a period), so past
+    ``theta_end`` the commanded feedrate is 0 and the axes stop at the end of the path instead of
+    starting a second lap from the profile's start.
     """
 
     needs_state = True
@@ -229,10 +234,16 @@ class TangentialVelocityCCC:
         self.curve, self.schedule, self.kc = curve, schedule, float(kc)
         self.min_feedrate = float(min_feedrate)
         self.theta_end = float(schedule.theta_end)
+        self.theta = float(schedule.theta_start)      # the foot point's parameter, unwrapped
 
     def step(self, estimate, reference=None, position=None, velocity=None) -> np.ndarray:
         theta = float(estimate.theta)
         tangent = unit_tangent(self.curve, theta)
+        if self.curve.closed:
+            lo, hi = self.curve.domain
+            period = hi - lo
+            self.theta += (theta - self.theta + 0.5 * period) % period - 0.5 * period
+            theta = self.theta
         feedrate = float(self.schedule.feedrate_at(self.curve, theta))
         if theta < self.theta_end:
             feedrate = max(feedrate, self.min_feedrate)
