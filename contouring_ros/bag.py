@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import os
 import re
+import struct
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -221,32 +222,244 @@ def _step_times(stamps_ns, sample_time) -> np.ndarray:
     return np.array([step_time(stamp // ts_ns, sample_time) for stamp in stamps_ns])
 
 
-def _iter_records(path, warnings: list, progress: bool = False):
+_MAGIC = b"\x89MCAP0\r\n"
+_FOOTER_SIZE = 1 + 8 + 20          # opcode, length, summary_start, summary_offset_start, summary_crc
+_KNOWN_OPCODES = range(0x01, 0x10)
+_MAX_RECORD = 1 << 30              # bytes of one record (or a chunk's uncompressed records) at most
+_OP_FOOTER, _OP_SCHEMA, _OP_CHANNEL, _OP_MESSAGE, _OP_CHUNK, _OP_CHUNK_INDEX, _OP_METADATA, _OP_DATA_END = \
+    0x02, 0x03, 0x04, 0x05, 0x06, 0x08, 0x0C, 0x0F
+
+
+@dataclass
+class Damage:
+    """A part of a bag that could not be read: the record at byte ``offset`` (a chunk whose CRC, compression
+    or framing is wrong, or a record whose length is), and the log times [start_ns, end_ns] its messages
+    could have had (None: from the start / to the end of the recording)."""
+
+    offset: int
+    kind: str                     # chunk | record
+    reason: str
+    start_ns: int | None
+    end_ns: int | None
+    resumed_at: int | None        # byte of the next chunk read, None: nothing after it could be read
+
+
+def _summary_chunks(stream, size: int, path, warnings: list):
+    """(complete, chunks, records): whether the file ends with a valid footer, and, when the summary is there
+    and its CRC holds (else None, []), its chunk index as sorted (offset, length, start_ns, end_ns) and its
+    schema and channel records."""
+    import zlib
+    from io import BytesIO
+    from mcap.data_stream import ReadDataStream
+    from mcap.records import Channel, ChunkIndex, Schema
+    if size < 8 + _FOOTER_SIZE + 8:
+        return False, None, []
+    stream.seek(size - 8 - _FOOTER_SIZE)
+    tail = stream.read(_FOOTER_SIZE + 8)
+    if tail[-8:] != _MAGIC or tail[0] != _OP_FOOTER or int.from_bytes(tail[1:9], "little") != 20:
+        return False, None, []
+    summary_start, _, summary_crc = struct.unpack_from("<QQI", tail, 9)
+    footer_at = size - 8 - _FOOTER_SIZE
+    if summary_start == 0:
+        return True, None, []
+    if not 8 <= summary_start < footer_at:
+        warnings.append(f"{path}: the footer is damaged (its summary offset {summary_start} is outside the "
+                        "file); chunks are found by scanning")
+        return False, None, []
+    stream.seek(summary_start)
+    summary = stream.read(footer_at - summary_start)
+    if summary_crc and zlib.crc32(tail[:1 + 8 + 16], zlib.crc32(summary)) != summary_crc:
+        warnings.append(f"{path}: the summary is damaged (CRC mismatch); chunks are found by scanning")
+        return False, None, []
+    chunks, records, at = [], [], 0
+    try:
+        while at + 9 <= len(summary):
+            opcode, length = summary[at], int.from_bytes(summary[at + 1:at + 9], "little")
+            if opcode == _OP_CHUNK_INDEX:
+                index = ChunkIndex.read(ReadDataStream(BytesIO(summary[at + 9:at + 9 + length])))
+                chunks.append((index.chunk_start_offset, index.chunk_length, index.message_start_time,
+                               index.message_end_time))
+            elif opcode in (_OP_SCHEMA, _OP_CHANNEL):
+                body = ReadDataStream(BytesIO(summary[at + 9:at + 9 + length]))
+                records.append((Schema if opcode == _OP_SCHEMA else Channel).read(body))
+            at += 9 + length
+    except Exception:   # a CRC that holds over a summary we cannot parse: not ours to guess
+        warnings.append(f"{path}: the summary cannot be parsed; chunks are found by scanning")
+        return True, None, []
+    return True, sorted(chunks), records
+
+
+def _chunk_records(body: bytes):
+    """The records of a chunk record's ``body`` (after opcode and length), its CRC checked; raises
+    ValueError with the reason when the chunk is damaged."""
+    from io import BytesIO
+    from mcap.data_stream import ReadDataStream
+    from mcap.records import Chunk
+    from mcap.stream_reader import CRCValidationError, breakup_chunk
+    try:
+        chunk = Chunk.read(ReadDataStream(BytesIO(body)))
+    except Exception as error:
+        raise ValueError(f"its header cannot be read ({type(error).__name__})") from None
+    if chunk.compression not in ("", "zstd", "lz4") or chunk.uncompressed_size > _MAX_RECORD or \
+            chunk.message_start_time > chunk.message_end_time:
+        raise ValueError("its header is damaged")
+    try:
+        return chunk, breakup_chunk(chunk, validate_crc=True)
+    except CRCValidationError:
+        raise ValueError("CRC mismatch") from None
+    except Exception as error:
+        what = "it cannot be decompressed" if type(error).__module__.split(".")[0] in ("zstandard", "lz4") or \
+            "Zstd" in type(error).__name__ else "its records cannot be read"
+        raise ValueError(f"{what} ({type(error).__name__})") from None
+
+
+def _plausible_chunk(head: bytes, at: int, size: int) -> bool:
+    """Whether the bytes ``head`` (at file offset ``at``) start a chunk record: opcode, a length inside the
+    file, ordered times, a known compression and a records length that fills the record exactly."""
+    if len(head) < 49 or head[0] != _OP_CHUNK:
+        return False
+    length = int.from_bytes(head[1:9], "little")
+    start, end, uncompressed, _, name_length = struct.unpack_from("<QQQII", head, 9)
+    if at + 9 + length > size or start > end or uncompressed > _MAX_RECORD or name_length > 4:
+        return False
+    name = head[41:41 + name_length]
+    if name not in (b"", b"zstd", b"lz4") or len(head) < 49 + name_length:
+        return False
+    records = int.from_bytes(head[41 + name_length:49 + name_length], "little")
+    return length == 40 + name_length + records
+
+
+def _next_chunk(stream, after: int, size: int, chunks):
+    """The offset of the first chunk that starts after byte ``after``: from the summary's index when there is
+    one, else by scanning the bytes for a plausible chunk record; None when there is none."""
+    if chunks is not None:
+        return next((offset for offset, *_ in chunks if offset > after), None)
+    block, at = 1 << 20, after + 1
+    while at < size:
+        stream.seek(at)
+        data = stream.read(block + 64)
+        found = data.find(bytes([_OP_CHUNK]))
+        while 0 <= found < block:
+            if _plausible_chunk(data[found:found + 64], at + found, size):
+                return at + found
+            found = data.find(bytes([_OP_CHUNK]), found + 1)
+        at += block
+    return None
+
+
+def _iter_records(path, warnings: list, progress: bool = False, damaged: list | None = None):
     """(schema, channel, message, metadata) records of a bag read front to back, streaming.
 
-    A bag whose writer died has no summary: everything up to its last complete record (chunk) is still
-    read, and a warning says where the file ends. ``progress`` shows a bar over the file's bytes.
+    Every chunk's CRC is checked. A damaged chunk (or a record whose framing is broken) is skipped and
+    reading goes on at the next chunk: the summary's chunk index says where it starts when the summary is
+    there (and its CRC holds), else the bytes are scanned for the next chunk record. Each damaged part is a
+    :class:`Damage` appended to ``damaged`` (read_run turns them into warnings naming the steps lost), or,
+    without that list, a warning with its time range. A bag whose writer died has no summary: everything
+    up to its last complete record (chunk) is read, and a warning says where the file ends. ``progress``
+    shows a bar over the file's bytes.
     """
-    from mcap.records import Channel, Footer, Message, Metadata, Schema
-    from mcap.stream_reader import StreamReader
+    from io import BytesIO
+    from mcap.data_stream import ReadDataStream
+    from mcap.records import Channel, Message, Metadata, Schema
     from tqdm import tqdm
-    with open(path, "rb") as raw:
-        with tqdm.wrapattr(raw, "read", total=Path(path).stat().st_size, desc=f"reading {Path(path).name}",
-                           disable=not progress, leave=False) as stream:
-            records = StreamReader(stream).records
-            complete = False
-            try:
-                for record in records:
-                    if isinstance(record, (Schema, Channel, Message, Metadata)):
-                        yield record
-                    elif isinstance(record, Footer):
-                        complete = True
-            except Exception as error:   # the mcap reader raises several kinds at a cut-off record
-                warnings.append(f"{path}: the bag ends early ({type(error).__name__}: it has no summary, its "
-                                "writer was stopped); read up to its last complete chunk")
-                return
-    if not complete:
+    path = Path(path)
+    size = path.stat().st_size
+    readers = {_OP_SCHEMA: Schema.read, _OP_CHANNEL: Channel.read, _OP_METADATA: Metadata.read}
+    own = damaged if damaged is not None else []
+    with open(path, "rb") as stream, tqdm(total=size, desc=f"reading {path.name}", disable=not progress,
+                                          leave=False, unit="B", unit_scale=True) as bar:
+        if stream.read(8) != _MAGIC:
+            raise BagError(f"{path}: not an MCAP file (no MCAP magic at its start)")
+        complete, chunks, known = _summary_chunks(stream, size, path, warnings)
+        indexed = {offset: (length, start, end) for offset, length, start, end in chunks or []}
+        yield from known        # the summary's schemas and channels: a damaged first chunk loses none of them
+        position, last_ns, ended = 8, None, None
+        while True:
+            stream.seek(position)
+            head = stream.read(9)
+            if len(head) < 9:
+                ended = "early"
+                break
+            opcode, length = head[0], int.from_bytes(head[1:9], "little")
+            if position in indexed and opcode == _OP_CHUNK:
+                length = indexed[position][0] - 9
+            end = position + 9 + length
+            problem = None
+            if opcode not in _KNOWN_OPCODES:
+                problem = f"no MCAP record starts there (opcode {opcode:#04x})"
+            elif end > size or length > _MAX_RECORD:
+                problem = "its length runs past the end of the file"
+            if problem is None and opcode == _OP_DATA_END:
+                break
+            if problem is None and opcode == _OP_FOOTER:
+                break
+            body = stream.read(length) if problem is None and opcode in (_OP_CHUNK, _OP_MESSAGE, *readers) else b""
+            records = []
+            if problem is None and opcode == _OP_CHUNK:
+                try:
+                    _, records = _chunk_records(body)
+                except ValueError as error:
+                    problem = str(error)
+            elif problem is None and opcode == _OP_MESSAGE:
+                try:
+                    records = [Message.read(ReadDataStream(BytesIO(body)), length)]
+                except Exception as error:
+                    problem = f"a message cannot be read ({type(error).__name__})"
+            elif problem is None and opcode in readers:
+                try:
+                    records = [readers[opcode](ReadDataStream(BytesIO(body)))]
+                except Exception as error:
+                    problem = f"a record cannot be read ({type(error).__name__})"
+            if problem is not None:
+                resume = _next_chunk(stream, position, size, chunks)
+                if resume is None and chunks is None and end > size and not complete:
+                    ended = "early"      # the last record of a bag cut off while it was written
+                    break
+                start_ns, end_ns = indexed[position][1:] if position in indexed else (last_ns, None)
+                if resume is not None and end_ns is None:
+                    end_ns = indexed[resume][1] if resume in indexed else _chunk_start_ns(stream, resume)
+                kind = "chunk" if opcode == _OP_CHUNK or position in indexed else "record"
+                own.append(Damage(position, kind, problem, start_ns, end_ns, resume))
+                if damaged is None:
+                    warnings.append(_damage_warning(path, own[-1]))
+                if resume is None:
+                    ended = "damaged"
+                    break
+                bar.update(resume - position)
+                position = resume
+                continue
+            for record in records:
+                if isinstance(record, Message):
+                    last_ns = record.log_time if last_ns is None else max(last_ns, record.log_time)
+                yield record
+            bar.update(end - position)
+            position = end
+    if ended == "early":
+        warnings.append(f"{path}: the bag ends early (it has no summary: its writer was stopped); read up to its "
+                        "last complete chunk")
+    elif ended is None and not complete:
         warnings.append(f"{path}: the bag has no footer; read up to its last complete chunk")
+
+
+def _chunk_start_ns(stream, offset: int):
+    stream.seek(offset + 9)
+    return struct.unpack("<Q", stream.read(8))[0]
+
+
+def _damage_warning(path, damage: Damage, sample_time: float | None = None, lost=None) -> str:
+    """One line: where the bag is damaged, why, what was lost (steps when known, else log times)."""
+    after = f"read on from the chunk at byte {damage.resumed_at}" if damage.resumed_at is not None else \
+        "nothing after it could be read"
+    if lost is not None:
+        what = f"steps {lost[0]}..{lost[-1]} lost ({len(lost)} step{'s' if len(lost) > 1 else ''}, t = " \
+               f"{lost[0] * sample_time:.6g}.." \
+               f"{lost[-1] * sample_time:.6g} s)" if len(lost) else "no step lost"
+    else:
+        start = "the start" if damage.start_ns is None else f"t = {damage.start_ns * 1e-9:.6g} s"
+        stop = "the end" if damage.end_ns is None else f"t = {damage.end_ns * 1e-9:.6g} s"
+        what = f"messages from {start} to {stop} lost"
+    return f"{path}: the {damage.kind} at byte {damage.offset} is damaged " \
+           f"({damage.reason}): {what}; {after}"
 
 
 class _TopicColumns:
@@ -299,10 +512,11 @@ def read_run(path, keep_payloads: bool = False, experiment_text: str | None = No
     kept: dict = {}
     payloads: dict = {}
     warnings: list = []
+    damaged: list = []            # Damage of each part of the file that could not be read
     schemas, keepers = {}, {}     # channel id -> _TopicColumns of the topics scoring needs
     sample_time = joint_names = None
     try:
-        for record in _iter_records(path, warnings, progress):
+        for record in _iter_records(path, warnings, progress, damaged):
             if isinstance(record, Schema):
                 schemas[record.id] = record
             elif isinstance(record, Channel):
@@ -322,8 +536,13 @@ def read_run(path, keep_payloads: bool = False, experiment_text: str | None = No
                     joint_names = cdr.decode_joint_trajectory(record.data).joint_names
                 if keep_payloads:
                     payloads.setdefault(columns.topic, []).append(bytes(record.data))
-    except Exception as error:  # a damaged file, not just a cut-off one
+    except BagError:
+        raise
+    except Exception as error:  # a damaged file that the chunk checks did not catch
         raise BagError(f"{path}: cannot read the bag ({type(error).__name__}: {error})") from None
+    if damaged and not experiment_text:
+        raise BagError(f"{path}: the bag is damaged ({damaged[0].reason} at byte {damaged[0].offset}) and holds no "
+                       f"experiment ('{EXPERIMENT_METADATA}' metadata); give the experiment file that produced it")
     if not experiment_text:
         raise BagError(f"{path}: the bag holds no experiment ('{EXPERIMENT_METADATA}' metadata); give the "
                        "experiment file that produced it")
@@ -351,6 +570,10 @@ def read_run(path, keep_payloads: bool = False, experiment_text: str | None = No
         rows[topic] = last
     if sample_time is None or not np.isfinite(sample_time):
         sample_time = _sample_time_of(experiment_text)
+    if damaged:
+        last_ns = max(int(kept[topic].stamps[-1]) for topic in needed)
+        warnings[:0] = [_damage_warning(path, damage, sample_time, _lost_steps(damage, stamps, sample_time, last_ns))
+                        for damage in damaged]
     n = len(axes)
 
     def column(topic, index, count=None):
@@ -378,6 +601,16 @@ def read_run(path, keep_payloads: bool = False, experiment_text: str | None = No
         result = SimulationResult(**{name: value[:k] for name, value in vars(result).items()})
     return RecordedRun(experiment_text=experiment_text, axes=axes, result=result, payloads=payloads,
                        warnings=warnings)
+
+
+def _lost_steps(damage: Damage, complete_ns: np.ndarray, sample_time: float, last_ns: int) -> np.ndarray:
+    """The steps k within the damaged part's time range (to the last recorded step when it runs to the end)
+    that have no complete step in the bag."""
+    ts_ns = int(round(sample_time * 1e9))
+    start = 0 if damage.start_ns is None else -(-damage.start_ns // ts_ns)
+    stop = (last_ns if damage.end_ns is None else damage.end_ns) // ts_ns
+    steps = np.arange(start, max(stop, start - 1) + 1, dtype=np.int64)
+    return steps[~np.isin(steps * ts_ns, complete_ns)]
 
 
 def _divergence_bound(experiment_text: str) -> float | None:

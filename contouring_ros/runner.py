@@ -56,8 +56,16 @@ class NodeProcess:
 
 
 def default_bag_path(experiment: Experiment, directory="bags") -> Path:
+    """``directory``/<experiment name>_<time>.mcap, always a file directly inside ``directory``: the name
+    (validated in the file, but the file's stem where it gives none) keeps only letters, digits, '_', '-'
+    and '.', at most 100 characters, and never starts with a dot."""
+    import re
     stamp = datetime.now().strftime("%Y%m%d_%H%M%S_%f")
-    return Path(directory) / f"{experiment.name}_{stamp}.mcap"
+    name = re.sub(r"[^A-Za-z0-9_.-]", "_", str(experiment.name))[:100].lstrip(".") or "experiment"
+    path = Path(directory) / f"{name}_{stamp}.mcap"
+    if path.resolve().parent != Path(directory).resolve():
+        raise RunError(f"the bag name {name!r} would leave the bag folder {directory}")
+    return path
 
 
 def private_environment(domain_id: int, network: bool = False) -> dict:
