@@ -1,76 +1,431 @@
 """Republish a bag onto ROS topics, at its recorded rate (or a multiple) or as fast as possible.
 
-Every channel of the bag is published with its own type, raw (the recorded CDR bytes go out unchanged),
-and /clock follows the messages' log times, so use_sim_time nodes and tools see the recorded time.
+Every playable channel of the bag is published raw (the recorded CDR bytes go out unchanged), in the order
+of the file, and /clock follows the messages' log times, so use_sim_time nodes and tools see the recorded
+time: the bag's own /clock when it is played, otherwise one Clock per distinct log time of the played
+messages.
+
+Delivery
+--------
+Publishers are reliable, volatile, keep-all, with the package's Fast DDS profile (reliable
+heartbeats every 20 ms) unless a profile is set in the environment. Before the first message the player
+waits, at most ``wait_timeout`` s, until ``wait_subscribers`` nodes subscribe to the played topics and
+each of their subscriptions (but transient-local ones, which never match a volatile publisher) has matched
+a publisher, unchanged for :data:`SETTLE` s; when it gives up it says so in one line and publishes anyway.
+While publishing, no publisher has more than :data:`WINDOW` messages unacknowledged: past that the player
+waits for its readers' acknowledgements (``wait_for_all_acked``; readers acknowledge at the heartbeats), at
+any rate, and at a positive rate it spends the time before each message is due waiting for them. At the
+end it waits for the last acknowledgements before it leaves. So a reliable keep-all subscriber receives
+every message at any rate, ``--rate 0`` included, and a reliable keep-last subscriber of depth D every
+message it takes before D more of the same topic arrive (at ``--rate 0`` the player outruns most Python
+subscribers: give them keep-all, or a depth above the bag's messages per topic); a best-effort subscriber
+may lose some. A topic whose subscribers do not acknowledge within :data:`ACK_TIMEOUT` s is named in a
+warning, and from then on waited for only briefly.
+
+Ctrl-C stops between two messages (the count said is exact), gives the messages under way up to
+:data:`CTRL_C_DRAIN` s to be acknowledged, and re-raises KeyboardInterrupt (the CLI exits with 130).
+
+Options
+-------
+``loop``: play the bag again and again until Ctrl-C; /clock and the pacing restart with the bag at each
+pass (time jumps back: the messages go out unchanged, so their header stamps and /clock agree). ``start``: skip the
+messages before ``start`` seconds after the bag's first message. ``topics``: play only these topics
+(/clock is still synthesised from their log times); a topic the bag does not have is refused.
+
+Message types
+-------------
+A channel's type is taken only from the ROS message packages installed (:func:`installed_message_class`):
+its schema name must be ``pkg/msg/Type`` with ``pkg`` registered in an ament index (``rosidl_interfaces``)
+of this environment or of ``AMENT_PREFIX_PATH`` and listing ``msg/Type``, and the Python package must live
+under that prefix. Anything else is refused with one warning line naming the topic and the type, and
+nothing is imported: a bag cannot make the player run code.
 """
 from __future__ import annotations
 
+import contextlib
+import importlib
+import importlib.util
+import os
+import re
+import signal
+import site
+import sys
+import threading
 import time
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from . import cdr, graph
 from .bag import _iter_records
 from .errors import BagError
 
-__all__ = ["play_bag"]
+__all__ = ["play_bag", "installed_message_class", "UnplayableType", "WINDOW", "SETTLE", "ACK_TIMEOUT",
+           "CTRL_C_DRAIN"]
 
-DISCOVERY_PAUSE = 1.0   # s between creating the publishers and the first message, so subscribers match
+WINDOW = 1000       # messages a publisher may have unacknowledged before the player waits for its readers
+SETTLE = 0.25       # s the matched subscriptions must stay the same before the first message
+ACK_TIMEOUT = 10.0  # s the player waits for acknowledgements before it goes on without them (and says so)
+CTRL_C_DRAIN = 2.0  # s at most for the acknowledgements of the messages under way at a Ctrl-C
+_TYPE_NAME = re.compile(r"^([a-z][a-z0-9_]*)/msg/([A-Za-z][A-Za-z0-9]*)$")
+_CLOCK_TYPE = "rosgraph_msgs/msg/Clock"
 
 
-def play_bag(path, rate: float = 1.0, progress: bool = False, say=print) -> int:
-    """Publish every message of the bag at ``path``; ``rate`` 1 is real time, 0 as fast as possible.
-
-    Returns the number of messages published.
-    """
-    import rclpy
-    from mcap.records import Channel, Schema
+def _player_qos():
     from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+    return QoSProfile(reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE,
+                      history=HistoryPolicy.KEEP_ALL, depth=0)
 
-    from .nodes.lockstep import message_class
-    qos = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE,
-                     history=HistoryPolicy.KEEP_LAST, depth=1000)
+
+class UnplayableType(ValueError):
+    """A channel's type that is not an installed ROS message (the reason is the message)."""
+
+
+def _prefixes() -> list[Path]:
+    """Install prefixes to look for ament indexes in: AMENT_PREFIX_PATH (a sourced ROS install or
+    workspace), this Python environment (the PyPI message wheels), the user's site base."""
+    prefixes = [p for p in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep) if p]
+    prefixes += [sys.prefix, site.getuserbase()]
+    out = []
+    for prefix in prefixes:
+        path = Path(os.path.abspath(prefix))
+        if path not in out:
+            out.append(path)
+    return out
+
+
+def _interface_prefix(package: str, name: str) -> Path | None:
+    """The prefix whose ament index registers ``package`` as a ROS interface package listing ``msg/name``."""
+    for prefix in _prefixes():
+        resource = prefix / "share" / "ament_index" / "resource_index" / "rosidl_interfaces" / package
+        try:
+            entries = resource.read_text().split()
+        except OSError:
+            continue
+        if f"msg/{name}.msg" in entries or f"msg/{name}.idl" in entries:
+            return prefix
+    return None
+
+
+def installed_message_class(type_name: str):
+    """The Python class of ``type_name`` if it names a message of an installed ROS interface package.
+
+    Raises :class:`UnplayableType` (and imports nothing) unless ``type_name`` is ``pkg/msg/Type`` with
+    ``pkg`` an interface package of an ament index (see the module docstring) that lists ``msg/Type``,
+    and the Python package ``pkg`` found on sys.path lies under that index's prefix.
+    """
+    match = _TYPE_NAME.match(type_name or "")
+    if match is None:
+        raise UnplayableType("not a pkg/msg/Type name")
+    package, name = match.groups()
+    prefix = _interface_prefix(package, name)
+    if prefix is None:
+        raise UnplayableType("not a message of an installed ROS interface package")
+    if package not in sys.modules:
+        spec = importlib.util.find_spec(package)   # finds without importing (a top-level name)
+        origin = getattr(spec, "origin", None) if spec is not None else None
+        if origin is None or not os.path.abspath(origin).startswith(str(prefix) + os.sep):
+            raise UnplayableType(f"the Python package {package} is not the one installed under {prefix}")
+    try:
+        cls = getattr(importlib.import_module(f"{package}.msg"), name)
+    except (ImportError, AttributeError) as error:
+        raise UnplayableType(f"cannot load it ({type(error).__name__}: {error})") from None
+    if not hasattr(type(cls), "__import_type_support__"):
+        raise UnplayableType("not a ROS message class")
+    return cls
+
+
+@dataclass
+class _Index:
+    """What the player needs to know before it publishes: schemas, channels, first log time."""
+    schemas: dict = field(default_factory=dict)
+    channels: dict = field(default_factory=dict)
+    first_log: int | None = None
+
+
+def _index(path: Path, warnings: list) -> _Index:
+    """Schemas, channels and first log time from the bag's summary, or from one pass over a bag without."""
+    from mcap.records import Channel, Schema
+    index = _Index()
+    try:
+        from mcap.reader import make_reader
+        with open(path, "rb") as stream:
+            summary = make_reader(stream).get_summary()
+        if summary is not None and summary.statistics is not None and summary.channels:
+            index.schemas, index.channels = dict(summary.schemas), dict(summary.channels)
+            if summary.statistics.message_count:
+                index.first_log = summary.statistics.message_start_time
+            return index
+    except Exception:      # no summary, or a damaged one: read the bag through
+        pass
+    for record in _iter_records(path, warnings):
+        if isinstance(record, Schema):
+            index.schemas[record.id] = record
+        elif isinstance(record, Channel):
+            index.channels[record.id] = record
+        elif hasattr(record, "log_time") and (index.first_log is None or record.log_time < index.first_log):
+            index.first_log = record.log_time
+    return index
+
+
+def _channel_type(index: _Index, channel) -> str:
+    schema = index.schemas.get(channel.schema_id)
+    if schema is None:
+        raise UnplayableType("no schema")
+    if schema.encoding not in ("ros2msg", "ros2idl") or channel.message_encoding != "cdr":
+        raise UnplayableType(f"not a ROS 2 CDR channel ({schema.encoding}/{channel.message_encoding})")
+    return schema.name
+
+
+def _wait_for_subscribers(node, publishers: dict, count: int, timeout: float, say) -> None:
+    """Wait until ``count`` nodes subscribe to the topics of ``publishers`` and every subscription seen on
+    them (but transient-local ones) has matched, unchanged for SETTLE s; at most ``timeout`` s."""
+    from rclpy.qos import DurabilityPolicy
+    say(f"waiting up to {timeout:g} s for {count} subscriber{'s' if count != 1 else ''} on the bag's topics "
+        "(--wait-subscribers 0 starts at once)")
+    deadline, steady_since, last = time.monotonic() + timeout, None, None
+    while True:
+        nodes, unmatched, matched = set(), [], []
+        for topic, publisher in publishers.items():
+            # a transient-local subscription never matches a volatile publisher (rclpy's qos_check_compatible
+            # reads the discovered profiles' infinite deadline and lease as finite ones, so it is not used)
+            infos = [info for info in node.get_subscriptions_info_by_topic(topic)
+                     if info.qos_profile.durability != DurabilityPolicy.TRANSIENT_LOCAL]
+            nodes.update((info.node_namespace, info.node_name) for info in infos)
+            have = publisher.get_subscription_count()
+            matched.append(have)
+            if have < len(infos):
+                unmatched.append(topic)
+        state = (len(nodes), tuple(matched))
+        now = time.monotonic()
+        if len(nodes) >= count and not unmatched:
+            if state != last:
+                steady_since = now
+            elif now - steady_since >= SETTLE:
+                return
+        last = state
+        if now >= deadline:
+            detail = f"; not matched on {', '.join(unmatched)} (incompatible QoS?)" if unmatched else ""
+            say(f"warning: {len(nodes)} of {count} subscriber{'s' if count != 1 else ''} after {timeout:g} s"
+                f"{detail}; publishing anyway (early messages may be lost)")
+            return
+        time.sleep(0.01)
+
+
+class _Acks:
+    """Keeps each publisher's unacknowledged messages under WINDOW.
+
+    Readers acknowledge at the writer's heartbeats (every 20 ms with the package's profile), so a wait is
+    up to one heartbeat period. Messages count as pending from their publication until a wait finds all of
+    the publisher's messages acknowledged. When the player has time to spare (``idle``: at a positive rate,
+    until the next message is due) it spends it waiting for the acknowledgements of the publishers with
+    SOFT or more pending; a publisher that reaches WINDOW pending is waited for at once (at ``--rate 0``
+    this is what paces the player).
+    """
+
+    SOFT = 32
+
+    def __init__(self, say):
+        self.pending = {}
+        self.say = say
+        self.warned = set()
+
+    def sent(self, publisher, count: int = 1):
+        n = self.pending.get(publisher, 0) + count
+        self.pending[publisher] = n
+        if n >= WINDOW:
+            self.wait(publisher, ACK_TIMEOUT)
+
+    def idle(self, until: float):
+        """Until the monotonic time ``until``: wait for acknowledgements, then sleep the rest."""
+        from rclpy.duration import Duration
+        for publisher, n in self.pending.items():
+            left = until - time.monotonic()
+            if left <= 0:
+                return
+            if n >= self.SOFT and publisher.wait_for_all_acked(Duration(nanoseconds=int(min(left, 0.05) * 1e9))):
+                self.pending[publisher] = 0
+        left = until - time.monotonic()
+        if left > 0:
+            time.sleep(left)
+
+    def wait(self, publisher, timeout: float, quiet: bool = False):
+        from rclpy.duration import Duration
+        if publisher.topic_name in self.warned:
+            timeout = 0.0
+        deadline = time.monotonic() + timeout
+        while not publisher.wait_for_all_acked(Duration(nanoseconds=50_000_000)):   # short: Ctrl-C gets in
+            if time.monotonic() >= deadline:
+                if not quiet and publisher.topic_name not in self.warned:
+                    self.warned.add(publisher.topic_name)
+                    self.say(f"warning: a subscriber of {publisher.topic_name} has not acknowledged for "
+                             f"{timeout:g} s; going on without it (it may lose messages)")
+                break
+        self.pending[publisher] = 0
+
+    def drain(self, timeout: float, quiet: bool = False):
+        """Wait for every publisher's pending messages, ``timeout`` s at most in all."""
+        deadline = time.monotonic() + timeout
+        for publisher, n in list(self.pending.items()):
+            if n:
+                self.wait(publisher, max(deadline - time.monotonic(), 0.0), quiet)
+
+
+class _Interrupts:
+    """SIGINT handling that can hold a Ctrl-C back through a short critical section (``deferred``) and
+    raise its KeyboardInterrupt right after; elsewhere a Ctrl-C raises at once. Only in the main thread
+    (elsewhere Python's handler stays, and a Ctrl-C may land inside a section)."""
+
+    def __init__(self):
+        self.inside = self.held = False
+        self.previous = None
+
+    def _handler(self, signum, frame):
+        if self.inside:
+            self.held = True
+        else:
+            raise KeyboardInterrupt
+
+    def __enter__(self):
+        if threading.current_thread() is threading.main_thread():
+            self.previous = signal.signal(signal.SIGINT, self._handler)
+        return self
+
+    def __exit__(self, *exc):
+        if self.previous is not None:
+            signal.signal(signal.SIGINT, self.previous)
+
+    @contextlib.contextmanager
+    def deferred(self):
+        self.inside = True
+        try:
+            yield
+        finally:
+            self.inside = False
+        if self.held:
+            self.held = False
+            raise KeyboardInterrupt
+
+
+def play_bag(path, rate: float = 1.0, progress: bool = False, say=print, *, loop: bool = False,
+             start: float = 0.0, topics=None, wait_subscribers: int = 1, wait_timeout: float = 10.0) -> int:
+    """Publish the messages of the bag at ``path``; ``rate`` 1 is real time, 0 as fast as possible.
+
+    ``loop`` repeats until Ctrl-C (KeyboardInterrupt, re-raised once the player has cleaned up);
+    ``start`` skips the messages before that many seconds after the bag's first; ``topics`` (names)
+    plays only those; ``wait_subscribers`` / ``wait_timeout``: see the module docstring.
+    Returns the number of messages published (/clock messages the player makes up not counted).
+    """
     path = Path(path)
     if not path.is_file():
         raise BagError(f"{path}: no such bag")
-    rclpy.init()
-    node = rclpy.create_node("bag_player")
-    schemas, publishers, warnings = {}, {}, []
-    clock = node.create_publisher(message_class("rosgraph_msgs/msg/Clock"), graph.CLOCK, qos)
-    sent, first_log, wall_start, last_clock = 0, None, None, None
-    has_clock = False
+    if rate < 0:
+        raise BagError(f"--rate {rate:g}: must be 0 (as fast as possible) or positive")
+    if start < 0:
+        raise BagError(f"--start {start:g}: must be 0 or positive")
+    warnings = []
+    index = _index(path, [])              # what the reader makes do with is said once, by the playing pass
+    bag_topics = {channel.topic for channel in index.channels.values()}
+    if topics is not None:
+        topics = [topic if topic.startswith("/") else "/" + topic for topic in topics if topic]
+        for topic in topics:
+            if topic not in bag_topics:
+                raise BagError(f"{path}: no topic {topic} in the bag (it has {', '.join(sorted(bag_topics))})")
+    selected = set(topics) if topics is not None else bag_topics
+
+    # resolve every channel's type before ROS starts: a refused type is never imported
+    types, chosen = {}, {}         # channel id -> class; topic -> type name
+    for channel in sorted(index.channels.values(), key=lambda c: c.id):
+        if channel.topic not in selected:
+            continue
+        try:
+            type_name = _channel_type(index, channel)
+            if channel.topic == graph.CLOCK and type_name != _CLOCK_TYPE:
+                raise UnplayableType(f"/clock must be {_CLOCK_TYPE}")
+            if chosen.get(channel.topic, type_name) != type_name:
+                raise UnplayableType(f"the topic is already played as {chosen[channel.topic]}")
+            types[channel.id] = installed_message_class(type_name)
+            chosen[channel.topic] = type_name
+        except UnplayableType as why:
+            schema = index.schemas.get(channel.schema_id)
+            say(f"warning: refusing {channel.topic}: type {getattr(schema, 'name', '?')!r}: {why}")
+    if not types:
+        raise BagError(f"{path}: nothing to play" + (f" on {', '.join(sorted(selected))}" if topics else ""))
+
+    if "FASTDDS_DEFAULT_PROFILES_FILE" not in os.environ:   # the package's profile (heartbeats), as runner.py
+        os.environ.setdefault("FASTRTPS_DEFAULT_PROFILES_FILE", str(Path(__file__).resolve().parent
+                                                                    / "fastdds_profile.xml"))
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.signals import SignalHandlerOptions
+    from rosgraph_msgs.msg import Clock
+
+    qos = _player_qos()
+    context = Context()
+    rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)   # Ctrl-C: KeyboardInterrupt
+    node = acks = None
+    sent = 0
+    start_ns = (index.first_log or 0) + round(start * 1e9)
+    interrupts = _Interrupts()
     try:
-        for record in _iter_records(path, warnings, progress):
-            if isinstance(record, Schema):
-                schemas[record.id] = record
-            elif isinstance(record, Channel):
-                try:
-                    cls = message_class(schemas[record.schema_id].name)
-                except (KeyError, ImportError, AttributeError, ValueError):
-                    say(f"skipping {record.topic}: no message type {schemas.get(record.schema_id)}")
+        interrupts.__enter__()
+        node = rclpy.create_node("bag_player", context=context)
+        by_topic = {graph.CLOCK: node.create_publisher(Clock, graph.CLOCK, qos)}
+        publishers = {}
+        for channel_id, cls in types.items():
+            topic = index.channels[channel_id].topic
+            if topic not in by_topic:
+                by_topic[topic] = node.create_publisher(cls, topic, qos)
+            publishers[channel_id] = by_topic[topic]
+        clock = by_topic[graph.CLOCK]
+        bag_clock = graph.CLOCK in chosen
+        if wait_subscribers > 0:
+            _wait_for_subscribers(node, by_topic, wait_subscribers, wait_timeout, say)
+        acks = _Acks(say)
+        passes = 0
+        while True:
+            first_log = wall_start = last_clock = None
+            for record in _iter_records(path, warnings if passes == 0 else [], progress):
+                if not hasattr(record, "log_time") or record.channel_id not in publishers:
                     continue
-                if record.topic == graph.CLOCK:
-                    has_clock = True
-                    publishers[record.id] = clock
-                else:
-                    publishers[record.id] = node.create_publisher(cls, record.topic, qos)
-            elif hasattr(record, "log_time") and record.channel_id in publishers:
+                if record.log_time < start_ns:
+                    continue
                 if wall_start is None:
-                    time.sleep(DISCOVERY_PAUSE)
                     first_log, wall_start = record.log_time, time.monotonic()
                 if rate > 0:
-                    delay = wall_start + (record.log_time - first_log) * 1e-9 / rate - time.monotonic()
-                    if delay > 0:
-                        time.sleep(delay)
-                if not has_clock and record.log_time != last_clock:
-                    clock.publish(cdr.encode_clock(*divmod(record.log_time, 1_000_000_000)))
-                    last_clock = record.log_time
-                publishers[record.channel_id].publish(bytes(record.data))
-                sent += 1
-        for warning in warnings:
-            say(f"warning: {warning}")
-        time.sleep(0.5)       # let reliable subscribers take the tail
+                    due = wall_start + (record.log_time - first_log) * 1e-9 / rate
+                    if due > time.monotonic():
+                        acks.idle(due)
+                with interrupts.deferred():       # a Ctrl-C lands between messages: the count is exact
+                    if not bag_clock and record.log_time != last_clock:
+                        clock.publish(cdr.encode_clock(*divmod(record.log_time, 1_000_000_000)))
+                        last_clock = record.log_time
+                        acks.pending[clock] = acks.pending.get(clock, 0) + 1
+                    publisher = publishers[record.channel_id]
+                    publisher.publish(bytes(record.data))
+                    sent += 1
+                acks.sent(publisher)
+                if not bag_clock:
+                    acks.sent(clock, 0)
+            passes += 1
+            if passes == 1:
+                for warning in warnings:
+                    say(f"warning: {warning}")
+            if not loop or wall_start is None:
+                break
+            if progress:
+                say(f"pass {passes} done ({sent} messages so far); again (Ctrl-C stops)")
+        acks.drain(ACK_TIMEOUT)           # let reliable subscribers take the tail
+    except KeyboardInterrupt:
+        if acks is not None:
+            acks.drain(CTRL_C_DRAIN, quiet=True)   # the messages under way, briefly (a second Ctrl-C cuts it)
+        say(f"stopped (Ctrl-C): published {sent} messages from {path}")
+        raise
     finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
-    say(f"published {sent} messages from {path}")
+        interrupts.__exit__(None, None, None)
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown(context=context)
+    if sent == 0:
+        say(f"warning: no message at t >= {start:g} s" if start else "warning: no message to play")
+    say(f"published {sent} messages from {path}" + (f" ({passes} pass{'es' if passes != 1 else ''})" if loop else ""))
     return sent

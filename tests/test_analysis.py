@@ -1,9 +1,8 @@
-"""Analysis of bags without ROS: other writers, truncated files, replay, comparisons, playback (figures:
-test_figures.py)."""
+"""Analysis of bags without ROS: other writers, truncated files, replay, comparisons (figures:
+test_figures.py; playback: test_playback.py)."""
 import json
 import subprocess
 import sys
-import time
 
 import numpy as np
 import pytest
@@ -123,37 +122,3 @@ def test_replayed_newton_tracks_exact_error_better_than_recorded_tangent_line(tm
     assert newton.deviation_max < 0.2 * recorded.deviation_max
     assert newton.deviation_rms < recorded.deviation_rms
 
-
-LISTENER = """
-import sys, time, rclpy
-from rclpy.qos import QoSProfile, ReliabilityPolicy, HistoryPolicy
-from sensor_msgs.msg import JointState
-from rosgraph_msgs.msg import Clock
-rclpy.init(); node = rclpy.create_node('listener'); got = {'state': 0, 'clock': 0}
-qos = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
-node.create_subscription(JointState, '/x/state', lambda m: got.__setitem__('state', got['state'] + 1), qos)
-node.create_subscription(Clock, '/clock', lambda m: got.__setitem__('clock', got['clock'] + 1), qos)
-print('ready', flush=True)
-deadline = time.monotonic() + 30
-while min(got.values()) < int(sys.argv[1]) and time.monotonic() < deadline:
-    rclpy.spin_once(node, timeout_sec=0.05)
-print(got['state'], got['clock'], flush=True)
-"""
-
-
-@pytest.mark.graph
-def test_play_republishes_every_message(short_bag):
-    from contouring_ros.runner import DomainLease, private_environment
-    path, expected = short_bag
-    with DomainLease() as lease:
-        env = private_environment(lease.domain_id)
-        listener = subprocess.Popen([sys.executable, "-c", LISTENER, str(expected.steps)], env=env,
-                                    stdout=subprocess.PIPE, text=True)
-        assert listener.stdout.readline().strip() == "ready"
-        time.sleep(0.5)
-        play = subprocess.run([sys.executable, "-m", "contouring_ros.cli", "replay", str(path), "--play",
-                               "--rate", "0"], env=env, capture_output=True, text=True, cwd=ROOT, timeout=60)
-        assert play.returncode == 0, play.stderr
-        states, clocks = map(int, listener.communicate(timeout=40)[0].split())
-    assert states == expected.steps
-    assert clocks == expected.steps
