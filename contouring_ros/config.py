@@ -147,7 +147,9 @@ ESTIMATORS = {
     "foot_point_search": {"max_iterations": Param("int", 10, "positive"),
                           "tolerance": Param("float", 1e-6, "positive")},
     "newton": {"k_prime": Param("float", check="positive"), "c_prime": Param("float", check="positive"),
-               "iterations": Param("int", 20, "positive"), "inner_step": Param("float", 0.0, "nonnegative"),
+               "tolerance": Param("float", 1e-9, "positive"),           # m: inner iterations until converged
+               "max_iterations": Param("int", 200, "positive"),         # inner iterations per step at most
+               "inner_step": Param("float", 0.0, "nonnegative"),
                "theta0": Param("float", None),
                "branch_check_samples": Param("int", 256, "nonnegative"),      # 0: no global check
                "branch_check_tolerance": Param("float", 1e-4, "positive")},   # m
@@ -1137,7 +1139,8 @@ def build_estimator(experiment: Experiment, curve):
     inner = s["inner_step"] or experiment.sample_time
     check = estimators.BranchCheck(curve, s["branch_check_samples"], s["branch_check_tolerance"]) \
         if s["branch_check_samples"] else None
-    return estimators.NewtonEstimator(curve, s["k_prime"], s["c_prime"], theta0, s["iterations"], inner, check)
+    return estimators.NewtonEstimator(curve, s["k_prime"], s["c_prime"], theta0, inner, s["tolerance"],
+                                      s["max_iterations"], check)
 
 
 def build_controller(experiment: Experiment, curve):

@@ -63,10 +63,10 @@ def test_batch_equals_each_experiment_alone(text, specs):
 
 
 def test_branch_check_restarts_only_the_runs_that_need_it():
-    # a slow Newton flow (2 inner iterations, k' = 50) lags the foot point and its branch check restarts it
-    # again and again; started at the far end of the parabola (theta0 = +a) it restarts once more, at step
-    # 0. The batch must restart each run exactly where that run alone does.
-    text = _with_estimator(DEFAULT, type="newton", k_prime=50.0, c_prime=500.0, iterations=2)
+    # a slow Newton flow (k' = 50, capped at 2 inner iterations) lags the foot point and its branch check
+    # restarts it again and again; started at the far end of the parabola (theta0 = +a) it restarts once
+    # more, at step 0. The batch must restart each run exactly where that run alone does.
+    text = _with_estimator(DEFAULT, type="newton", k_prime=50.0, c_prime=500.0, max_iterations=2)
     specs = ["contour_estimator.theta0=-0.02,0.02"]
     alone = _loops(text, specs)
     results = [simulate(loop) for loop in alone]

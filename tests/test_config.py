@@ -69,7 +69,7 @@ MORE_CASES = [
     ('axes: ["x", "y"]', "axes: []", "axes: expected a non-empty list of names"),
     ("    sample_time: 0.001", '    sample_time: "fast"', "sample_time: expected a number"),
     ("    initial_state: on_reference", "    initial_state: somewhere", "initial_state: expected one of"),
-    ("    iterations: 20\n", "    iterations: 2.5\n", "/contour_estimator.iterations: expected an integer"),
+    ("    max_iterations: 200\n", "    max_iterations: 2.5\n", "/contour_estimator.max_iterations: expected an integer"),
     ("/ccc:\n  ros__parameters:", "/ccc:\n  parameters:", "/ccc: expected a mapping with the single key 'ros__parameters'"),
     ("    sample_time: 0.001", "    sample_time: 0.001\n    duration: -1.0", "duration: expected a value >= 0"),
     ("    sample_time: 0.001", "    sample_time: 0.001\n    on_invalid_input: ignore", "on_invalid_input: expected one of"),

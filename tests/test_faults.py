@@ -146,8 +146,9 @@ def test_newton_branch_check_recovers_from_the_far_side_of_a_circle():
     circle = Circle(0.05)
     ref = reference(circle, UniformSchedule(0.0, 1.0, 1.0), 0.0)
     far_point = np.array([-0.0501, 0.0])
-    plain = NewtonEstimator(circle, 500.0, 500.0, 0.0, 20, 0.001)
-    checked = NewtonEstimator(circle, 500.0, 500.0, 0.0, 20, 0.001, BranchCheck(circle, 256, 1e-4))
+    plain = NewtonEstimator(circle, 500.0, 500.0, 0.0, inner_step=0.001)
+    checked = NewtonEstimator(circle, 500.0, 500.0, 0.0, inner_step=0.001,
+                              branch_check=BranchCheck(circle, 256, 1e-4))
     assert np.linalg.norm(plain.step(ref, far_point).vector) > 0.09
     estimate = checked.step(ref, far_point)
     assert np.linalg.norm(estimate.vector) == pytest.approx(1e-4, abs=1e-7)

@@ -128,9 +128,31 @@ class NewtonEstimator:
     d theta_hat / dt = -k' g / h with g = E^T R' (9) and h ~= |R'|^2 (11), E = R(theta_hat) - P (4). The
     ratio g / h passes through a first-order low-pass filter of bandwidth c' before the integrator
     (the "linear estimator" of Fig. 2). Within each control step the filter and the integrator are
-    advanced ``iterations`` times by ``inner_step`` (filter exact under a zero-order hold, integrator
-    by one rectangle), starting from the previous step's final estimate (Remark 3): the Newton flow runs
-    on its own fast time scale so that theta_hat settles on the moving foot point within the step.
+    advanced by ``inner_step`` at a time (filter exact under a zero-order hold, integrator by one
+    rectangle), starting from the previous step's final estimate and filter state (Remark 3): the Newton
+    flow runs on its own fast time scale so that theta_hat settles on the moving foot point within the
+    step.
+
+    Stopping rule. The flow is iterated until it has converged, at most ``max_iterations`` times a step.
+    An iterate theta_n is the step's estimate when both, in metres, are within ``tolerance``:
+
+    - the tangential residual at theta_n, |E^T R'| / |R'| = |E^T U| (eq. 9, 14): the part of
+      R(theta_n) - P along the tangent, zero exactly at a foot point (eq. 14: the flow stops where
+      E^T U = 0) and, to first order, the distance along the contour from R(theta_n) to the foot point.
+      At an end of an open contour where the flow pushes past the end, the end is the foot point and the
+      residual counts as zero;
+    - the step the flow would take next, |theta_{n+1} - theta_n| |R'(theta_n)| (the filtered update (8)
+      with g of (9) and h of (11), clipped at the ends of an open contour): the filter state has decayed
+      too, so the estimate is at rest.
+
+    Both are needed because the filtered flow is second order (filter and integrator; with k' = c' = 500
+    and a 1 ms inner step its poles are complex, |z| = exp(-c' dt / 2) = 0.78 per iteration): theta_n
+    passes through the foot point while the filter still carries it on, and pauses at each turn away
+    from it. A converged estimate lies within ``tolerance`` of a foot point along the contour, so its
+    error vector's length is the exact contour error to second order in that offset (to within
+    ``tolerance`` at worst, for a point on the contour). The update that would follow is not applied: the
+    filter keeps its state for the next step. A step whose ``max_iterations``-th update still leaves an
+    unconverged iterate keeps that iterate and is counted in ``cap_reached``.
 
     Parameters
     ----------
@@ -141,33 +163,52 @@ class NewtonEstimator:
         Filter bandwidth c' [rad/s].
     theta0 : float
         Initial estimate (paper: theta_0 = -a_r, the start of the contour).
-    iterations : int
-        Inner Newton iterations per control step.
     inner_step : float
         Time step of one inner iteration [s].
+    tolerance : float
+        Convergence tolerance [m] (see above).
+    max_iterations : int
+        Most inner iterations per control step.
     branch_check : BranchCheck, optional
         Global check after each step; when it finds a nearer branch the estimate restarts there
         (counted in ``recoveries``).
+
+    Attributes
+    ----------
+    iterations : int
+        Inner iterations of the last step (of its restart, when it restarted).
+    cap_reached : int
+        Steps whose estimate reached ``max_iterations`` without converging.
+    recoveries : int
+        Restarts by the branch check.
+
+    On a batch (:meth:`step_batch`) the three counts are arrays (B, 1), one per member.
     """
 
     #: has a batch path, :meth:`step_batch` (:mod:`contouring_ros.core.batch`)
     batchable = True
 
-    def __init__(self, curve: Curve, k_prime: float, c_prime: float, theta0: float, iterations: int,
-                 inner_step: float, branch_check: BranchCheck | None = None):
+    def __init__(self, curve: Curve, k_prime: float, c_prime: float, theta0: float, inner_step: float,
+                 tolerance: float = 1e-9, max_iterations: int = 200, branch_check: BranchCheck | None = None):
         self.curve = curve
         self.k_prime, self.c_prime = float(k_prime), float(c_prime)
-        self.iterations = int(iterations)
         self.inner_step = float(inner_step)
+        self.tolerance = float(tolerance)
+        self.max_iterations = int(max_iterations)
+        if not self.tolerance > 0.0 or self.max_iterations < 1:
+            raise ValueError("the Newton estimate needs tolerance > 0 and max_iterations >= 1")
+        self._tolerance_squared = self.tolerance * self.tolerance
         self._filter_decay = math.exp(-self.c_prime * self.inner_step)
         self._gain = self.k_prime * self.inner_step
         self.theta = float(theta0)
         self.filtered = 0.0
         self.branch_check = branch_check
         self.recoveries = 0
+        self.cap_reached = 0
+        self.iterations = 0
 
     def step(self, reference, position) -> ContourEstimate:
-        self._iterate(position)
+        capped = self._iterate(position)
         d = self.curve.derivatives(self.theta, order=1)
         vector = d[0] - np.asarray(position)
         if self.branch_check is not None:
@@ -175,15 +216,18 @@ class NewtonEstimator:
             if restart is not None:
                 self.recoveries += 1
                 self.theta, self.filtered = restart, 0.0
-                self._iterate(position)
+                capped = self._iterate(position)
                 d = self.curve.derivatives(self.theta, order=1)
                 vector = d[0] - np.asarray(position)
+        if capped:
+            self.cap_reached += 1
         tangent = d[1] / math.sqrt(float(d[1] @ d[1]))
         return ContourEstimate(theta=self.theta, vector=vector, signed=float(signed_error(vector, tangent)))
 
     def step_batch(self, reference, position) -> ContourEstimate:
-        """:meth:`step` for a batch: positions (B, n); theta_hat (B, 1)."""
-        self._iterate(position)
+        """:meth:`step` for a batch: positions (B, n); theta_hat (B, 1). Each member iterates until its own
+        convergence or cap (then stops changing), as it would alone."""
+        capped = self._iterate_batch(position)
         d = _batch_derivatives(self.curve, self.theta, 1)
         vector = d[0] - position
         if self.branch_check is not None:
@@ -192,45 +236,127 @@ class NewtonEstimator:
             start, restart = found if found is not None else (None, np.zeros(distance.shape, dtype=bool))
             if restart.any():
                 self.recoveries = self.recoveries + restart
-                kept = self.theta, self.filtered
-                self.theta, self.filtered = start, 0.0
-                self._iterate(position)
-                self.theta = np.where(restart, self.theta, kept[0])
-                self.filtered = np.where(restart, self.filtered, kept[1])
+                kept = self.theta, self.filtered, self.iterations
+                self.theta = np.where(restart, start, self.theta)
+                self.filtered = np.where(restart, 0.0, self.filtered)
+                capped = np.where(restart, self._iterate_batch(position, restart), capped)
+                self.iterations = np.where(restart, self.iterations, kept[2])
                 d = _batch_derivatives(self.curve, self.theta, 1)
                 vector = d[0] - position
+        self.cap_reached = self.cap_reached + capped
         tangent = d[1] / np.linalg.norm(d[1], axis=-1, keepdims=True)
         return ContourEstimate(theta=self.theta, vector=vector, signed=signed_error(vector, tangent))
 
-    def _iterate(self, position):
-        """Advance the filtered Newton flow ``iterations`` inner steps from the current estimate (one
-        position (n,), or a batch of positions (B, n) with estimates (B, 1))."""
+    def _iterate(self, position) -> bool:
+        """Advance the filtered Newton flow from the current estimate until it has converged (see the class
+        docstring) or made ``max_iterations`` updates; one position (n,). Returns whether the cap was
+        reached without converging."""
         curve, theta, filtered = self.curve, self.theta, self.filtered
-        decay, gain = self._filter_decay, self._gain
-        batch = getattr(position, "ndim", 1) == 2
-        if batch:
-            coordinates, wrap = [position[:, i:i + 1] for i in range(position.shape[1])], curve.wrap
-        else:
-            coordinates, wrap = [float(p) for p in position], curve.wrap_scalar
-        columns = curve.columns
-        if len(coordinates) == 2 and not curve.closed and not batch:       # the common planar case, unrolled
-            (px, py), (lo, hi) = coordinates, curve.domain
-            for _ in range(self.iterations):
+        decay, gain, tolerance2, cap = self._filter_decay, self._gain, self._tolerance_squared, self.max_iterations
+        coordinates, blend = [float(p) for p in position], 1.0 - decay
+        columns, closed, (lo, hi) = curve.columns, curve.closed, curve.domain
+        converged = False
+        if len(coordinates) == 2 and not closed:       # the common planar case, unrolled
+            px, py = coordinates
+            for n in range(cap + 1):
                 (rx, ry), (tx, ty) = columns(theta)[:2]
                 gradient = (rx - px) * tx + (ry - py) * ty         # g = E^T R', eq. 9
-                filtered = decay * filtered + (1.0 - decay) * (gradient / (tx * tx + ty * ty))  # h ~= |R'|^2 (11)
-                theta = min(max(theta - gain * filtered, lo), hi)
-            self.theta, self.filtered = theta, filtered
-            return
-        for _ in range(self.iterations):
+                hessian = tx * tx + ty * ty                         # h ~= |R'|^2, eq. 11
+                following = decay * filtered + blend * (gradient / hessian)
+                new = min(max(theta - gain * following, lo), hi)
+                moved = new - theta
+                if ((gradient * gradient <= tolerance2 * hessian or (theta == lo and gradient > 0.0)
+                     or (theta == hi and gradient < 0.0)) and moved * moved * hessian <= tolerance2):
+                    converged = True
+                    break
+                if n == cap:
+                    break
+                theta, filtered = new, following
+        else:
+            for n in range(cap + 1):
+                point, tangent = columns(theta)[:2]
+                gradient = hessian = 0.0
+                for r, p, t in zip(point, coordinates, tangent):
+                    gradient += (r - p) * t          # g = E^T R', eq. 9
+                    hessian += t * t                 # h ~= |R'|^2, eq. 11
+                following = decay * filtered + blend * (gradient / hessian)
+                if closed:
+                    moved = -gain * following
+                    new, at_end = lo + (theta + moved - lo) % (hi - lo), False
+                else:
+                    new = min(max(theta - gain * following, lo), hi)
+                    moved = new - theta
+                    at_end = (theta == lo and gradient > 0.0) or (theta == hi and gradient < 0.0)
+                if (gradient * gradient <= tolerance2 * hessian or at_end) and moved * moved * hessian <= tolerance2:
+                    converged = True
+                    break
+                if n == cap:
+                    break
+                theta, filtered = new, following
+        self.theta, self.filtered, self.iterations = theta, filtered, n
+        return not converged
+
+    def _iterate_batch(self, position, active=None):
+        """:meth:`_iterate` for a batch of positions (B, n) with estimates (B, 1): each member (of those
+        ``active``, (B, 1) bool, default all) iterates until its own convergence or cap, then keeps its
+        estimate and filter state while the rest go on. Returns the members that reached their cap without
+        converging, (B, 1) bool. (The tests are gated so that an iteration where no member can stop costs
+        little more than the update itself.)"""
+        curve = self.curve
+        b = position.shape[0]
+        theta = np.broadcast_to(self.theta, (b, 1)).astype(float)
+        filtered = np.broadcast_to(self.filtered, (b, 1)).astype(float)
+        decay, gain, tolerance2, cap = self._filter_decay, self._gain, self._tolerance_squared, self.max_iterations
+        blend, first_cap = 1.0 - decay, np.min(cap)
+        coordinates = [position[:, i:i + 1] for i in range(position.shape[1])]
+        columns, closed, (lo, hi) = curve.columns, curve.closed, curve.domain
+        active = np.ones((b, 1), dtype=bool) if active is None else active
+        running, converged = active.copy(), np.zeros((b, 1), dtype=bool)
+        everyone = bool(running.all())           # while true, updates need no masking
+        iterations = np.zeros((b, 1), dtype=int)
+        n = 0
+        while True:
             point, tangent = columns(theta)[:2]
-            gradient = hessian = 0.0
-            for r, p, t in zip(point, coordinates, tangent):
-                gradient += (r - p) * t          # g = E^T R', eq. 9
-                hessian += t * t                 # h ~= |R'|^2, eq. 11
-            filtered = decay * filtered + (1.0 - decay) * (gradient / hessian)
-            theta = wrap(theta - gain * filtered)
-        self.theta, self.filtered = theta, filtered
+            (r, *rs), (p, *ps), (t, *ts) = point, coordinates, tangent
+            gradient, hessian = (r - p) * t, t * t          # g = E^T R' (eq. 9), h ~= |R'|^2 (eq. 11)
+            for r, p, t in zip(rs, ps, ts):
+                gradient = gradient + (r - p) * t
+                hessian = hessian + t * t
+            following = decay * filtered + blend * (gradient / hessian)
+            if closed:
+                moved = -gain * following
+                new = lo + np.mod(theta + moved - lo, hi - lo)
+            else:
+                new = np.minimum(np.maximum(theta - gain * following, lo), hi)
+                moved = new - theta
+            near = gradient * gradient <= tolerance2 * hessian
+            if not closed:
+                ends = (theta == lo) | (theta == hi)
+                if ends.any():
+                    near = near | ((theta == lo) & (gradient > 0.0)) | ((theta == hi) & (gradient < 0.0))
+            stopped = False
+            if near.any():
+                done = near & (moved * moved * hessian <= tolerance2)
+                if done.any():
+                    converged |= running & done
+                    running &= ~done
+                    stopped = True
+            if n >= first_cap:
+                running &= iterations < cap
+                stopped = True
+            if stopped:
+                everyone = False
+                if not running.any():
+                    break
+            if everyone:
+                theta, filtered = new, following
+            else:
+                theta = np.where(running, new, theta)
+                filtered = np.where(running, following, filtered)
+            iterations += running
+            n += 1
+        self.theta, self.filtered, self.iterations = theta, filtered, iterations
+        return active & ~converged
 
 
 def first_order_terms(kappa: float, tau: float, t: float, n: int) -> tuple:
