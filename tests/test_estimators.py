@@ -5,8 +5,9 @@ from numpy.testing import assert_allclose
 
 from contouring_ros.core.curves import Butterfly, Circle, Ellipse, Helix, Line, Parabola
 from contouring_ros.core.batch import stack
-from contouring_ros.core.estimators import (LocalApproximationEstimator, NaturalLocalEstimator, NewtonEstimator,
-                                            OsculatingCircleEstimator, TangentLineEstimator, first_order_terms)
+from contouring_ros.core.estimators import (FootPointSearchEstimator, LocalApproximationEstimator,
+                                            NaturalLocalEstimator, NewtonEstimator, OsculatingCircleEstimator,
+                                            TangentLineEstimator, first_order_terms)
 from contouring_ros.core.geometry import ExactContourError
 from contouring_ros.core.interpolation import Reference, UniformSchedule, reference
 
@@ -281,6 +282,24 @@ def test_a_tiny_cap_is_counted():
     point = np.array([0.06 * np.cos(1.0), 0.06 * np.sin(1.0)])
     counts = [estimator.step(_reference_at(circle, 1.0), point) and estimator.cap_reached for _ in range(40)]
     assert counts[0] == 1 and counts[-1] == counts[-2] < 40
+
+
+def test_foot_point_search_counts_the_steps_at_its_cap():
+    circle = Circle(0.05)
+    point = np.array([0.051 * np.cos(1.0), 0.051 * np.sin(1.0)])
+    ref = _reference_at(circle, 0.2)
+    capped = FootPointSearchEstimator(circle, max_iterations=1, tolerance=1e-12)
+    capped.step(ref, point)
+    assert capped.iterations == 1 and capped.cap_reached == 1
+    converging = FootPointSearchEstimator(circle, max_iterations=50, tolerance=1e-12)
+    estimate = converging.step(ref, point)
+    assert converging.cap_reached == 0 and converging.iterations < 50
+    assert abs(np.linalg.norm(estimate.vector) - 0.001) <= 1e-12
+    # at the end of an open contour the search stops without counting
+    line = Line([0.0, 0.0], [0.3, 0.4])
+    at_end = FootPointSearchEstimator(line, max_iterations=5, tolerance=1e-12)
+    estimate = at_end.step(_reference_at(line, 0.0), np.array([-0.006, -0.008]))
+    assert estimate.theta == 0.0 and at_end.cap_reached == 0 and at_end.iterations == 0
 
 
 def test_newton_batch_iterates_each_member_to_its_own_convergence():

@@ -481,9 +481,17 @@ class FootPointSearchEstimator:
 
     From the previous step's foot point (the reference point at the first step) the parameter steps back by
     the tangential error, theta <- theta + <P - R(theta), t(theta)> / |R'(theta)|, until that error is
-    below ``tolerance`` or after ``max_iterations`` (paper 002: 10 iterations, 1 um). The estimate is the
-    normal part of R(theta*) - P: the distance from P to the tangent line at the foot point, exact at a true
-    foot point. ``iterations`` counts the backsteps of the last step.
+    below ``tolerance`` [m] or after ``max_iterations`` backsteps (paper 002: 10 iterations, 1 um); at an
+    end of an open contour where the backstep points past the end (the clipped step stays put) the end is
+    the foot point and the search stops there too. The estimate is the normal part of R(theta*) - P: the
+    distance from P to the tangent line at the foot point, exact at a true foot point.
+
+    Attributes
+    ----------
+    iterations : int
+        Backsteps of the last step.
+    cap_reached : int
+        Steps that made ``max_iterations`` backsteps and still missed the tolerance.
     """
 
     def __init__(self, curve: Curve, max_iterations: int = 10, tolerance: float = 1e-6):
@@ -492,6 +500,7 @@ class FootPointSearchEstimator:
         self.tolerance = float(tolerance)
         self.theta = None
         self.iterations = 0
+        self.cap_reached = 0
 
     def step(self, reference, position) -> ContourEstimate:
         point = np.asarray(position, dtype=float)
@@ -502,9 +511,15 @@ class FootPointSearchEstimator:
             speed = math.sqrt(float(d[1] @ d[1]))
             tangent = d[1] / speed
             along = float((point - d[0]) @ tangent)
-            if abs(along) < self.tolerance or self.iterations >= self.max_iterations:
+            if abs(along) < self.tolerance:
                 break
-            theta = self.curve.wrap_scalar(theta + along / speed)
+            if self.iterations >= self.max_iterations:
+                self.cap_reached += 1
+                break
+            new = self.curve.wrap_scalar(theta + along / speed)
+            if new == theta and not self.curve.closed:      # clipped at an end: the end is the foot point
+                break
+            theta = new
             self.iterations += 1
         self.theta = theta
         vector = d[0] - point + along * tangent
