@@ -320,3 +320,16 @@ def test_newton_batch_iterates_each_member_to_its_own_convergence():
             assert batch.iterations[i, 0] == estimator.iterations
     assert len(set(batch.iterations[:, 0])) > 1
     assert batch.cap_reached[:, 0].tolist() == [e.cap_reached for e in alone] == [0, 0, 0, len(refs) - 1]
+
+
+def test_contour_estimator_node_reports_the_cap_count():
+    from contouring_ros.nodes.contour_estimator import ContourEstimatorNode
+    node = ContourEstimatorNode.__new__(ContourEstimatorNode)       # counters() only: no ROS graph needed
+    node.estimator = _newton(Circle(0.05), 0.0, max_iterations=2)
+    node.estimator.step(_reference_at(Circle(0.05), 1.0), np.array([0.0, 0.051]))
+    assert node.counters() == {"branch recoveries": 0, "iteration cap reached": 1}
+    node.estimator = FootPointSearchEstimator(Circle(0.05), max_iterations=1, tolerance=1e-12)
+    node.estimator.step(_reference_at(Circle(0.05), 1.0), np.array([0.0, 0.051]))
+    assert node.counters() == {"branch recoveries": 0, "iteration cap reached": 1}
+    node.estimator = TangentLineEstimator(Circle(0.05))
+    assert node.counters() == {"branch recoveries": 0, "iteration cap reached": 0}

@@ -22,7 +22,10 @@ class ContourEstimatorNode(LockstepNode):
         self.names = graph.estimate_names(self.axes)
 
     def counters(self) -> dict:
-        return {"branch recoveries": getattr(self.estimator, "recoveries", 0)}
+        """Branch-check restarts, and the steps whose iterative estimate (Newton flow, foot-point search)
+        reached its iteration cap without converging to its tolerance."""
+        return {"branch recoveries": getattr(self.estimator, "recoveries", 0),
+                "iteration cap reached": getattr(self.estimator, "cap_reached", 0)}
 
     def on_step(self, k, inputs):
         ref = graph.reference_from_msg(inputs[graph.REFERENCE], len(self.axes))
