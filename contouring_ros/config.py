@@ -183,9 +183,11 @@ GLOBALS = {
     "initial_state": Param("str", "on_reference", choices=INITIAL_STATES),
     "network": Param("bool", False),          # discover nodes beyond localhost
     "stall_timeout": Param("float", 10.0, "positive"),   # s without a complete step before a node gives up
+    # s a node waits at start for the rest of the graph (hand-started nodes in separate terminals need time)
+    "graph_timeout": Param("float", 300.0, "positive"),
     "on_invalid_input": Param("str", "stop", choices=INVALID_INPUT_POLICIES),  # what a node does with a
                                                                              # non-finite or malformed input
-    "timing": Param("str", "lockstep", choices=TIMINGS),   # DESIGN.md, "One control step"
+    "timing": Param("str", "lockstep", choices=TIMINGS),   # docs/ARCHITECTURE.md, "One control step"
     "start_time": Param("float", 0.0, "nonnegative"),  # realtime: Unix time of tick 0 (the runner sets it)
     # whether the CCC subscribes to /reference and the states: contouring-ros run sets false where the
     # controller does not use them (3 fewer deliveries a step with 2 axes); true is always safe
@@ -279,6 +281,7 @@ class Experiment:
     initial_state: str
     network: bool = False
     stall_timeout: float = 10.0
+    graph_timeout: float = 300.0
     on_invalid_input: str = "stop"
     timing: str = "lockstep"
     start_time: float = 0.0
@@ -890,7 +893,7 @@ def experiment_from_data(data, where: str = "<experiment>", text: str = "") -> E
         axes=tuple(axes), curve=globals_["curve"], schedule=globals_["schedule"],
         initial_state=globals_["initial_state"], network=globals_["network"],
         stall_timeout=globals_["stall_timeout"], on_invalid_input=globals_["on_invalid_input"],
-        timing=globals_["timing"], start_time=globals_["start_time"],
+        graph_timeout=globals_["graph_timeout"], timing=globals_["timing"], start_time=globals_["start_time"],
         ccc_takes_state=globals_["ccc_takes_state"],
         plants={a: parsed[f"/{a}/plant"] for a in axes}, servos={a: parsed[f"/{a}/servo"] for a in axes},
         estimator=parsed["/contour_estimator"], controller=parsed["/ccc"],
@@ -915,7 +918,8 @@ def experiment_for_node(parameters: dict, node: str, role: str, where: str | Non
         path=where, text="", sample_time=globals_["sample_time"], duration=globals_["duration"], axes=axes,
         curve=globals_["curve"], schedule=globals_["schedule"], initial_state=globals_["initial_state"],
         network=globals_["network"], stall_timeout=globals_["stall_timeout"],
-        on_invalid_input=globals_["on_invalid_input"], timing=globals_["timing"],
+        graph_timeout=globals_["graph_timeout"], on_invalid_input=globals_["on_invalid_input"],
+        timing=globals_["timing"],
         start_time=globals_["start_time"], ccc_takes_state=globals_["ccc_takes_state"],
         plants={axis: section} if role == "plant" else {}, servos={axis: section} if role == "servo" else {},
         estimator=section if role == "contour_estimator" else {}, controller=section if role == "ccc" else {},

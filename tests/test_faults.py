@@ -247,3 +247,19 @@ def test_soak_graph_10_runs_identical_and_nothing_leaked(tmp_path, write_experim
     assert _node_processes(str(path)) == []
     assert _shared_memory_files() <= before_shm | set()
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["soak.yaml"] + [f"soak{i}.mcap" for i in range(10)])
+
+
+@graph
+def test_a_node_alone_waits_graph_timeout_then_names_what_it_waited_for(tmp_path, write_experiment):
+    """Hand-started nodes wait ``graph_timeout`` (default 300 s) for the rest of the graph, and log it."""
+    from contouring_ros.runner import private_environment
+    path = write_experiment(shortened(DEFAULT, 0.1).replace("    sample_time: 0.001\n",
+                                                            "    sample_time: 0.001\n    graph_timeout: 1.5\n", 1))
+    with DomainLease() as domain:
+        started = time.monotonic()
+        out = subprocess.run([sys.executable, "-m", "contouring_ros.nodes.plant", "--ros-args", "-r", "__ns:=/x",
+                              "--params-file", str(path)], env=private_environment(domain.domain_id), capture_output=True,
+                             text=True, timeout=60, cwd=ROOT)
+    assert out.returncode == 1 and time.monotonic() - started < 30
+    assert "/x/plant: the graph did not come up within 1.5 s (graph_timeout; still waiting for" in out.stderr
+    assert "waiting up to 1.5 s (graph_timeout)" in out.stderr      # logged through rclpy

@@ -36,7 +36,7 @@ _DECODERS = {"sensor_msgs/msg/JointState": cdr.decode_joint_state,
              "trajectory_msgs/msg/JointTrajectory": cdr.decode_joint_trajectory}
 DIAGNOSTICS_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE,
                              history=HistoryPolicy.KEEP_LAST, depth=100)
-MATCH_TIMEOUT = 30.0     # s to wait for the rest of the graph at start
+PROGRESS_PERIOD = 5.0    # s between a node's progress log lines
 ACK_TIMEOUT = 5.0        # s to wait for the last messages to be acknowledged
 
 
@@ -133,7 +133,9 @@ class LockstepNode:
     # -- the loop ---------------------------------------------------------------------------------
     def wait_for_graph(self):
         """Block until every expected subscriber of our outputs and a publisher of every input matched."""
-        deadline = time.monotonic() + MATCH_TIMEOUT
+        timeout = self.experiment.graph_timeout
+        deadline = time.monotonic() + timeout
+        self.node.get_logger().info(f"waiting up to {timeout:g} s (graph_timeout) for the rest of the graph")
         while True:
             missing = [f"subscribers of {topic} ({', '.join(self._topics[topic].subscribers)})"
                        for topic, pub in self._outputs.items()
@@ -141,10 +143,11 @@ class LockstepNode:
             missing += [f"the publisher of {topic}" for topic, sub, _, _ in self._inputs
                         if sub.get_publisher_count() < 1 and self._topics[topic].every_step]
             if not missing:
+                self.node.get_logger().info(f"graph up: running {self.n_steps} steps ({self.experiment.timing})")
                 return
             if time.monotonic() > deadline:
-                raise RunError(f"{self.name}: the graph did not come up within {MATCH_TIMEOUT:.0f} s "
-                               f"(still waiting for {missing[0]})")
+                raise RunError(f"{self.name}: the graph did not come up within {timeout:g} s (graph_timeout; "
+                               f"still waiting for {missing[0]})")
             time.sleep(0.01)
 
     def take_all(self, handle=None):
@@ -232,9 +235,12 @@ class LockstepNode:
         """
         wait_set = _rclpy.WaitSet(len(self._inputs), 0, 0, 0, 0, 0, self.node.context.handle)
         handles = [sub.handle for _, sub, _, _ in self._inputs]
-        last_progress = time.monotonic()
+        last_progress = next_log = time.monotonic()
         while not done():
             wait_on(wait_set, handles, 200_000_000)
+            if time.monotonic() >= next_log + PROGRESS_PERIOD:
+                next_log = time.monotonic()
+                self.node.get_logger().info(f"step {self.next_step} of {self.n_steps}")
             if not rclpy.ok(context=self.node.context):
                 raise ExternalShutdownException()
             if take_progress():
@@ -338,6 +344,7 @@ class LockstepNode:
         A subscriber that left is no longer waited for (it leaves only after its last step). The
         acknowledgements follow the writers' heartbeats, every 20 ms with the package's Fast DDS profile.
         """
+        self.node.get_logger().info(f"completed {self.next_step} steps")
         self.report(DiagnosticStatus.OK if not self.rejected else DiagnosticStatus.WARN,
                     f"completed {self.next_step} steps", {"steps": self.next_step, **self.counters(),
                                                           **self.realtime_counters(), **{
