@@ -43,7 +43,7 @@ def compare_table(named: list, baseline: int = 0, axes=None) -> str:
 
 
 def parse_estimator_spec(spec: str) -> dict:
-    """'newton:k_prime=800,iterations=10' -> {'type': 'newton', 'k_prime': 800.0, 'iterations': 10}."""
+    """'newton:k_prime=800,tolerance=1e-10' -> {'type': 'newton', 'k_prime': 800.0, 'tolerance': 1e-10}."""
     name, _, options = spec.partition(":")
     section = {"type": name}
     for item in filter(None, options.split(",")):
