@@ -77,14 +77,34 @@ def test_simulate_command_says_diverged_in_one_line(tmp_path):
     assert "scores of the" in out.stdout
 
 
-def test_a_topic_without_messages_is_named_not_a_traceback(tmp_path):
+def test_a_topic_without_messages_is_named_not_a_traceback(tmp_path, monkeypatch):
+    """A bag whose /x/command channel exists but holds no message (a node that never published)."""
+    from contouring_ros import bag as bag_module
     experiment = parse_experiment(shortened(PIDFF, 0.05), "short")
     result = simulate(build_loop(experiment))
-    result.command = result.command[:0]       # no /x/command, /y/command messages at all
-    result_bag = tmp_path / "silent.mcap"
-    try:
-        write_simulation(result_bag, experiment, result)
-    except (IndexError, ValueError):
-        pytest.skip("the writer needs every signal of every step")
-    with pytest.raises(BagError, match="recorded no messages|no complete step"):
-        read_run(result_bag)
+    write = bag_module.BagWriter.write
+    monkeypatch.setattr(bag_module.BagWriter, "write",
+                        lambda self, topic, *args: None if topic == "/x/command" else write(self, topic, *args))
+    path = write_simulation(tmp_path / "silent.mcap", experiment, result)
+    monkeypatch.undo()
+    with pytest.raises(BagError, match="no complete step: /x/command recorded no messages"):
+        read_run(path)
+    out = subprocess.run([sys.executable, "-m", "contouring_ros.cli", "score", str(path)], capture_output=True,
+                         text=True, cwd=ROOT)
+    assert out.returncode == 2 and out.stderr.count("\n") == 1 and "/x/command recorded no messages" in out.stderr
+
+
+@pytest.mark.graph
+def test_the_graph_stops_a_diverging_run_where_the_simulation_does(tmp_path):
+    from contouring_ros.errors import RunError
+    from contouring_ros.runner import run_graph
+    path = tmp_path / "unstable.yaml"
+    path.write_text(_unstable("1000", 1.2))
+    with pytest.raises(Diverged) as simulated:
+        simulate(build_loop(parse_experiment(path.read_text(), "unstable")))
+    with pytest.raises(RunError) as error:
+        run_graph(path, tmp_path / "run.mcap", layout="composed")
+    assert f"/contour_estimator: {simulated.value}" in str(error.value)
+    run = read_run(tmp_path / "run.mcap")
+    assert run.complete_steps == simulated.value.step
+    np.testing.assert_array_equal(run.result.position, simulated.value.result.position)

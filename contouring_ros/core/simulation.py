@@ -17,6 +17,7 @@ from ..errors import Diverged
 from .interpolation import reference
 
 __all__ = ["ControlLoop", "SimulationResult", "step_time", "simulate", "divergence_bound", "path_bound", "first_divergence",
+           "diverged_message",
            "DIVERGENCE_FACTOR"]
 
 DIVERGENCE_FACTOR = 10.0     # a run has diverged once an axis is this many path sizes from its reference
@@ -100,7 +101,8 @@ def path_bound(curve, schedule) -> float:
     return divergence_bound(curve.point(theta))
 
 
-def _diverged_message(t: float, k: int, distance: float, bound: float) -> str:
+def diverged_message(t: float, k: int, distance: float, bound: float) -> str:
+    """``diverged at t = ... s (step k): <what>`` for an axis ``distance`` [m] from its reference."""
     what = "a position is not finite" if not np.isfinite(distance) else \
         f"an axis is {distance:.3g} m from its reference (bound {bound:.3g} m: {DIVERGENCE_FACTOR:g} x the path's size)"
     return f"diverged at t = {t:g} s (step {k}): {what}"
@@ -119,7 +121,7 @@ def first_divergence(time, position, reference_position, bound: float | None = N
     if not bad.any():
         return None
     k = int(np.argmax(bad))
-    return k, _diverged_message(float(time[k]), k, float(far[k]), bound)
+    return k, diverged_message(float(time[k]), k, float(far[k]), bound)
 
 
 def _cut(result: SimulationResult, k: int) -> SimulationResult:
@@ -157,7 +159,7 @@ def simulate(loop: ControlLoop, stop_on_divergence: bool = True) -> SimulationRe
                                            position=positions, velocity=velocities, estimate_theta=est_theta,
                                            estimate_vector=est_vector, estimate_signed=est_signed,
                                            correction=corrections, command=commands)
-                raise Diverged(_diverged_message(t, k, distance, bound), k, t, _cut(partial, k))
+                raise Diverged(diverged_message(t, k, distance, bound), k, t, _cut(partial, k))
         estimate = estimator.step(ref, position)
         correction = controller.step(estimate, ref, position, velocity)
         rp, rv, ra = ref.position, ref.velocity, ref.acceleration

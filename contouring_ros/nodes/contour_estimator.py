@@ -4,7 +4,9 @@ from __future__ import annotations
 import numpy as np
 
 from .. import cdr, graph
-from ..config import build_curve, build_estimator
+from ..config import build_curve, build_estimator, build_schedule
+from ..core.simulation import diverged_message, path_bound, step_time
+from ..errors import RunError
 from .lockstep import LockstepNode, run_node
 
 
@@ -13,7 +15,10 @@ class ContourEstimatorNode(LockstepNode):
     default_name = "contour_estimator"
 
     def setup(self):
-        self.estimator = build_estimator(self.experiment, build_curve(self.experiment))
+        curve = build_curve(self.experiment)
+        self.estimator = build_estimator(self.experiment, curve)
+        # the run stops where the in-process simulation would: an axis out of bounds (docs/ARCHITECTURE.md)
+        self.bound = path_bound(curve, build_schedule(self.experiment, curve))
         self.add_input(graph.REFERENCE)
         self.state_topics = [graph.state_topic(a) for a in self.axes]
         for topic in self.state_topics:
@@ -30,6 +35,10 @@ class ContourEstimatorNode(LockstepNode):
     def on_step(self, k, inputs):
         ref = graph.reference_from_msg(inputs[graph.REFERENCE], len(self.axes))
         position = np.array([inputs[topic].position[0] for topic in self.state_topics])
+        distance = float(np.max(np.abs(position - ref.position)))
+        if not distance <= self.bound:
+            raise RunError(f"{self.name}: " + diverged_message(step_time(k, self.experiment.sample_time), k,
+                                                               distance, self.bound))
         estimate = self.estimator.step(ref, position)
         self.publisher.publish(cdr.encode_joint_state(*self.stamp(k), self.names, graph.estimate_values(estimate)))
 
