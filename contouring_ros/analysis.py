@@ -16,7 +16,7 @@ import numpy as np
 from tqdm import tqdm
 
 from .bag import RecordedRun
-from .config import ESTIMATORS, _typed, build_curve, build_estimator, parse_experiment
+from .config import ESTIMATORS, _check_entry, _typed, build_curve, build_estimator, parse_experiment
 from .core.geometry import ExactContourError
 from .core.interpolation import Reference
 from .errors import ConfigError, ContouringError
@@ -57,7 +57,7 @@ def parse_estimator_spec(spec: str) -> dict:
                 section[key] = float(value)
             except ValueError:
                 section[key] = value
-    integer_keys = {k for k, p in ESTIMATORS.get(name, {}).items() if p.kind == "int"}
+    integer_keys = {k for k, p in (ESTIMATORS[name] if name in ESTIMATORS else {}).items() if p.kind == "int"}
     return {k: (float(v) if isinstance(v, int) and k not in integer_keys else v) for k, v in section.items()}
 
 
@@ -85,7 +85,9 @@ def replay_estimators(run: RecordedRun, specs: list, progress: bool = False) -> 
     replays = [_replay("recorded (" + experiment.estimator.get("type", "?") + ")", recorded, exact)]
     n = len(run.axes)
     for spec in specs:
+        # the estimator registry (built-in and plugin types alike): its keys, its constraints, its factory
         section = _typed("--estimator", spec["type"], "type", ESTIMATORS, spec)
+        _check_entry("--estimator", spec["type"], ESTIMATORS.entry(section["type"]), section, experiment.axes)
         estimator = build_estimator(_with_estimator(experiment, section), curve)
         norms = np.empty(len(result.time))
         for k in tqdm(range(len(result.time)), desc=f"replaying {spec['type']}", disable=not progress,

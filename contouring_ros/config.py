@@ -29,6 +29,7 @@ from .core import contouring, curves, disturbances, estimators, plants, servo
 from .core.interpolation import FeedrateSchedule, UniformSchedule, reference
 from .core.simulation import ControlLoop
 from .errors import ConfigError
+from .registry import BuildContext, Role
 
 __all__ = ["Experiment", "load_experiment", "parse_experiment", "read_yaml", "experiment_from_data", "build_loop",
            "build_curve",
@@ -71,16 +72,114 @@ DISTURBANCE_UNITS = ("command", "acceleration")
 # task-frame controllers: the local approximation they act on -> the estimator that reports its errors
 APPROXIMATIONS = {"first_order": "tangent_line", "natural_local": "natural_local"}
 
-# Registries: type name -> expected parameters. Defaults live here and nowhere else.
-DISTURBANCES = {
+# Registries, one per role: type name -> its parameters (defaults live here and nowhere else), the factory
+# that builds its core object from a validated section and a BuildContext, and its constraints
+# (contouring_ros/registry.py). Plugins add types through the entry point groups contouring_ros.<role>s.
+DISTURBANCES = Role("disturbance")
+CURVES = Role("curve")
+SCHEDULES = Role("schedule")
+PLANTS = Role("plant", "model")
+SERVOS = Role("servo", "law")
+ESTIMATORS = Role("estimator")
+CONTROLLERS = Role("controller")
+
+
+def _register(role: Role, specs: dict, builds: dict, **traits):
+    """Register built-in types: ``builds`` name -> build(section, context); ``traits`` name -> Entry fields."""
+    for name, params in specs.items():
+        role.register(name, params, builds[name], origin="contouring_ros", **traits.get(name, {}))
+
+
+def _spline(s, context):
+    coordinates = [s["x"], s["y"]] + ([s["z"]] if s["z"] is not None else [])
+    if len({len(c) for c in coordinates}) != 1:
+        raise ValueError("x, y (and z) must list the same number of points")
+    return curves.SplineCurve(np.column_stack(coordinates), s["closed"])
+
+
+def _feedrate_schedule(section, context):
+    arguments = _kwargs(section)
+    for key, default in (("theta_start", context.curve.domain[0]), ("theta_end", context.curve.domain[1])):
+        if arguments[key] is None:
+            arguments[key] = default
+    try:
+        return FeedrateSchedule(context.curve, **arguments)
+    except ValueError as error:
+        raise ConfigError(f"{context.where}: schedule: {error}") from None
+
+
+def _ismc(s, c):
+    ts = c.sample_time
+    observer = servo.DisturbanceObserver(s["c"], s["d"], s["gain"], s["time_constant"], ts, c.velocity,
+                                         c.acceleration) if s["observer"] else None
+    return servo.IntegralSlidingModeServo(s["a"], s["b"], s["mu"], s["kappa"], s["gain"], s["time_constant"],
+                                          ts, observer, s["output_limit"])
+
+
+def _newton(s, c):
+    theta0 = s["theta0"] if s["theta0"] is not None else c.schedule.theta_start
+    inner = s["inner_step"] or c.sample_time
+    check = estimators.BranchCheck(c.curve, s["branch_check_samples"], s["branch_check_tolerance"]) \
+        if s["branch_check_samples"] else None
+    return estimators.NewtonEstimator(c.curve, s["k_prime"], s["c_prime"], theta0, inner, s["tolerance"],
+                                      s["max_iterations"], check)
+
+
+def _task_frame_pd(s, c):
+    approximation = {"first_order": estimators.first_order_terms,
+                     "natural_local": estimators.natural_local_terms}[s["approximation"]]
+    return contouring.TaskFramePD(c.curve, approximation, s["mass"], s["damping"], s["gain"],
+                                  [s["f_t"], s["f_n"]] + ([s["f_b"]] if s["f_b"] is not None else []), s["zeta"],
+                                  s["coulomb_positive"], s["coulomb_negative"])
+
+
+def _per_axis(name: str, keys: tuple):
+    """A check: the Frenet-frame controller ``name`` needs 2 or 3 axes and one value per axis of ``keys``."""
+    def check(section, axes):
+        if len(axes) not in (2, 3):
+            return "type", f"the {name} controller needs 2 or 3 axes (a Frenet frame)"
+        for key in keys:
+            if section[key] is not None and len(section[key]) != len(axes):
+                return key, f"expected one value per axis ({len(axes)}), got {len(section[key])}"
+        return None
+    return check
+
+
+_TASK_FRAME_PER_AXIS = _per_axis("task_frame_pd", ("mass", "damping", "gain", "coulomb_positive", "coulomb_negative"))
+
+
+def _check_task_frame_pd(section, axes):
+    if len(axes) == 3 and section["f_b"] is None:
+        return "f_b", "missing required key (the binormal bandwidth, for 3 axes)"
+    return _TASK_FRAME_PER_AXIS(section, axes)
+
+
+def _task_frame_estimator(estimator, controller, servos):
+    """task_frame_pd acts on the errors of the estimator of its approximation."""
+    expected = APPROXIMATIONS[controller["approximation"]]
+    if estimator["type"] != expected:
+        return ("/contour_estimator.type", f"the task_frame_pd controller with approximation "
+                f"{controller['approximation']!r} acts on the errors of the {expected!r} estimator, got "
+                f"{estimator['type']!r}")
+    return None
+
+
+_register(DISTURBANCES, {
     "none": {},
     "constant": {"value": Param("float")},
     "sinusoid": {"amplitude": Param("float"), "frequency": Param("float", check="positive"),
                  "phase": Param("float", 0.0), "offset": Param("float", 0.0)},
     "random": {"std": Param("float", check="nonnegative"), "seed": Param("int", 0, "nonnegative"),
                "offset": Param("float", 0.0)},
-}
-CURVES = {
+}, {
+    "none": lambda s, c: disturbances.NoDisturbance(),
+    "constant": lambda s, c: disturbances.ConstantDisturbance(s["value"]),
+    "sinusoid": lambda s, c: disturbances.SinusoidalDisturbance(**_kwargs(s)),
+    "random": lambda s, c: disturbances.RandomDisturbance(**_kwargs(s)),
+})
+WINDOW = Param("float", 0.0, "nonnegative", help="curve-parameter half-width the exact contour error searches "
+                                                "around the reference point; 0: the whole curve")
+_CURVE_SPECS = {
     "parabola": {"a": Param("float", check="positive"), "h": Param("float")},
     "circle": {"radius": Param("float", check="positive"), "center": Param("floats", [0.0, 0.0])},
     "line": {"start": Param("floats"), "end": Param("floats")},
@@ -96,19 +195,32 @@ CURVES = {
     "helix": {"a": Param("float", check="positive"), "b": Param("float", check="positive"), "c": Param("float"),
               "omega": Param("float"), "length": Param("float", check="positive")},
 }
-WINDOW = Param("float", 0.0, "nonnegative", help="curve-parameter half-width the exact contour error searches "
-                                                "around the reference point; 0: the whole curve")
-for _spec in CURVES.values():
+for _spec in _CURVE_SPECS.values():
     _spec["contour_error_window"] = WINDOW
-SCHEDULES = {
+_register(CURVES, _CURVE_SPECS, {
+    "parabola": lambda s, c: curves.Parabola(s["a"], s["h"]),
+    "circle": lambda s, c: curves.Circle(s["radius"], s["center"]),
+    "line": lambda s, c: curves.Line(s["start"], s["end"]),
+    "ellipse": lambda s, c: curves.Ellipse(s["a"], s["b"], s["center"]),
+    "figure_eight": lambda s, c: curves.FigureEight(s["a"], s["b"], s["center"]),
+    "butterfly": lambda s, c: curves.Butterfly(s["scale"], s["center"]),
+    "saddle": lambda s, c: curves.Saddle(s["a"], s["b"], s["h"], s["omega"]),
+    "spline": _spline,
+    "toolpath": lambda s, c: curves.ToolPath(s["start"], s["moves"]),
+    "helix": lambda s, c: curves.Helix(s["a"], s["b"], s["c"], s["omega"], s["length"]),
+})
+_register(SCHEDULES, {
     "uniform": {"theta_start": Param("float"), "theta_end": Param("float"),
                 "duration": Param("float", check="positive")},
     "feedrate": {"theta_start": Param("float", None), "theta_end": Param("float", None),  # default: the curve's domain
                  "feedrate": Param("float", check="positive"), "acceleration": Param("float", check="positive"),
                  "normal_acceleration": Param("float", 0.0, "nonnegative"),
                  "samples": Param("int", 20001, "positive")},
-}
-PLANTS = {
+}, {
+    "uniform": lambda s, c: UniformSchedule(**_kwargs(s)),
+    "feedrate": _feedrate_schedule,
+})
+_register(PLANTS, {
     "first_order_velocity": {"gain": Param("float", check="positive"),
                              "time_constant": Param("float", check="positive"),
                              "disturbance": Param("dict", {"type": "none"}, choices=DISTURBANCES),
@@ -120,8 +232,16 @@ PLANTS = {
                     "disturbance": Param("dict", {"type": "none"}, choices=DISTURBANCES),
                     "disturbance_unit": Param("str", "command", choices=DISTURBANCE_UNITS),
                     "saturation": LIMIT, "encoder_resolution": Param("float", 0.0, "nonnegative")},
-}
-SERVOS = {
+}, {
+    "first_order_velocity": lambda s, c: plants.FirstOrderVelocityAxis(
+        s["gain"], s["time_constant"], c.sample_time, build_disturbance(s["disturbance"]), c.position, c.velocity,
+        s["saturation"], s["encoder_resolution"]),
+    "mass_damper": lambda s, c: plants.MassDamperAxis(
+        s["mass"], s["damping"], s["gain"], c.sample_time, build_disturbance(s["disturbance"]), c.position,
+        c.velocity, s["saturation"], s["coulomb_positive"], s["coulomb_negative"], s["disturbance_unit"],
+        s["encoder_resolution"]),
+})
+_register(SERVOS, {
     "pid_feedforward": {**_gains(), "gain": Param("float", check="positive"),
                         "time_constant": Param("float", check="nonnegative")},
     "ismc": {"a": Param("float", check="positive"), "b": Param("float", check="positive"),
@@ -139,8 +259,20 @@ SERVOS = {
                 "k": Param("float", check="positive"), "alphas": Param("floats"),
                 "sigma": Param("float", check="positive"), "disturbance_compensation": Param("bool", True),
                 "output_limit": LIMIT},
-}
-ESTIMATORS = {
+}, {
+    "pid_feedforward": lambda s, c: servo.PIDFeedforwardServo(s["kp"], s["ki"], s["kd"], s["gain"], s["time_constant"],
+                                                              c.sample_time, s["output_limit"]),
+    "ismc": _ismc,
+    "direct": lambda s, c: servo.DirectServo(s["output_limit"]),
+    "pid": lambda s, c: servo.PIDServo(s["kp"], s["ki"], s["kd"], c.sample_time, s["output_limit"]),
+    "cascade": lambda s, c: servo.CascadeServo(s["kp_position"], s["kp_velocity"], s["ki_velocity"], c.sample_time,
+                                               s["coulomb_positive"], s["coulomb_negative"], s["output_limit"]),
+    "eso_smc": lambda s, c: servo.ESOSlidingModeServo(s["mass"], s["damping"], s["gain"], s["c"], s["k"], s["alphas"],
+                                                      s["sigma"], c.sample_time, c.position, c.velocity,
+                                                      s["disturbance_compensation"], s["output_limit"]),
+}, direct={"direct": True}, eso_smc={"check": lambda s, axes: None if len(s["alphas"]) == 3 else (
+    "alphas", f"expected the three ESO gains alpha_1..3, got {len(s['alphas'])}")})
+_register(ESTIMATORS, {
     "tangent_line": {},
     "natural_local": {},
     "osculating_circle": {},
@@ -153,8 +285,15 @@ ESTIMATORS = {
                "theta0": Param("float", None),
                "branch_check_samples": Param("int", 256, "nonnegative"),      # 0: no global check
                "branch_check_tolerance": Param("float", 1e-4, "positive")},   # m
-}
-CONTROLLERS = {
+}, {
+    "tangent_line": lambda s, c: estimators.TangentLineEstimator(c.curve),
+    "natural_local": lambda s, c: estimators.NaturalLocalEstimator(c.curve),
+    "osculating_circle": lambda s, c: estimators.OsculatingCircleEstimator(c.curve),
+    "foot_point_search": lambda s, c: estimators.FootPointSearchEstimator(c.curve, s["max_iterations"], s["tolerance"]),
+    "newton": _newton,
+}, osculating_circle={"check": lambda s, axes: None if len(axes) == 2 else (
+    "type", "the osculating_circle estimate needs a planar contour (2 axes)")})
+_register(CONTROLLERS, {
     "none": {},
     "variable_gain": _gains(),
     "unit_vector": _gains(),
@@ -163,14 +302,28 @@ CONTROLLERS = {
                       "coulomb_negative": Param("floats", None), "f_t": Param("float", check="positive"),
                       "f_n": Param("float", check="positive"), "f_b": Param("float", None, "positive"),
                       "zeta": Param("float", 1.0, "positive")},
-}
-CONTROLLERS["tvt"] = {"kc": Param("float", check="nonnegative"),
-                      "min_feedrate": Param("float", 1e-3, "nonnegative")}
-CONTROLLERS["adaptive_tnb"] = {
-    "coupling": Param("floats"), "alpha": Param("float", check="positive"), "gamma_mass": Param("floats"),
-    "gamma_damping": Param("floats"), "mass0": Param("floats"), "damping0": Param("floats")}
-# controllers that compute every axis' whole command (their servos must be 'direct', and only theirs)
-WHOLE_COMMAND_CONTROLLERS = {"task_frame_pd", "tvt"}
+    "tvt": {"kc": Param("float", check="nonnegative"), "min_feedrate": Param("float", 1e-3, "nonnegative")},
+    "adaptive_tnb": {"coupling": Param("floats"), "alpha": Param("float", check="positive"),
+                     "gamma_mass": Param("floats"), "gamma_damping": Param("floats"), "mass0": Param("floats"),
+                     "damping0": Param("floats")},
+}, {
+    "none": lambda s, c: contouring.NoCoupling(c.n_axes),
+    "variable_gain": lambda s, c: contouring.VariableGainCCC(c.curve, s["kp"], s["ki"], s["kd"], c.sample_time,
+                                                             s["output_limit"]),
+    "unit_vector": lambda s, c: contouring.UnitVectorCCC(c.n_axes, s["kp"], s["ki"], s["kd"], c.sample_time,
+                                                         s["output_limit"]),
+    "task_frame_pd": _task_frame_pd,
+    "tvt": lambda s, c: contouring.TangentialVelocityCCC(c.curve, c.schedule, s["kc"], s["min_feedrate"]),
+    "adaptive_tnb": lambda s, c: contouring.AdaptiveTNBCCC(c.curve, s["coupling"], s["alpha"], s["gamma_mass"],
+                                                           s["gamma_damping"], s["mass0"], s["damping0"],
+                                                           c.sample_time),
+}, task_frame_pd={"whole_command": True, "check": _check_task_frame_pd, "combination": _task_frame_estimator},
+    tvt={"whole_command": True},
+    adaptive_tnb={"check": _per_axis("adaptive_tnb", ("coupling", "gamma_mass", "gamma_damping", "mass0",
+                                                       "damping0"))})
+# built-in controllers that compute every axis' whole command (their servos must be 'direct', and only theirs;
+# a plugin says so with whole_command on its entry)
+WHOLE_COMMAND_CONTROLLERS = {name for name, entry in CONTROLLERS._entries.items() if entry.whole_command}
 GLOBALS = {
     "experiment": Param("dict", {}),
     "paper": Param("dict", {}),
@@ -249,8 +402,7 @@ BOUNDS = {
 
 def _registries() -> dict:
     """BOUNDS' registry names -> {type name: its Params} (GLOBALS as one type)."""
-    return {"GLOBALS": {"": GLOBALS}, "CURVES": CURVES, "SCHEDULES": SCHEDULES, "DISTURBANCES": DISTURBANCES,
-            "PLANTS": PLANTS, "SERVOS": SERVOS, "ESTIMATORS": ESTIMATORS, "CONTROLLERS": CONTROLLERS}
+    return {"GLOBALS": {"": GLOBALS}, **{name: role.builtin() for name, role in _ROLES_BY_BOUNDS.items()}}
 
 
 def _apply_bounds():
@@ -264,7 +416,28 @@ def _apply_bounds():
                     specs[key] = replace(spec, bounds=bounds)
 
 
+_ROLES_BY_BOUNDS = {"CURVES": CURVES, "SCHEDULES": SCHEDULES, "DISTURBANCES": DISTURBANCES, "PLANTS": PLANTS,
+                    "SERVOS": SERVOS, "ESTIMATORS": ESTIMATORS, "CONTROLLERS": CONTROLLERS}
 _apply_bounds()
+
+
+def _plugin_params(table: dict):
+    """What each plugin type's parameters go through as it loads: every value a Param; a numeric one
+    without bounds of its own gets its role's BOUNDS for that key (else its kind's defaults)."""
+    def check(entry):
+        for key, spec in entry.params.items():
+            if not isinstance(spec, Param):
+                raise TypeError(f"params[{key!r}]: expected a contouring_ros.config.Param, got {type(spec).__name__}")
+            if not _PARAMETER_NAME.match(key) or key in ("type", "law", "model"):
+                raise TypeError(f"params[{key!r}]: not a usable parameter name")
+            bounds = table.get(f"{entry.name}.{key}", table.get(key))
+            if spec.bounds is None and bounds is not None and spec.kind in NUMERIC_KINDS:
+                entry.params[key] = replace(spec, bounds=bounds)
+    return check
+
+
+for _name, _role in _ROLES_BY_BOUNDS.items():
+    _role.on_register = _plugin_params(BOUNDS[_name])
 
 
 @dataclass(frozen=True)
@@ -760,42 +933,36 @@ def _validate_role(where, node: str, role: str, given: dict, globals_: dict) -> 
         return _mapping(where, f"{node}.", OPTIONAL_NODES[role], given)
     type_key, registry = ROLE_TYPES[role]
     section = _typed(where, node, type_key, registry, given)
-    if role == "contour_estimator" and section["type"] == "osculating_circle" and len(globals_["axes"]) != 2:
-        _fail(where, f"{node}.type", "the osculating_circle estimate needs a planar contour (2 axes)")
-    if role == "servo" and section["law"] == "eso_smc" and len(section["alphas"]) != 3:
-        _fail(where, f"{node}.alphas", f"expected the three ESO gains alpha_1..3, got {len(section['alphas'])}")
-    if role == "ccc" and section["type"] == "task_frame_pd":
-        if len(globals_["axes"]) == 3 and section["f_b"] is None:
-            _fail(where, f"{node}.f_b", "missing required key (the binormal bandwidth, for 3 axes)")
-    per_axis_keys = {"task_frame_pd": ("mass", "damping", "gain", "coulomb_positive", "coulomb_negative"),
-                     "adaptive_tnb": ("coupling", "gamma_mass", "gamma_damping", "mass0", "damping0")}
-    if role == "ccc" and section["type"] in per_axis_keys:
-        if len(globals_["axes"]) not in (2, 3):
-            _fail(where, f"{node}.type", f"the {section['type']} controller needs 2 or 3 axes (a Frenet frame)")
-        for key in per_axis_keys[section["type"]]:
-            if section[key] is not None and len(section[key]) != len(globals_["axes"]):
-                _fail(where, f"{node}.{key}", f"expected one value per axis ({len(globals_['axes'])}), "
-                                              f"got {len(section[key])}")
+    _check_entry(where, node, registry.entry(section[type_key]), section, tuple(globals_["axes"]))
     return section
+
+
+def _check_entry(where, node: str, entry, section: dict, axes: tuple):
+    """The type's own constraint on its section (the registry entry's ``check``), as a one-line error."""
+    problem = entry.check(section, axes) if entry.check is not None else None
+    if problem:
+        key, message = problem
+        _fail(where, f"{node}.{key}", message)
 
 
 def _validate_combination(where, estimator: dict, controller: dict, servos: dict):
     """Refuse estimator / controller / servo combinations whose maths does not fit together."""
-    whole = controller["type"] in WHOLE_COMMAND_CONTROLLERS
+    entry = CONTROLLERS.entry(controller["type"])
+    whole = entry.whole_command
     for axis, section in servos.items():
-        if whole and section["law"] != "direct":
+        direct = SERVOS.entry(section["law"]).direct
+        if whole and not direct:
+            laws = " or ".join(repr(name) for name, e in SERVOS._entries.items() if e.direct)
             _fail(where, f"/{axis}/servo.law", f"the {controller['type']} controller computes the whole command: "
-                                               "every servo law must be 'direct'")
-        if not whole and section["law"] == "direct":
-            _fail(where, f"/{axis}/servo.law", f"'direct' passes the contour controller's output through, but the "
-                                               f"{controller['type']} controller only adds corrections: the axis "
-                                               "would run open loop")
-    if controller["type"] == "task_frame_pd":
-        expected = APPROXIMATIONS[controller["approximation"]]
-        if estimator["type"] != expected:
-            _fail(where, "/contour_estimator.type",
-                  f"the task_frame_pd controller with approximation {controller['approximation']!r} acts on the "
-                  f"errors of the {expected!r} estimator, got {estimator['type']!r}")
+                                               f"every servo law must be {laws}")
+        if not whole and direct:
+            _fail(where, f"/{axis}/servo.law", f"{section['law']!r} passes the contour controller's output through, "
+                                               f"but the {controller['type']} controller only adds corrections: the "
+                                               "axis would run open loop")
+    problem = entry.combination(estimator, controller, servos) if entry.combination is not None else None
+    if problem:
+        key, message = problem
+        _fail(where, key, message)
 
 
 def parse_experiment(text: str, where: str = "<experiment>", ros: bool = False) -> Experiment:
@@ -1009,40 +1176,12 @@ def _kwargs(section: dict, type_key: str = "type") -> dict:
 
 
 def build_curve_from(section: dict, where: str = "curve") -> curves.Curve:
-    curve = _build_curve(section, where)
-    curve.contour_error_window = section["contour_error_window"]
-    return curve
-
-
-def _build_curve(section: dict, where: str) -> curves.Curve:
-    kind = section["type"]
     try:
-        if kind == "parabola":
-            return curves.Parabola(section["a"], section["h"])
-        if kind == "circle":
-            return curves.Circle(section["radius"], section["center"])
-        if kind == "line":
-            return curves.Line(section["start"], section["end"])
-        if kind == "ellipse":
-            return curves.Ellipse(section["a"], section["b"], section["center"])
-        if kind == "figure_eight":
-            return curves.FigureEight(section["a"], section["b"], section["center"])
-        if kind == "spline":
-            coordinates = [section["x"], section["y"]] + ([section["z"]] if section["z"] is not None else [])
-            if len({len(c) for c in coordinates}) != 1:
-                raise ValueError("x, y (and z) must list the same number of points")
-            return curves.SplineCurve(np.column_stack(coordinates), section["closed"])
-        if kind == "toolpath":
-            return curves.ToolPath(section["start"], section["moves"])
-        if kind == "butterfly":
-            return curves.Butterfly(section["scale"], section["center"])
-        if kind == "saddle":
-            return curves.Saddle(section["a"], section["b"], section["h"], section["omega"])
-        if kind == "helix":
-            return curves.Helix(section["a"], section["b"], section["c"], section["omega"], section["length"])
+        curve = CURVES.build(section, BuildContext(where=where))
     except ValueError as error:
         raise ConfigError(f"{where}: curve: {error}") from None
-    raise ConfigError(f"{where}: curve.type: unknown name {kind!r}")
+    curve.contour_error_window = section["contour_error_window"]
+    return curve
 
 
 def build_curve(experiment: Experiment) -> curves.Curve:
@@ -1050,21 +1189,10 @@ def build_curve(experiment: Experiment) -> curves.Curve:
 
 
 def build_schedule_from(section: dict, curve, where: str = "schedule"):
-    if section["type"] == "feedrate":
-        arguments = _kwargs(section)
-        for key, default in (("theta_start", curve.domain[0]), ("theta_end", curve.domain[1])):
-            if arguments[key] is None:
-                arguments[key] = default
-        try:
-            return FeedrateSchedule(curve, **arguments)
-        except ValueError as error:
-            raise ConfigError(f"{where}: schedule: {error}") from None
-    return UniformSchedule(**_kwargs(section))
+    return SCHEDULES.build(section, BuildContext(curve=curve, where=where))
 
 
 def _schedule_duration(where: str, curve_section: dict, schedule_section: dict) -> float:
-    if schedule_section["type"] == "uniform":
-        return schedule_section["duration"]
     return build_schedule_from(schedule_section, build_curve_from(curve_section, where), where).duration
 
 
@@ -1073,14 +1201,7 @@ def build_schedule(experiment: Experiment, curve=None):
 
 
 def build_disturbance(section: dict):
-    kind = section["type"]
-    if kind == "none":
-        return disturbances.NoDisturbance()
-    if kind == "constant":
-        return disturbances.ConstantDisturbance(section["value"])
-    if kind == "random":
-        return disturbances.RandomDisturbance(**_kwargs(section))
-    return disturbances.SinusoidalDisturbance(**_kwargs(section))
+    return DISTURBANCES.build(section, BuildContext())
 
 
 def initial_state(experiment: Experiment, curve=None, schedule=None):
@@ -1095,76 +1216,22 @@ def initial_state(experiment: Experiment, curve=None, schedule=None):
 
 
 def build_plant(experiment: Experiment, axis: str, position: float, velocity: float):
-    section = experiment.plants[axis]
-    if section["model"] == "mass_damper":
-        return plants.MassDamperAxis(section["mass"], section["damping"], section["gain"], experiment.sample_time,
-                                     build_disturbance(section["disturbance"]), position, velocity,
-                                     section["saturation"], section["coulomb_positive"],
-                                     section["coulomb_negative"], section["disturbance_unit"],
-                                     section["encoder_resolution"])
-    return plants.FirstOrderVelocityAxis(section["gain"], section["time_constant"], experiment.sample_time,
-                                         build_disturbance(section["disturbance"]), position, velocity,
-                                         section["saturation"], section["encoder_resolution"])
+    return PLANTS.build(experiment.plants[axis], BuildContext(experiment, axis=axis, position=position,
+                                                              velocity=velocity, where=experiment.path))
 
 
 def build_servo(experiment: Experiment, axis: str, position: float, velocity: float, acceleration: float):
-    s, ts = experiment.servos[axis], experiment.sample_time
-    if s["law"] == "eso_smc":
-        return servo.ESOSlidingModeServo(s["mass"], s["damping"], s["gain"], s["c"], s["k"], s["alphas"], s["sigma"],
-                                         ts, position, velocity, s["disturbance_compensation"], s["output_limit"])
-    if s["law"] == "direct":
-        return servo.DirectServo(s["output_limit"])
-    if s["law"] == "cascade":
-        return servo.CascadeServo(s["kp_position"], s["kp_velocity"], s["ki_velocity"], ts, s["coulomb_positive"],
-                                  s["coulomb_negative"], s["output_limit"])
-    if s["law"] == "pid":
-        return servo.PIDServo(s["kp"], s["ki"], s["kd"], ts, s["output_limit"])
-    if s["law"] == "pid_feedforward":
-        return servo.PIDFeedforwardServo(s["kp"], s["ki"], s["kd"], s["gain"], s["time_constant"], ts,
-                                         s["output_limit"])
-    observer = servo.DisturbanceObserver(s["c"], s["d"], s["gain"], s["time_constant"], ts, velocity,
-                                          acceleration) \
-        if s["observer"] else None
-    return servo.IntegralSlidingModeServo(s["a"], s["b"], s["mu"], s["kappa"], s["gain"], s["time_constant"],
-                                          ts, observer, s["output_limit"])
+    return SERVOS.build(experiment.servos[axis], BuildContext(experiment, axis=axis, position=position,
+                                                              velocity=velocity, acceleration=acceleration,
+                                                              where=experiment.path))
 
 
 def build_estimator(experiment: Experiment, curve):
-    s = experiment.estimator
-    if s["type"] == "tangent_line":
-        return estimators.TangentLineEstimator(curve)
-    if s["type"] == "natural_local":
-        return estimators.NaturalLocalEstimator(curve)
-    if s["type"] == "osculating_circle":
-        return estimators.OsculatingCircleEstimator(curve)
-    if s["type"] == "foot_point_search":
-        return estimators.FootPointSearchEstimator(curve, s["max_iterations"], s["tolerance"])
-    theta0 = s["theta0"] if s["theta0"] is not None else build_schedule(experiment, curve).theta_start
-    inner = s["inner_step"] or experiment.sample_time
-    check = estimators.BranchCheck(curve, s["branch_check_samples"], s["branch_check_tolerance"]) \
-        if s["branch_check_samples"] else None
-    return estimators.NewtonEstimator(curve, s["k_prime"], s["c_prime"], theta0, inner, s["tolerance"],
-                                      s["max_iterations"], check)
+    return ESTIMATORS.build(experiment.estimator, BuildContext(experiment, curve, where=experiment.path))
 
 
 def build_controller(experiment: Experiment, curve):
-    s, ts = experiment.controller, experiment.sample_time
-    if s["type"] == "none":
-        return contouring.NoCoupling(len(experiment.axes))
-    if s["type"] == "task_frame_pd":
-        approximation = {"first_order": estimators.first_order_terms,
-                         "natural_local": estimators.natural_local_terms}[s["approximation"]]
-        return contouring.TaskFramePD(curve, approximation, s["mass"], s["damping"], s["gain"],
-                                      [s["f_t"], s["f_n"]] + ([s["f_b"]] if s["f_b"] is not None else []), s["zeta"], s["coulomb_positive"],
-                                      s["coulomb_negative"])
-    if s["type"] == "tvt":
-        return contouring.TangentialVelocityCCC(curve, build_schedule(experiment, curve), s["kc"], s["min_feedrate"])
-    if s["type"] == "adaptive_tnb":
-        return contouring.AdaptiveTNBCCC(curve, s["coupling"], s["alpha"], s["gamma_mass"], s["gamma_damping"],
-                                         s["mass0"], s["damping0"], ts)
-    if s["type"] == "variable_gain":
-        return contouring.VariableGainCCC(curve, s["kp"], s["ki"], s["kd"], ts, s["output_limit"])
-    return contouring.UnitVectorCCC(len(experiment.axes), s["kp"], s["ki"], s["kd"], ts, s["output_limit"])
+    return CONTROLLERS.build(experiment.controller, BuildContext(experiment, curve, where=experiment.path))
 
 
 def build_loop(experiment: Experiment) -> ControlLoop:

@@ -1,0 +1,232 @@
+"""One registry per role: type name -> the class or factory that builds it, its parameters, its constraints.
+
+Roles: curve, schedule, plant, disturbance, servo, estimator, controller. The built-in types register
+themselves in :mod:`contouring_ros.config`; other packages add types through Python entry points of the
+group ``contouring_ros.<role>s`` (``contouring_ros.estimators``, ``contouring_ros.controllers`` ...). An
+entry point names either an :class:`Entry` or a class; a class gives
+
+- ``params``: {key: :class:`contouring_ros.config.Param`} (the keys of its section besides the type name),
+- optionally ``from_section(section, context)`` (a classmethod building it); without one, its constructor
+  is called with the section's keys and, by name, what the context holds (``curve``, ``schedule``,
+  ``sample_time``, ``axes``, ``n_axes``, ``experiment``, ``axis``, ``position``, ``velocity``,
+  ``acceleration``),
+- optionally ``check_section(section, axes)`` -> None or (key, message): a constraint on its own section,
+- controllers: ``whole_command = True`` when it computes every axis' whole command (servos then 'direct'),
+  ``check_combination(estimator, controller, servos)`` -> None or (key, message);
+  servos: ``direct = True`` when it passes the controller's output through.
+
+Entry points are listed once per role (importlib.metadata) and each is imported when its type is first
+looked up, so a plugin that fails to load stops only what names it, with one line naming the plugin.
+Validation (config), building (config.build_*), batches, the graph's nodes and replay all read these
+registries; an unknown type is refused naming the known ones.
+"""
+from __future__ import annotations
+
+import inspect
+import warnings
+from collections.abc import Mapping
+from dataclasses import dataclass
+from importlib import metadata
+from typing import Callable
+
+from .errors import ConfigError
+
+__all__ = ["Entry", "Role", "BuildContext", "ROLES", "entry_from_class"]
+
+ROLES = ("curve", "schedule", "plant", "disturbance", "servo", "estimator", "controller")
+
+
+@dataclass(frozen=True)
+class Entry:
+    """One type of a role."""
+
+    name: str
+    params: dict                          # key -> Param: the section's keys besides the type name
+    build: Callable                       # build(section, context) -> the core object
+    check: Callable | None = None         # check(section, axes) -> None | (key, message)
+    combination: Callable | None = None   # controllers: (estimator, controller, servos) -> None | (key, message)
+    whole_command: bool = False           # controllers: computes every axis' whole command
+    direct: bool = False                  # servos: passes the contour controller's output through
+    origin: str = "contouring_ros"        # the package (or entry point) it comes from
+
+
+class BuildContext:
+    """What a factory may need besides its section: the experiment, the curve, the schedule (built when
+    first asked for), one axis' name and initial state."""
+
+    def __init__(self, experiment=None, curve=None, axis=None, position=None, velocity=None, acceleration=None,
+                 where: str = "", schedule=None):
+        self.experiment, self.curve, self.axis, self.where = experiment, curve, axis, where
+        self.position, self.velocity, self.acceleration = position, velocity, acceleration
+        self._schedule = schedule
+
+    @property
+    def schedule(self):
+        if self._schedule is None:
+            from .config import build_schedule
+            self._schedule = build_schedule(self.experiment, self.curve)
+        return self._schedule
+
+    @property
+    def sample_time(self) -> float:
+        return self.experiment.sample_time
+
+    @property
+    def axes(self) -> tuple:
+        return self.experiment.axes
+
+    @property
+    def n_axes(self) -> int:
+        return len(self.experiment.axes)
+
+    def get(self, name: str):
+        return getattr(self, name) if name in _CONTEXT_NAMES else None
+
+
+_CONTEXT_NAMES = ("experiment", "curve", "schedule", "sample_time", "axes", "n_axes", "axis", "position",
+                  "velocity", "acceleration")
+
+
+def _constructor_factory(cls) -> Callable:
+    """build(section, context) calling ``cls`` with the section's keys and, by name, the context's objects."""
+    parameters = inspect.signature(cls).parameters
+
+    def build(section, context):
+        arguments = {}
+        for name, parameter in parameters.items():
+            if parameter.kind in (parameter.VAR_POSITIONAL, parameter.VAR_KEYWORD):
+                continue
+            if name in section and name != "type":
+                arguments[name] = section[name]
+            elif name in _CONTEXT_NAMES:
+                arguments[name] = context.get(name)
+        return cls(**arguments)
+    return build
+
+
+def entry_from_class(name: str, cls, origin: str = "") -> Entry:
+    """The entry of a plugin class (see the module's docstring for what it may define)."""
+    build = getattr(cls, "from_section", None) or _constructor_factory(cls)
+    return Entry(name=name, params=dict(getattr(cls, "params", {}) or {}), build=build,
+                 check=getattr(cls, "check_section", None), combination=getattr(cls, "check_combination", None),
+                 whole_command=bool(getattr(cls, "whole_command", False)), direct=bool(getattr(cls, "direct", False)),
+                 origin=origin or getattr(cls, "__module__", ""))
+
+
+class Role(Mapping):
+    """The registry of one role: a mapping type name -> its parameter spec (what validation reads), with
+    :meth:`entry` giving the whole :class:`Entry`. Built-ins are registered with :meth:`register`; entry
+    points of ``contouring_ros.<role>s`` are listed when a name is first looked up."""
+
+    def __init__(self, role: str, type_key: str = "type"):
+        self.role, self.type_key, self.group = role, type_key, f"contouring_ros.{role}s"
+        self._entries: dict = {}
+        self._pending: dict | None = None     # entry point name -> EntryPoint, not loaded yet
+        self.on_register: Callable | None = None    # called with each plugin Entry as it loads (bounds)
+
+    # --- registering ---------------------------------------------------------------------------------
+    def register(self, name: str, params: dict, build: Callable, **traits) -> Entry:
+        entry = Entry(name=name, params=params, build=build, **traits)
+        self._entries[name] = entry
+        return entry
+
+    def add(self, entry: Entry) -> Entry:
+        self._entries[entry.name] = entry
+        return entry
+
+    def builtin(self) -> dict:
+        """{name: params} of the types registered so far (no entry point is listed or loaded)."""
+        return {name: entry.params for name, entry in self._entries.items()}
+
+    # --- plugins -------------------------------------------------------------------------------------
+    def _discover(self) -> dict:
+        if self._pending is None:
+            pending = {}
+            try:
+                points = _entry_points().select(group=self.group)
+            except Exception as error:     # a broken distribution's metadata
+                raise ConfigError(f"cannot list the {self.group} plugins ({type(error).__name__}: "
+                                  f"{_line(error)})") from None
+            for point in points:
+                if point.name in self._entries or point.name in pending:
+                    warnings.warn(f"plugin {point.name!r} ({self.group}: {point.value}) is named like a "
+                                  f"{self.role} type already known; it is ignored", stacklevel=3)
+                    continue
+                pending[point.name] = point
+            self._pending = pending
+        return self._pending
+
+    def _load(self, name: str) -> Entry:
+        point = self._pending.pop(name)
+        where = f"plugin {name!r} ({self.group}: {point.value})"
+        try:
+            target = point.load()
+        except Exception as error:
+            self._pending[name] = point       # the next lookup says so again
+            raise ConfigError(f"{where} failed to load: {type(error).__name__}: {_line(error)}") from None
+        try:
+            if isinstance(target, Entry):
+                entry = Entry(**{**target.__dict__, "name": name, "origin": point.value})
+            elif callable(target):
+                entry = entry_from_class(name, target, point.value)
+            else:
+                raise TypeError(f"expected a class or a contouring_ros.registry.Entry, got {type(target).__name__}")
+            if not isinstance(entry.params, dict):
+                raise TypeError("params must be a mapping of key -> Param")
+            if self.on_register is not None:
+                self.on_register(entry)
+        except Exception as error:
+            self._pending[name] = point
+            raise ConfigError(f"{where} failed to load: {type(error).__name__}: {_line(error)}") from None
+        self._entries[name] = entry
+        return entry
+
+    # --- lookup --------------------------------------------------------------------------------------
+    def names(self) -> list:
+        return list(self._entries) + [name for name in self._discover() if name not in self._entries]
+
+    def entry(self, name: str) -> Entry:
+        """The entry of ``name``; a ConfigError naming the known types if there is none."""
+        if name in self._entries:
+            return self._entries[name]
+        if name in self._discover():
+            return self._load(name)
+        raise ConfigError(f"{self.role} {self.type_key} {name!r} is unknown (expected one of: "
+                          f"{', '.join(self.names())})")
+
+    def build(self, section: dict, context: BuildContext):
+        """The core object of a validated ``section``."""
+        return self.entry(section[self.type_key]).build(section, context)
+
+    def __getitem__(self, name):
+        if not isinstance(name, str) or name not in self:
+            raise KeyError(name)
+        return self.entry(name).params
+
+    def __contains__(self, name) -> bool:
+        return isinstance(name, str) and (name in self._entries or name in self._discover())
+
+    def __iter__(self):
+        return iter(self.names())
+
+    def __len__(self) -> int:
+        return len(self.names())
+
+    def __repr__(self) -> str:
+        return f"<{self.role} registry: {', '.join(self._entries)}>"
+
+
+_ALL_POINTS = None
+
+
+def _entry_points():
+    """Every installed entry point, listed once per process (a listing reads every distribution's
+    metadata: about 0.2 s, so the seven roles share one)."""
+    global _ALL_POINTS
+    if _ALL_POINTS is None:
+        _ALL_POINTS = metadata.entry_points()
+    return _ALL_POINTS
+
+
+def _line(error) -> str:
+    return " ".join(str(error).split())[:300] or "(no message)"

@@ -1,0 +1,152 @@
+"""Types of one's own through entry points: the example plugin (examples/contouring_plugin_example, one file)
+is installed into a temporary folder and its estimator validated, simulated, run through the node graph
+(equal to the simulation), swept and replayed; registries refuse unknown types and name broken plugins."""
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+import textwrap
+import tomllib
+from pathlib import Path
+
+import pytest
+
+from contouring_ros.config import CONTROLLERS, ESTIMATORS, SERVOS, build_controller, parse_experiment
+from contouring_ros.errors import ConfigError
+from contouring_ros.registry import ROLES
+from conftest import DEFAULT, ROOT, shortened
+
+EXAMPLE = ROOT / "examples" / "contouring_plugin_example"
+PLUGIN_ESTIMATOR = "  ros__parameters:\n    type: two_step_newton\n    steps: 3\n"
+
+
+def install(target: Path, project: Path = EXAMPLE) -> Path:
+    """Install ``project`` into ``target`` as pip --target would: its module and a dist-info with its entry
+    points (read from its pyproject.toml), so importlib.metadata finds them with ``target`` on sys.path."""
+    meta = tomllib.loads((project / "pyproject.toml").read_text())["project"]
+    target.mkdir(parents=True, exist_ok=True)
+    for module in project.glob("*.py"):
+        shutil.copy(module, target / module.name)
+    info = target / f"{meta['name'].replace('-', '_')}-{meta['version']}.dist-info"
+    info.mkdir()
+    (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {meta['name']}\nVersion: {meta['version']}\n")
+    lines = []
+    for group, points in meta.get("entry-points", {}).items():
+        lines.append(f"[{group}]")
+        lines += [f"{name} = {value}" for name, value in points.items()]
+    (info / "entry_points.txt").write_text("\n".join(lines) + "\n")
+    return target
+
+
+def run_python(code: str, path: Path, cwd: Path, timeout: float = 240) -> subprocess.CompletedProcess:
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(path), str(ROOT / "tests"), os.environ.get("PYTHONPATH", "")]))
+    return subprocess.run([sys.executable, "-c", textwrap.dedent(code)], cwd=cwd, env=env, capture_output=True,
+                          text=True, timeout=timeout)
+
+
+def with_estimator(text: str, body: str) -> str:
+    start = text.index("/contour_estimator:\n") + len("/contour_estimator:\n")
+    end = text.index("\n/", start) + 1
+    return text[:start] + body + text[end:]
+
+
+def test_the_example_estimator_runs_through_validation_simulation_graph_sweep_and_replay(tmp_path):
+    site = install(tmp_path / "site")
+    experiment = tmp_path / "plugin.yaml"
+    experiment.write_text(with_estimator(shortened(DEFAULT, 0.06), PLUGIN_ESTIMATOR))
+    done = run_python(f"""
+        import numpy as np, subprocess, sys
+        from contouring_ros.bag import read_run
+        from contouring_ros.config import ESTIMATORS, build_loop, load_experiment
+        from contouring_ros.core.simulation import simulate
+        from contouring_ros.runner import run_graph
+        from contouring_ros import api
+        experiment = load_experiment({str(experiment)!r})
+        assert experiment.estimator == {{"type": "two_step_newton", "steps": 3}}, experiment.estimator
+        assert ESTIMATORS.entry("two_step_newton").origin.startswith("contouring_plugin_example")
+        loop = build_loop(experiment)
+        assert type(loop.estimator).__name__ == "TwoStepNewtonEstimator" and loop.estimator.steps == 3
+        expected = simulate(loop)
+        bag = run_graph({str(experiment)!r}, {str(tmp_path / "run.mcap")!r}, layout="composed")
+        recorded = read_run(bag)
+        assert recorded.complete_steps == loop.n_steps
+        for name in ("estimate_theta", "estimate_vector", "estimate_signed", "correction", "command", "position"):
+            np.testing.assert_array_equal(getattr(recorded.result, name), getattr(expected, name), err_msg=name)
+        assert np.abs(expected.estimate_signed).max() > 0
+        rows = api.sweep_grid(experiment, {{"contour_estimator.steps": [1, 2]}}, workers=1)
+        assert len(rows) == 2 and all(r.scores is not None for r in rows), rows
+        replay = subprocess.run([sys.executable, "-m", "contouring_ros.cli", "replay", str(bag), "--estimator",
+                                 "two_step_newton:steps=1", "--estimator", "tangent_line"],
+                                capture_output=True, text=True)
+        assert replay.returncode == 0, replay.stderr
+        assert "two_step_newton steps=1" in replay.stdout, replay.stdout
+        print("plugin ok")
+    """, site, tmp_path, timeout=400)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert "plugin ok" in done.stdout
+
+
+def test_a_plugin_is_refused_where_it_does_not_fit(tmp_path):
+    site = install(tmp_path / "site")
+    text = with_estimator(DEFAULT.read_text(), "  ros__parameters:\n    type: two_step_newton\n    steps: 0\n")
+    done = run_python(f"""
+        from contouring_ros.config import parse_experiment
+        from contouring_ros.errors import ConfigError
+        try:
+            parse_experiment({text!r}, "p.yaml")
+        except ConfigError as error:
+            print(error)
+    """, site, tmp_path)
+    assert done.returncode == 0, done.stderr
+    assert "p.yaml: /contour_estimator.steps: expected a positive value" in done.stdout
+
+
+def test_a_plugin_that_fails_to_load_is_named_in_one_line(tmp_path):
+    project = tmp_path / "broken"
+    project.mkdir()
+    (project / "broken_plugin.py").write_text("raise ImportError('needs a library that is not installed')\n")
+    (project / "pyproject.toml").write_text('[project]\nname = "broken-plugin"\nversion = "1.0"\n'
+                                            '[project.entry-points."contouring_ros.controllers"]\n'
+                                            'shaky = "broken_plugin:ShakyCCC"\n')
+    site = install(tmp_path / "site", project)
+    text = DEFAULT.read_text().replace("type: unit_vector", "type: shaky", 1)
+    done = run_python(f"""
+        from contouring_ros.config import parse_experiment, load_experiment
+        from contouring_ros.errors import ConfigError
+        load_experiment({str(DEFAULT)!r})       # experiments that do not name it are unaffected
+        try:
+            parse_experiment({text!r}, "p.yaml")
+        except ConfigError as error:
+            print("ERROR", error)
+    """, site, tmp_path)
+    assert done.returncode == 0, done.stderr
+    line = done.stdout.strip()
+    assert line.startswith("ERROR ") and "\n" not in line
+    assert "plugin 'shaky' (contouring_ros.controllers: broken_plugin:ShakyCCC) failed to load: ImportError: " \
+           "needs a library that is not installed" in line
+
+
+def test_unknown_types_are_refused_naming_the_known_ones():
+    with pytest.raises(ConfigError, match=r"/ccc.type: unknown name 'fuzzy' \(expected one of: none, variable_gain, "
+                                          r"unit_vector, task_frame_pd, tvt, adaptive_tnb"):
+        parse_experiment(DEFAULT.read_text().replace("type: unit_vector", "type: fuzzy", 1), "e.yaml")
+    experiment = parse_experiment(DEFAULT.read_text(), "e.yaml")
+    from dataclasses import replace
+    with pytest.raises(ConfigError, match="controller type 'fuzzy' is unknown .expected one of: none, "):
+        build_controller(replace(experiment, controller={"type": "fuzzy", "kp": 1.0}), None)   # no fallback
+
+
+def test_every_role_has_a_registry_with_its_entry_point_group():
+    from contouring_ros import config
+    roles = {r.role: r for r in (config.CURVES, config.SCHEDULES, config.PLANTS, config.DISTURBANCES, SERVOS,
+                                  ESTIMATORS, CONTROLLERS)}
+    assert set(roles) == set(ROLES)
+    for role, registry in roles.items():
+        assert registry.group == f"contouring_ros.{role}s"
+        for name in registry:
+            entry = registry.entry(name)
+            assert entry.name == name and callable(entry.build) and isinstance(entry.params, dict)
+    assert {n for n in CONTROLLERS if CONTROLLERS.entry(n).whole_command} == {"task_frame_pd", "tvt"}
+    assert [n for n in SERVOS if SERVOS.entry(n).direct] == ["direct"]
