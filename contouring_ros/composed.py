@@ -42,7 +42,7 @@ def _lean_spin_once(nodes, wait_set, handles, timeout_ns: int):
     from .nodes.lockstep import wait_on
     wait_on(wait_set, handles, timeout_ns)
     for node in nodes:
-        node.take_all(node.on_message)
+        node.take_all(node.admitted)
 
 
 def run_composed(experiment_path: str, bag: str, executor_kind: str = "lean", start_time: float = 0.0):
@@ -126,7 +126,7 @@ def _run_realtime(nodes, experiment):
     def take():
         for node in lockstep_nodes:
             node.take_all(node.keep_newest)
-        recorder.take_all(recorder.on_message)
+        recorder.take_all(recorder.admitted)
 
     switch_interval = sys.getswitchinterval()
     sys.setswitchinterval(REALTIME_SWITCH_INTERVAL)
@@ -136,7 +136,7 @@ def _run_realtime(nodes, experiment):
                        spin=REALTIME_SPIN)
             for node in lockstep_nodes:
                 node.realtime_tick(tick)
-            recorder.take_all(recorder.on_message)
+            recorder.take_all(recorder.admitted)
     finally:
         sys.setswitchinterval(switch_interval)
     end = time.time() + 1.0

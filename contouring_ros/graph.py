@@ -47,6 +47,7 @@ class Topic:
     subscribers: tuple
     layout: tuple = ()    # (field, length) pairs every message must have, values finite
     every_step: bool = True   # one message per step (else event-driven, like /diagnostics)
+    names: tuple | None = None   # the joint names every message must carry (None: not checked)
 
 
 def state_topic(axis: str) -> str:
@@ -108,17 +109,19 @@ def topics(axes, ccc_takes_state: bool = True) -> list:
     out = [Topic(CLOCK, "rosgraph_msgs/msg/Clock", "/interpolator", ("/recorder",)),
            Topic(REFERENCE, "trajectory_msgs/msg/JointTrajectory", "/interpolator",
                  ("/contour_estimator",) + ccc + tuple(f"/{a}/servo" for a in axes) + ("/recorder",),
-                 (("positions", n + 1), ("velocities", n + 1), ("accelerations", n + 1)))]
+                 (("positions", n + 1), ("velocities", n + 1), ("accelerations", n + 1)),
+                 names=tuple(axes) + (THETA_NAME,))]
     for a in axes:
         out.append(Topic(state_topic(a), "sensor_msgs/msg/JointState", f"/{a}/plant",
-                         ("/contour_estimator",) + ccc + (f"/{a}/servo", "/recorder"), axis_state))
+                         ("/contour_estimator",) + ccc + (f"/{a}/servo", "/recorder"), axis_state, names=(a,)))
     out.append(Topic(CONTOUR_ERROR, "sensor_msgs/msg/JointState", "/contour_estimator",
-                     ("/ccc", "/interpolator", "/recorder"), (("position", n + 2),)))
+                     ("/ccc", "/interpolator", "/recorder"), (("position", n + 2),),
+                     names=tuple(estimate_names(axes))))
     out.append(Topic(CORRECTION, "sensor_msgs/msg/JointState", "/ccc",
-                     tuple(f"/{a}/servo" for a in axes) + ("/recorder",), (("effort", n),)))
+                     tuple(f"/{a}/servo" for a in axes) + ("/recorder",), (("effort", n),), names=tuple(axes)))
     for a in axes:
         out.append(Topic(command_topic(a), "sensor_msgs/msg/JointState", f"/{a}/servo",
-                         (f"/{a}/plant", "/recorder"), (("effort", 1),)))
+                         (f"/{a}/plant", "/recorder"), (("effort", 1),), names=(a,)))
     return out
 
 
@@ -129,8 +132,13 @@ def recorded_topics(axes, ccc_takes_state: bool = True) -> list:
 
 
 def message_problem(topic: Topic, msg) -> str | None:
-    """What is wrong with a decoded message of ``topic`` (wrong array length, non-finite value), or None."""
+    """What is wrong with a decoded message of ``topic`` (wrong joint names, wrong array length, non-finite
+    value), or None."""
     holder = msg
+    if topic.names is not None:
+        names = msg.joint_names if topic.type == "trajectory_msgs/msg/JointTrajectory" else msg.name
+        if tuple(names) != topic.names:
+            return f"joint names {list(names)}, expected {list(topic.names)}"
     if topic.type == "trajectory_msgs/msg/JointTrajectory":
         if len(msg.points) != 1:
             return f"expected 1 trajectory point, got {len(msg.points)}"

@@ -46,6 +46,16 @@ class NodeProcess:
         if self.name in OFF_CRITICAL_PATH:
             os.nice(OFF_CRITICAL_PATH_NICENESS)
 
+    def preexec(self, runner_pid: int):
+        """In the child before exec: die with the runner (SIGTERM when the runner's thread that started us
+        ends, even by SIGKILL: the nodes then stop as on Ctrl-C and the recorder closes the bag), then
+        :meth:`lower_priority`."""
+        if _LIBC is not None:
+            _LIBC.prctl(_PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0)
+            if os.getppid() != runner_pid:     # the runner died before prctl took effect
+                os.kill(os.getpid(), signal.SIGTERM)
+        self.lower_priority()
+
     def last_error_line(self) -> str:
         if self.log is None:
             return ""
@@ -113,20 +123,41 @@ def graph_commands(experiment_path, experiment: Experiment, bag: Path, start_tim
     return out
 
 
+def _load_libc():
+    import ctypes
+    try:
+        return ctypes.CDLL(None, use_errno=True) if sys.platform.startswith("linux") else None
+    except OSError:
+        return None
+
+
+_LIBC = _load_libc()      # loaded before any fork: the child's preexec only calls prctl
+_PR_SET_PDEATHSIG = 1
+
+
 def _stop(nodes, grace: float = 5.0):
-    """SIGINT every node still running, then SIGKILL whatever is left after ``grace`` seconds."""
-    for node in nodes:
-        if node.process is not None and node.process.poll() is None:
-            node.process.send_signal(signal.SIGINT)
-    deadline = time.monotonic() + grace
-    for node in nodes:
-        if node.process is None:
-            continue
-        try:
-            node.process.wait(timeout=max(0.0, deadline - time.monotonic()))
-        except subprocess.TimeoutExpired:
-            node.process.kill()
-            node.process.wait()
+    """SIGINT every node still running, then SIGKILL whatever is left after ``grace`` seconds, or at once
+    when another SIGINT or SIGTERM reaches the runner meanwhile (a second Ctrl-C escalates, never skips)."""
+    escalate, previous = [], {}
+    if threading.current_thread() is threading.main_thread():
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            previous[sig] = signal.signal(sig, lambda *_: escalate.append(True))
+    try:
+        running = [node.process for node in nodes if node.process is not None and node.process.poll() is None]
+        for process in running:
+            process.send_signal(signal.SIGINT)
+        deadline = time.monotonic() + grace
+        while not escalate and time.monotonic() < deadline and any(p.poll() is None for p in running):
+            time.sleep(0.02)
+        for node in nodes:
+            if node.process is not None and node.process.poll() is None:
+                node.process.kill()
+        for node in nodes:
+            if node.process is not None:
+                node.process.wait()
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
 
 
 SHARED_MEMORY = Path("/dev/shm")
@@ -211,6 +242,11 @@ class DomainLease:
             return
         raise RunError(f"no free ROS domain id among {list(candidates)[:5]}... (lock files in {self.DIRECTORY})")
 
+    def lock_fds(self) -> tuple:
+        """The lock file's descriptor, for child processes to inherit (and so hold the lock as long as
+        they live: flock belongs to the open file, shared by every process holding it)."""
+        return (self._file.fileno(),) if self._file is not None else ()
+
     def release(self):
         if self._file is not None:
             self._file.close()      # closing drops the lock
@@ -282,11 +318,15 @@ def run_graph(experiment_path, bag=None, *, timeout: float | None = None, domain
             env = private_environment(lease.domain_id, network=experiment.network)
             say(f"starting {len(nodes)} nodes on ROS domain {lease.domain_id}: {experiment.n_steps} steps")
             try:
+                runner_pid = os.getpid()
                 for node in nodes:
                     node.log = tempfile.TemporaryFile()
+                    # every node holds the domain's lock file open too: the lock is released once the
+                    # runner and every node have exited, never while a node of this run still runs
                     node.process = subprocess.Popen(node.command, env=env, stdout=node.log,
                                                     stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
-                                                    preexec_fn=node.lower_priority)
+                                                    pass_fds=lease.lock_fds(),
+                                                    preexec_fn=lambda node=node: node.preexec(runner_pid))
                 if on_started is not None:
                     on_started(nodes)
                 _watch(nodes, timeout, started, say)

@@ -37,6 +37,11 @@ _DECODERS = {"sensor_msgs/msg/JointState": cdr.decode_joint_state,
 DIAGNOSTICS_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE,
                              history=HistoryPolicy.KEEP_LAST, depth=100)
 PROGRESS_PERIOD = 5.0    # s between a node's progress log lines
+#: how many steps past the one a node works on an input may be stamped: the graph's own nodes run at most
+#: LOOKAHEAD + 1 steps apart, so this bounds every pending-step buffer (at most MAX_AHEAD + 1 steps held)
+MAX_AHEAD = 64
+REPORT_LIMIT = 20        # rejections reported on /diagnostics per topic; the rest are counted
+_MIN_STAMPED = 12        # bytes of the smallest stamped message: encapsulation, sec, nanosec
 ACK_TIMEOUT = 5.0        # s to wait for the last messages to be acknowledged
 
 
@@ -82,9 +87,13 @@ class LockstepNode:
         self._pending = {}         # step -> {topic: msg}
         self.rejected = {}         # topic -> count of rejected messages
         self._last_valid = {}      # topic -> last valid decoded message (for on_invalid_input: hold)
+        self._sequence = {}        # topic -> publication sequence number expected of its one publisher
+        self._last_step = {}       # topic -> step of the last message admitted
+        self.strangers = 0         # messages refused before filing (wrong publisher, stamp, size)
         self._diagnostics = self.node.create_publisher(DiagnosticArray, graph.DIAGNOSTICS, DIAGNOSTICS_QOS)
         self.next_step = 0
         self.finished = False
+        self._realtime = self.experiment.timing == "realtime"
         self.setup()
 
     # -- wiring -----------------------------------------------------------------------------------
@@ -99,6 +108,11 @@ class LockstepNode:
         callback = (lambda data, topic=topic: self.on_message(topic, data)) if self.callbacks else (lambda _: None)
         sub = self.node.create_subscription(cls, topic, callback, qos, raw=True)
         self._inputs.append((topic, sub, cls, _DECODERS.get(type_name) if used else None))
+        if self._topics[topic].every_step:
+            # one publisher per graph topic, matched before it publishes (wait_for_graph), reliable and
+            # keep-all: its messages reach us numbered 1, 2, 3 ... Any other number is another writer's.
+            self._sequence[topic] = 1
+        self._last_step[topic] = -1
 
     def add_output(self, topic: str):
         pub = self.node.create_publisher(message_class(self._topics[topic].type), topic, GRAPH_QOS)
@@ -159,16 +173,84 @@ class LockstepNode:
                 taken = sub.handle.take_message(cls, True)
                 if taken is None:
                     break
-                handle(topic, taken[0])
+                data = taken[0]
+                problem = self.intake_problem(topic, data, taken[1].get("publication_sequence_number"))
+                if problem is None:
+                    handle(topic, data)
+                else:
+                    self.refuse(topic, problem)
+
+    def intake_problem(self, topic: str, data: bytes, sequence=None):
+        """Why a serialised message of ``topic`` cannot be filed, or None (and then it is admitted: the
+        topic's expected sequence number and last step move on). A few microseconds a message.
+
+        Refused: a message from a publisher other than the topic's one (its publication sequence number
+        breaks the 1, 2, 3 ... of the one writer), a payload too short for a stamp, a stamp that is
+        negative, between two steps, past the run's end, not after the topic's previous one (a duplicate or
+        a past step), or more than MAX_AHEAD steps ahead of the step this node works on.
+        """
+        expected = self._sequence.get(topic)
+        if expected is not None and sequence is not None and sequence != expected:
+            return (f"a message from an unexpected publisher (publication sequence number {sequence}, expected "
+                    f"{expected} from the topic's one publisher {self._topics[topic].publisher})")
+        if len(data) < _MIN_STAMPED:
+            return f"a {len(data)}-byte payload cannot be decoded (no header stamp)"
+        stamp = cdr.stamp_ns(data)
+        k, off_step = divmod(stamp, self.sample_time_ns)
+        problem = self.stamp_problem(topic, stamp, k, off_step)
+        if problem is not None:
+            return problem
+        if expected is not None and sequence is not None:
+            self._sequence[topic] = expected + 1
+        self._last_step[topic] = k
+        return None
+
+    def stamp_problem(self, topic: str, stamp: int, k: int, off_step: int):
+        """What is wrong with the stamp of a message of ``topic`` (step ``k``), or None."""
+        if stamp < 0:
+            return f"negative stamp {stamp} ns"
+        if off_step:
+            return f"stamp {stamp} ns is not on a step (sample time {self.sample_time_ns} ns)"
+        if k >= self.n_steps + (not self._topics[topic].every_step):
+            return f"stamp of step {k} is past the run's last step {self.n_steps - 1}"
+        if self._topics[topic].every_step and k <= self._last_step[topic]:
+            return f"stamp of step {k} repeats or precedes step {self._last_step[topic]} already taken"
+        if k > self.next_step + MAX_AHEAD and not self._realtime:   # realtime holds one message a topic
+            return (f"stamp of step {k} is too far ahead of step {self.next_step} (more than {MAX_AHEAD} steps: "
+                    "the pending-step buffer is bounded)")
+        return None
+
+    def refuse(self, topic: str, problem: str, k: int | None = None):
+        """An input that cannot be used: count it, report it on /diagnostics, and stop the run
+        (``on_invalid_input: stop``) or go on without it (``hold``)."""
+        self.rejected[topic] = self.rejected.get(topic, 0) + 1
+        self.strangers += k is None
+        where = f"step {self.next_step if k is None else k}"
+        count = self.rejected[topic]
+        if count <= REPORT_LIMIT:     # bounded: a flood of junk cannot flood /diagnostics (counted in finish)
+            more = f" (further rejections on {topic} are only counted)" if count == REPORT_LIMIT else ""
+            self.report(DiagnosticStatus.ERROR, f"{where}: rejected {topic}: {problem}{more}")
+        if self.experiment.on_invalid_input == "stop" or (k is not None and topic not in self._last_valid):
+            raise RunError(f"{self.name}: {where}: rejected {topic}: {problem}")
 
     def file_message(self, topic: str, data: bytes):
-        """File a serialised input under the step its stamp names."""
+        """File a serialised (admitted) input under the step its stamp names."""
         k = cdr.stamp_ns(data) // self.sample_time_ns
         if k >= self.next_step:
             self._pending.setdefault(k, {})[topic] = data
 
     def on_message(self, topic: str, data: bytes):
-        """Subscription callback of the stock executor path: file the message, run the steps it completes."""
+        """Subscription callback of the stock executor path: file the message, run the steps it completes.
+        (No message info here: the stamp checks apply, the publisher check does not.)"""
+        problem = self.intake_problem(topic, data)
+        if problem is None:
+            self.file_message(topic, data)
+            self._fire_ready_steps()
+        else:
+            self.refuse(topic, problem)
+
+    def admitted(self, topic: str, data: bytes):
+        """Lean composed path: ``take_all`` checked the message already; file it and fire."""
         self.file_message(topic, data)
         self._fire_ready_steps()
 
@@ -199,13 +281,14 @@ class LockstepNode:
             if decode is None:
                 inputs[topic] = ready[topic]
                 continue
-            msg = decode(ready[topic])
-            problem = graph.message_problem(self._topics[topic], msg)
+            try:
+                msg = decode(ready[topic])
+            except Exception as error:  # any malformed payload: struct, index, unicode, memory errors
+                msg, problem = None, f"cannot be decoded ({type(error).__name__}: {error})"
+            else:
+                problem = graph.message_problem(self._topics[topic], msg)
             if problem is not None:
-                self.rejected[topic] = self.rejected.get(topic, 0) + 1
-                self.report(DiagnosticStatus.ERROR, f"step {k}: rejected {topic}: {problem}")
-                if self.experiment.on_invalid_input == "stop" or topic not in self._last_valid:
-                    raise RunError(f"{self.name}: step {k}: rejected {topic}: {problem}")
+                self.refuse(topic, problem, k)
                 msg = self._last_valid[topic]
             else:
                 self._last_valid[topic] = msg

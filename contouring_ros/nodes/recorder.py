@@ -4,11 +4,21 @@ The CDR payloads are written as they arrived; each message is logged at its step
 serialised header, without deserialising the message), so a bag's payloads are identical run to run. The
 experiment's YAML is stored in the bag. The recorder stops once every topic has delivered all its steps;
 on SIGINT/SIGTERM it closes the bag with its summary.
+
+Only what the graph's own nodes published is recorded: a lockstep topic's messages must come from its one
+publisher (publication sequence numbers 1, 2, 3 ...) with the stamps of steps 0, 1, 2 ... in order (in
+realtime timing: increasing); /diagnostics messages must decode and carry a stamp within the run, at most
+DIAGNOSTICS_LIMIT of them. Anything else is refused (:meth:`LockstepNode.refuse`): counted, reported on
+/diagnostics, and with ``on_invalid_input: stop`` (the default) the recorder stops with an error, so a run
+whose bag would be polluted never exits 0; with ``hold`` it is left out of the bag.
 """
 from __future__ import annotations
 
 import time
 from pathlib import Path
+
+from diagnostic_msgs.msg import DiagnosticArray
+from rclpy.serialization import deserialize_message
 
 from .. import __version__, cdr, graph
 from ..bag import EXPERIMENT_METADATA, RUN_METADATA, BagWriter
@@ -17,6 +27,7 @@ from .lockstep import DIAGNOSTICS_QOS, GRAPH_QOS, LockstepNode, run_node
 
 DIAGNOSTICS_LINGER = 0.3   # s the recorder keeps taking /diagnostics after the last lockstep message
 REALTIME_GRACE = 2.0       # s after the last realtime tick the recorder waits for steps that never came
+DIAGNOSTICS_LIMIT = 10_000  # /diagnostics messages recorded at most (each node sends a few per run)
 
 class RecorderNode(LockstepNode):
     role = "recorder"
@@ -39,6 +50,53 @@ class RecorderNode(LockstepNode):
                                   "sample_time": repr(self.experiment.sample_time),
                                   "contouring_ros_version": __version__}})
 
+    def stamp_problem(self, topic, stamp, k, off_step):
+        if topic == graph.DIAGNOSTICS:
+            if self.counts[topic] >= DIAGNOSTICS_LIMIT:
+                return f"more than {DIAGNOSTICS_LIMIT} messages (the recorder's limit for /diagnostics)"
+            problem = (f"negative stamp {stamp} ns" if stamp < 0 else
+                       f"stamp {stamp} ns is not on a step (sample time {self.sample_time_ns} ns)" if off_step else
+                       f"stamp of step {k} is past the run's end (step {self.n_steps})" if k > self.n_steps else None)
+            if problem is None:
+                try:
+                    deserialize_message(self._last_data, DiagnosticArray)
+                except Exception as error:   # any malformed payload
+                    problem = f"cannot be decoded ({type(error).__name__}: {error})"
+            return problem
+        if stamp < 0:
+            return f"negative stamp {stamp} ns"
+        if off_step:
+            return f"stamp {stamp} ns is not on a step (sample time {self.sample_time_ns} ns)"
+        if k >= self.n_steps:
+            return f"stamp of step {k} is past the run's last step {self.n_steps - 1}"
+        if self.experiment.timing == "realtime":
+            if k <= self._last_step[topic]:
+                return f"stamp of step {k} repeats or precedes step {self._last_step[topic]} already recorded"
+        elif k != self.counts[topic]:
+            return f"stamp of step {k} where step {self.counts[topic]} is next (steps come in order, once each)"
+        return None
+
+    def intake_problem(self, topic, data, sequence=None):
+        self._last_data = data
+        return super().intake_problem(topic, data, sequence)
+
+    def refuse(self, topic, problem, k=None):
+        super().refuse(topic, problem, k)
+        self.last_receive = time.monotonic()
+
+    def on_message(self, topic, data):
+        problem = self.intake_problem(topic, data)
+        if problem is None:
+            self.file_message(topic, data)
+        else:
+            self.refuse(topic, problem)
+
+    def admitted(self, topic, data):
+        self.file_message(topic, data)
+
+    def counters(self):
+        return {"messages recorded": sum(self.counts.values()), "messages refused": self.strangers}
+
     def file_message(self, topic, data):
         self.writer.write(topic, cdr.stamp_ns(data), data)
         self.counts[topic] += 1
@@ -53,16 +111,13 @@ class RecorderNode(LockstepNode):
     def complete(self) -> bool:
         return self._incomplete <= 0
 
-    def on_message(self, topic, data):
-        self.file_message(topic, data)
-
     def spin(self):
         self.wait_for_graph()
 
         def take():
-            before = sum(self.counts.values())
+            before = sum(self.counts.values()) + self.strangers
             self.take_all()
-            return sum(self.counts.values()) > before
+            return sum(self.counts.values()) + self.strangers > before
 
         done = self.complete
         if self.experiment.timing == "realtime":
@@ -81,7 +136,8 @@ class RecorderNode(LockstepNode):
         if self.first_receive is not None:
             self.writer.add_metadata(RUN_METADATA, {
                 "wall_seconds_first_to_last_message": repr(self.last_receive - self.first_receive),
-                "messages": str(sum(self.counts.values())), "complete": str(self.finished).lower()})
+                "messages": str(sum(self.counts.values())), "messages refused": str(self.strangers),
+                "complete": str(self.complete()).lower()})
         self.writer.close()
         super().destroy()
 
