@@ -9,7 +9,7 @@ setup(
     name=package_name,
     version="0.1.0",
     packages=find_packages(exclude=["tests"]),
-    package_data={package_name: ["fastdds_profile.xml"]},
+    package_data={package_name: ["fastdds_profile.xml", "fastdds_profile_network.xml"]},
     data_files=[
         ("share/ament_index/resource_index/packages", [f"resource/{package_name}"]),
         (f"share/{package_name}", ["package.xml"]),

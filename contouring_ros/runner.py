@@ -79,14 +79,27 @@ def default_bag_path(experiment: Experiment, directory="bags") -> Path:
 
 
 def private_environment(domain_id: int, network: bool = False) -> dict:
-    """The environment for one run's nodes: its own ROS domain, discovery on localhost only (unless the
-    experiment sets ``network: true``), and the package's Fast DDS profile unless one is set already."""
+    """The environment for one run's nodes: its own ROS domain and the package's Fast DDS profile (unless
+    FASTRTPS_DEFAULT_PROFILES_FILE is set already).
+
+    By default the profile ``fastdds_profile.xml`` keeps every socket on loopback (shared memory and UDPv4
+    on 127.0.0.1 only, discovery by unicast to 127.0.0.1), and ROS_AUTOMATIC_DISCOVERY_RANGE is
+    SYSTEM_DEFAULT so that rmw_fastrtps leaves the profile's transports alone (its LOCALHOST range adds a
+    UDPv4 transport bound to 0.0.0.0 and every interface). A profile of the user's own gets the LOCALHOST
+    range instead (discovery on this machine, as far as rmw_fastrtps restricts it). An experiment with
+    ``network: true`` gets ``fastdds_profile_network.xml`` (Fast DDS' built-in transports on every
+    interface) and the SUBNET range: its nodes can then be reached from the network, protected only by
+    the domain id (see the README)."""
     env = dict(os.environ)
     env["ROS_DOMAIN_ID"] = str(domain_id)
-    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "SUBNET" if network else "LOCALHOST"
+    own_profile = bool(env.get("FASTRTPS_DEFAULT_PROFILES_FILE"))
+    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "SUBNET" if network else "LOCALHOST" if own_profile else "SYSTEM_DEFAULT"
     env.pop("ROS_STATIC_PEERS", None)
+    env.pop("ROS_LOCALHOST_ONLY", None)
     env.setdefault("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
-    env.setdefault("FASTRTPS_DEFAULT_PROFILES_FILE", str(FASTDDS_PROFILE))
+    if not own_profile:
+        env["FASTRTPS_DEFAULT_PROFILES_FILE"] = str(
+            FASTDDS_PROFILE.with_name("fastdds_profile_network.xml") if network else FASTDDS_PROFILE)
     env["PYTHONUNBUFFERED"] = "1"
     return env
 
