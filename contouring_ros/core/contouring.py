@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from .curves import Curve
-from .geometry import frenet_generator, frenet_frame, left_normal, unit_tangent
+from .geometry import frenet_generator, frenet_frame, left_normal, matmul, matvec, unit_tangent
 from .plants import coulomb_friction
 from .pid import DiscretePID
 
@@ -142,8 +142,8 @@ class TaskFramePD:
                              float(reference.theta_ddot))
         r, r_dot, r_ddot = frame.rotation, frame.rotation_rate, frame.rotation_acceleration
         n = r.shape[0]
-        f = r.T @ (np.asarray(position, dtype=float) - reference.position)
-        f_dot = r.T @ (np.asarray(velocity, dtype=float) - reference.velocity - r_dot @ f)
+        f = matvec(r.T, np.asarray(position, dtype=float) - reference.position)
+        f_dot = matvec(r.T, np.asarray(velocity, dtype=float) - reference.velocity - matvec(r_dot, f))
         h, dh, ddh = self.approximation(frame.curvature, frame.torsion, f[0], n)
         z1 = np.concatenate([[f[0]], f[1:] - h])
         z2 = np.concatenate([[f_dot[0]], f_dot[1:] - dh * f_dot[0]])
@@ -153,7 +153,7 @@ class TaskFramePD:
         m, b = self.mass[:, None], self.damping[:, None]
         m_f, c_f, k_f = m * r, 2.0 * m * r_dot + b * r, m * r_ddot + b * r_dot
         v = -self.kp * z1 - self.kd * z2
-        u_z = m_f @ (slope @ v + curvature_term) + c_f @ f_dot + k_f @ f
+        u_z = matvec(m_f, matvec(slope, v) + curvature_term) + matvec(c_f, f_dot) + matvec(k_f, f)
         feedforward = (self.mass * reference.acceleration + self.damping * reference.velocity) / self.gain
         friction = np.array([coulomb_friction(w, p, q) for w, p, q in zip(
             np.asarray(velocity, dtype=float), self.coulomb_positive, self.coulomb_negative)])
@@ -198,7 +198,7 @@ class AdaptiveTNBCCC:
         n = r.shape[0]
         error = reference.position - np.asarray(position, dtype=float)
         error_rate = reference.velocity - np.asarray(velocity, dtype=float)
-        coupled = frame.speed * (r @ frenet_generator(n, frame.curvature, frame.torsion) @ r.T @ error)
+        coupled = frame.speed * matvec(matmul(matmul(r, frenet_generator(n, frame.curvature, frame.torsion)), r.T), error)
         filtered = coupled + error_rate + self.alpha * error
         correction = self.coupling * coupled + self.mass * reference.acceleration + self.damping * reference.velocity
         self.mass = self.mass + self.sample_time * self.gamma_mass * reference.acceleration * filtered

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .curves import Curve
-from .geometry import frenet_axes, left_normal, signed_error
+from .geometry import dot, frenet_axes, left_normal, matvec, norm, signed_error
 
 __all__ = ["ContourEstimate", "TangentLineEstimator", "NewtonEstimator", "BranchCheck", "LocalApproximationEstimator",
            "NaturalLocalEstimator", "OsculatingCircleEstimator", "FootPointSearchEstimator", "first_order_terms",
@@ -67,10 +67,10 @@ class TangentLineEstimator:
             return ContourEstimate(theta=reference.theta - along / speed, vector=vector,
                                    signed=signed_error(vector, tangent))
         d = self.curve.derivatives(reference.theta, order=1)
-        speed = math.sqrt(float(d[1] @ d[1]))
+        speed = norm(d[1])
         tangent = d[1] / speed
         tracking = d[0] - position
-        along = float(tracking @ tangent)
+        along = dot(tracking, tangent)
         vector = tracking - along * tangent
         return ContourEstimate(theta=float(reference.theta) - along / speed, vector=vector,
                                signed=float(signed_error(vector, tangent)))
@@ -212,7 +212,7 @@ class NewtonEstimator:
         d = self.curve.derivatives(self.theta, order=1)
         vector = d[0] - np.asarray(position)
         if self.branch_check is not None:
-            restart = self.branch_check.restart(math.sqrt(float(vector @ vector)), position)
+            restart = self.branch_check.restart(norm(vector), position)
             if restart is not None:
                 self.recoveries += 1
                 self.theta, self.filtered = restart, 0.0
@@ -221,7 +221,7 @@ class NewtonEstimator:
                 vector = d[0] - np.asarray(position)
         if capped:
             self.cap_reached += 1
-        tangent = d[1] / math.sqrt(float(d[1] @ d[1]))
+        tangent = d[1] / norm(d[1])
         return ContourEstimate(theta=self.theta, vector=vector, signed=float(signed_error(vector, tangent)))
 
     def step_batch(self, reference, position) -> ContourEstimate:
@@ -395,13 +395,13 @@ class LocalApproximationEstimator:
     def task_errors(self, reference, position) -> tuple:
         """(f, z, R, kappa, tau, |R'|): Frenet coordinates of the position, the estimated errors z and the frame."""
         rotation, kappa, tau, speed = frenet_axes(self.curve, reference.theta)
-        f = rotation.T @ (np.asarray(position, dtype=float) - reference.position)
+        f = matvec(rotation.T, np.asarray(position, dtype=float) - reference.position)
         h, _, _ = self.approximation(kappa, tau, f[0], rotation.shape[0])
         return f, f[1:] - h, rotation, kappa, tau, speed
 
     def step(self, reference, position) -> ContourEstimate:
         f, z, rotation, _, _, speed = self.task_errors(reference, position)
-        vector = -(rotation[:, 1:] @ z)
+        vector = -matvec(rotation[:, 1:], z)
         return ContourEstimate(theta=float(reference.theta) + float(f[0]) / speed, vector=vector,
                                signed=float(signed_error(vector, rotation[:, 0])))
 
@@ -441,10 +441,10 @@ class OsculatingCircleEstimator:
         point = np.asarray(position, dtype=float)
         centre = reference.position + rotation[:, 1] / kappa
         radial = point - centre
-        distance = math.hypot(radial[0], radial[1])
+        distance = norm(radial)
         vector = centre + radial / (distance * abs(kappa)) - point
         start = reference.position - centre
-        angle = math.atan2(start[0] * radial[1] - start[1] * radial[0], float(start @ radial))
+        angle = math.atan2(start[0] * radial[1] - start[1] * radial[0], dot(start, radial))
         theta = float(reference.theta) + math.copysign(1.0, kappa) * angle / (abs(kappa) * speed)
         foot_tangent = math.copysign(1.0, kappa) * left_normal(radial / distance)
         return ContourEstimate(theta=theta, vector=vector, signed=float(signed_error(vector, foot_tangent)))
@@ -508,9 +508,9 @@ class FootPointSearchEstimator:
         self.iterations = 0
         while True:
             d = self.curve.derivatives(theta, order=1)
-            speed = math.sqrt(float(d[1] @ d[1]))
+            speed = norm(d[1])
             tangent = d[1] / speed
-            along = float((point - d[0]) @ tangent)
+            along = dot(point - d[0], tangent)
             if abs(along) < self.tolerance:
                 break
             if self.iterations >= self.max_iterations:

@@ -7,6 +7,7 @@ estimator's own output.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -14,7 +15,39 @@ import numpy as np
 from .curves import Curve
 
 __all__ = ["unit_tangent", "left_normal", "curvature", "signed_error", "FrenetFrame", "frenet_axes", "frenet_frame", "frenet_generator",
-           "FootPoints", "ExactContourError"]
+           "FootPoints", "ExactContourError", "dot", "norm", "matvec", "matmul"]
+
+
+# Products of short vectors and small matrices on the published (one-step, scalar) path. ``a @ b``,
+# np.dot and np.linalg.norm of a 1-D array call BLAS, whose rounding (fused multiply-adds, the order of
+# the partial sums) depends on how numpy was built: the same experiment then records values one ulp
+# apart on two machines. These sum plain float products left to right, in IEEE double arithmetic
+# that every build rounds alike (the batch path's elementwise products and short reductions agree with
+# them to the last bit or so).
+
+def dot(a, b) -> float:
+    """a . b of two vectors as a float: a[0] b[0] + a[1] b[1] + ..., left to right."""
+    a, b = np.asarray(a, dtype=float).tolist(), np.asarray(b, dtype=float).tolist()
+    total = a[0] * b[0]
+    for x, y in zip(a[1:], b[1:]):
+        total += x * y
+    return total
+
+
+def norm(a) -> float:
+    """|a| = sqrt(a . a) (see :func:`dot`; sqrt is correctly rounded)."""
+    return math.sqrt(dot(a, a))
+
+
+def matvec(m, v) -> np.ndarray:
+    """m v for a small matrix (rows . v, see :func:`dot`)."""
+    return np.array([dot(row, v) for row in np.asarray(m, dtype=float)])
+
+
+def matmul(a, b) -> np.ndarray:
+    """a b for small matrices (rows of a . columns of b, see :func:`dot`)."""
+    columns = np.asarray(b, dtype=float).T
+    return np.array([[dot(row, column) for column in columns] for row in np.asarray(a, dtype=float)])
 
 
 def unit_tangent(curve: Curve, theta) -> np.ndarray:
@@ -50,6 +83,8 @@ def signed_error(vector: np.ndarray, tangent: np.ndarray) -> np.ndarray:
     vector = np.asarray(vector, dtype=float)
     if vector.shape == (2,):          # one point: plain floats
         return float(-vector[0] * tangent[1] + vector[1] * tangent[0])
+    if vector.ndim == 1:              # one point in 3-D: a plain float
+        return norm(vector)
     if vector.shape[-1] == 2:
         return np.sum(vector * left_normal(tangent), axis=-1)
     return np.linalg.norm(vector, axis=-1)
@@ -67,7 +102,7 @@ def frenet_axes(curve: Curve, theta: float) -> tuple:
     """
     d = curve.derivatives(float(theta), order=3)
     d1, d2, d3 = d[1], d[2], d[3]
-    speed = float(np.sqrt(d1 @ d1))
+    speed = norm(d1)
     alpha = d1 / speed
     if curve.dimension == 2:
         kappa = float(d1[0] * d2[1] - d1[1] * d2[0]) / speed**3
@@ -75,15 +110,15 @@ def frenet_axes(curve: Curve, theta: float) -> tuple:
     if curve.dimension != 3:
         raise ValueError("the Frenet frame is defined for planar and spatial (2-D and 3-D) contours")
     cross = np.cross(d1, d2)
-    cross_norm = float(np.sqrt(cross @ cross))
+    cross_norm = norm(cross)
     if cross_norm <= 1e-12 * speed**3:
         helper = np.eye(3)[int(np.argmin(np.abs(alpha)))]
         beta = np.cross(np.cross(alpha, helper), alpha)
-        beta /= np.linalg.norm(beta)
+        beta /= norm(beta)
         return np.column_stack([alpha, beta, np.cross(alpha, beta)]), 0.0, 0.0, speed
     gamma = cross / cross_norm
     return (np.column_stack([alpha, np.cross(gamma, alpha), gamma]), cross_norm / speed**3,
-            float(cross @ d3) / cross_norm**2, speed)
+            dot(cross, d3) / cross_norm**2, speed)
 
 
 @dataclass(frozen=True)
@@ -133,15 +168,15 @@ def frenet_frame(curve: Curve, theta: float, theta_dot: float, theta_ddot: float
     n = rotation.shape[0]
     d = curve.derivatives(float(theta), order=2)
     speed = speed_theta * theta_dot
-    speed_rate = float(d[1] @ d[2]) / speed_theta * theta_dot**2 + speed_theta * theta_ddot
+    speed_rate = dot(d[1], d[2]) / speed_theta * theta_dot**2 + speed_theta * theta_ddot
     h = relative_step * max(abs(curve.domain[1] - curve.domain[0]), 1e-9)
     _, kappa_plus, tau_plus, _ = frenet_axes(curve, theta + h)
     _, kappa_minus, tau_minus, _ = frenet_axes(curve, theta - h)
     g = frenet_generator(n, kappa, tau)
     g_rate = frenet_generator(n, (kappa_plus - kappa_minus) / (2 * h) * theta_dot,
                                (tau_plus - tau_minus) / (2 * h) * theta_dot)
-    rate = -speed * rotation @ g
-    acceleration = -(speed_rate * rotation @ g + speed * rate @ g + speed * rotation @ g_rate)
+    rate = matmul(-speed * rotation, g)
+    acceleration = -(matmul(speed_rate * rotation, g) + matmul(speed * rate, g) + matmul(speed * rotation, g_rate))
     return FrenetFrame(rotation, kappa, tau, speed, rate, acceleration)
 
 

@@ -11,6 +11,7 @@ import math
 import numpy as np
 from scipy.linalg import expm
 
+from .geometry import matvec
 from .pid import DiscretePID
 from .plants import coulomb_friction, has_limit, symmetric_clip
 
@@ -195,7 +196,7 @@ class ExtendedStateObserver:
         """Advance over one sample with the command applied and the position measured at its start (a batch:
         commands and positions (B, 1), states (B, 3))."""
         if np.ndim(command) == 0:
-            self.state = self._phi @ self.state + self._gamma @ np.array([command, position])
+            self.state = matvec(self._phi, self.state) + matvec(self._gamma, [command, position])
             return
         inputs = np.concatenate(np.broadcast_arrays(command, position), axis=-1)
         self.state = np.einsum("...ij,...j->...i", self._phi, self.state) \
