@@ -622,7 +622,7 @@ def _divergence_bound(experiment_text: str) -> float | None:
     try:
         experiment = parse_experiment(experiment_text, "the bag's experiment")
         curve = build_curve(experiment)
-        return path_bound(curve, build_schedule(experiment, curve))
+        return path_bound(curve, build_schedule(experiment, curve), experiment.divergence_factor)
     except (ContouringError, ValueError, ArithmeticError):
         return None
 

@@ -338,6 +338,8 @@ GLOBALS = {
     "stall_timeout": Param("float", 10.0, "positive"),   # s without a complete step before a node gives up
     # s a node waits at start for the rest of the graph (hand-started nodes in separate terminals need time)
     "graph_timeout": Param("float", 300.0, "positive"),
+    # a run has diverged once an axis is this many path sizes from its reference (0: never stop for that)
+    "divergence_factor": Param("float", 10.0, "nonnegative"),
     "on_invalid_input": Param("str", "stop", choices=INVALID_INPUT_POLICIES),  # what a node does with a
                                                                              # non-finite or malformed input
     "timing": Param("str", "lockstep", choices=TIMINGS),   # docs/ARCHITECTURE.md, "One control step"
@@ -369,7 +371,8 @@ _AXIS_GAIN, _TIME_CONSTANT = (1e-9, 1e9), (1e-6, 1e3)      # command units -> m/
 # registry -> {key: (low, high)} for that key in every type of the registry, or {"type.key": ...} for one type
 BOUNDS = {
     "GLOBALS": {"sample_time": (1e-5, 1.0), "duration": (0.0, MAX_DURATION), "settle_time": (0.0, MAX_DURATION),
-                "stall_timeout": (1e-3, 3600.0), "graph_timeout": (1e-3, 86400.0), "start_time": (0.0, 1e10)},
+                "stall_timeout": (1e-3, 3600.0), "graph_timeout": (1e-3, 86400.0), "start_time": (0.0, 1e10),
+                "divergence_factor": (0.0, 1e6)},
     "CURVES": {"a": _SIZE, "b": _SIZE, "radius": _SIZE, "scale": _SIZE, "length": (1e-9, 1e6), "h": (-1e3, 1e3),
                "c": (-1e3, 1e3), "omega": (-1e4, 1e4), "center": _COORDINATE, "start": _COORDINATE,
                "end": _COORDINATE, "x": _COORDINATE, "y": _COORDINATE, "z": _COORDINATE,
@@ -455,6 +458,7 @@ class Experiment:
     network: bool = False
     stall_timeout: float = 10.0
     graph_timeout: float = 300.0
+    divergence_factor: float = 10.0
     on_invalid_input: str = "stop"
     timing: str = "lockstep"
     start_time: float = 0.0
@@ -1061,6 +1065,7 @@ def experiment_from_data(data, where: str = "<experiment>", text: str = "") -> E
         initial_state=globals_["initial_state"], network=globals_["network"],
         stall_timeout=globals_["stall_timeout"], on_invalid_input=globals_["on_invalid_input"],
         graph_timeout=globals_["graph_timeout"], timing=globals_["timing"], start_time=globals_["start_time"],
+        divergence_factor=globals_["divergence_factor"],
         ccc_takes_state=globals_["ccc_takes_state"],
         plants={a: parsed[f"/{a}/plant"] for a in axes}, servos={a: parsed[f"/{a}/servo"] for a in axes},
         estimator=parsed["/contour_estimator"], controller=parsed["/ccc"],
@@ -1086,6 +1091,7 @@ def experiment_for_node(parameters: dict, node: str, role: str, where: str | Non
         curve=globals_["curve"], schedule=globals_["schedule"], initial_state=globals_["initial_state"],
         network=globals_["network"], stall_timeout=globals_["stall_timeout"],
         graph_timeout=globals_["graph_timeout"], on_invalid_input=globals_["on_invalid_input"],
+        divergence_factor=globals_["divergence_factor"],
         timing=globals_["timing"],
         start_time=globals_["start_time"], ccc_takes_state=globals_["ccc_takes_state"],
         plants={axis: section} if role == "plant" else {}, servos={axis: section} if role == "servo" else {},
@@ -1246,4 +1252,5 @@ def build_loop(experiment: Experiment) -> ControlLoop:
         servos=[build_servo(experiment, a, positions[i], velocities[i], accelerations[i])
                 for i, a in enumerate(axes)],
         estimator=build_estimator(experiment, curve), controller=build_controller(experiment, curve),
-        sample_time=experiment.sample_time, n_steps=experiment.n_steps)
+        sample_time=experiment.sample_time, n_steps=experiment.n_steps,
+        divergence_factor=experiment.divergence_factor)

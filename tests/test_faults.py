@@ -110,7 +110,10 @@ def test_signal_to_the_runner_stops_every_node_and_closes_the_bag(tmp_path, writ
         assert make_reader(stream).get_summary() is not None
 
 
-UNSTABLE = DEFAULT.read_text().replace("    a: 12.5\n    b: 12.5\n", "    a: 1.0e+9\n    b: 12.5\n", 1)
+# a servo whose command overflows; divergence_factor 0 lets the positions run away until the values are not
+# finite, so that the nodes' own input checks (not the divergence check) stop or hold the run
+UNSTABLE = DEFAULT.read_text().replace("    a: 12.5\n    b: 12.5\n", "    a: 1.0e+9\n    b: 12.5\n", 1).replace(
+    "    sample_time: 0.001\n", "    sample_time: 0.001\n    divergence_factor: 0.0\n", 1)
 
 
 @graph

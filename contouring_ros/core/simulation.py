@@ -54,6 +54,7 @@ class ControlLoop:
     controller: object
     sample_time: float
     n_steps: int
+    divergence_factor: float = 10.0     # see simulate(); 0: never stop for divergence
 
 
 @dataclass
@@ -87,24 +88,27 @@ class SimulationResult:
     command: np.ndarray
 
 
-def divergence_bound(reference_positions) -> float:
-    """How far [m] an axis may be from its reference before the run counts as diverged: DIVERGENCE_FACTOR
-    times the size of the reference path (its largest extent along an axis), plus 1 mm."""
+def divergence_bound(reference_positions, factor: float = DIVERGENCE_FACTOR) -> float:
+    """How far [m] an axis may be from its reference before the run counts as diverged: ``factor`` times
+    the size of the reference path (its largest extent along an axis), plus 1 mm; infinite for factor 0
+    (then only a position that is not finite counts)."""
+    if not factor:
+        return math.inf
     points = np.asarray(reference_positions, dtype=float)
     size = float(np.max(np.ptp(points, axis=0))) if points.size else 0.0
-    return DIVERGENCE_FACTOR * size + 1e-3
+    return factor * size + 1e-3
 
 
-def path_bound(curve, schedule) -> float:
+def path_bound(curve, schedule, factor: float = DIVERGENCE_FACTOR) -> float:
     """:func:`divergence_bound` of the whole reference path the schedule traverses."""
     theta = np.linspace(schedule.theta_start, schedule.theta_end, 257)
-    return divergence_bound(curve.point(theta))
+    return divergence_bound(curve.point(theta), factor)
 
 
 def diverged_message(t: float, k: int, distance: float, bound: float) -> str:
     """``diverged at t = ... s (step k): <what>`` for an axis ``distance`` [m] from its reference."""
     what = "a position is not finite" if not np.isfinite(distance) else \
-        f"an axis is {distance:.3g} m from its reference (bound {bound:.3g} m: {DIVERGENCE_FACTOR:g} x the path's size)"
+        f"an axis is {distance:.3g} m from its reference (bound {bound:.3g} m: divergence_factor x the path's size)"
     return f"diverged at t = {t:g} s (step {k}): {what}"
 
 
@@ -134,11 +138,12 @@ def simulate(loop: ControlLoop, stop_on_divergence: bool = True) -> SimulationRe
     Raises
     ------
     Diverged
-        When an axis position stops being finite or leaves :func:`divergence_bound` of the path (checked
-        each step with ``stop_on_divergence``); its ``result`` holds the steps before.
+        When an axis position stops being finite or leaves :func:`divergence_bound` of the path for the
+        loop's ``divergence_factor`` (checked each step with ``stop_on_divergence``); its ``result`` holds
+        the steps before.
     """
     m, n = loop.n_steps, len(loop.plants)
-    bound = path_bound(loop.curve, loop.schedule) if stop_on_divergence else math.nan
+    bound = path_bound(loop.curve, loop.schedule, loop.divergence_factor) if stop_on_divergence else math.nan
     time = np.empty(m)
     theta, est_theta, est_signed = np.empty(m), np.empty(m), np.empty(m)
     ref_pos, ref_vel, ref_acc, positions, velocities, est_vector, corrections, commands = (

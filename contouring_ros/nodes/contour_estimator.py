@@ -18,7 +18,7 @@ class ContourEstimatorNode(LockstepNode):
         curve = build_curve(self.experiment)
         self.estimator = build_estimator(self.experiment, curve)
         # the run stops where the in-process simulation would: an axis out of bounds (docs/ARCHITECTURE.md)
-        self.bound = path_bound(curve, build_schedule(self.experiment, curve))
+        self.bound = path_bound(curve, build_schedule(self.experiment, curve), self.experiment.divergence_factor)
         self.add_input(graph.REFERENCE)
         self.state_topics = [graph.state_topic(a) for a in self.axes]
         for topic in self.state_topics:
