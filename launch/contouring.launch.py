@@ -4,8 +4,9 @@
     ros2 launch contouring_ros contouring.launch.py experiment:=/path/to/experiment.yaml [bag:=run.mcap]
 
 `experiment` is a path, or the name of a scenario installed with the package (share/contouring_ros/config).
-The launch file does not give the run its own ROS domain the way the runner does: set ROS_DOMAIN_ID and
-ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST (and FASTRTPS_DEFAULT_PROFILES_FILE, see the README) yourself.
+The launch file does not give the run its own ROS domain the way the runner does: set ROS_DOMAIN_ID,
+FASTRTPS_DEFAULT_PROFILES_FILE (the package's loopback-only profile) and ROS_AUTOMATIC_DISCOVERY_RANGE
+as the README's ROS recipe shows, yourself.
 """
 from pathlib import Path
 
