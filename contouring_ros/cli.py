@@ -213,6 +213,8 @@ def _sweep(args):
         raise ConfigError(f"--batch {args.batch}: expected a positive number of combinations")
     rows = run_sweep(experiment.text, parse_grid(args.grid), args.workers, progress=sys.stderr.isatty(),
                      batch=args.batch or BATCH, from_time=args.from_time)
+    if args.from_time:
+        print(f"scores of the samples at t >= {args.from_time:g} s (steady state)")
     print(format_sweep(rows))
     vectorised = sum(row.vectorised for row in rows)
     reasons = sorted({row.alone for row in rows if row.alone})
@@ -241,7 +243,8 @@ def _paper(args):
     from .claims import claim_files, claims_report, write_claims_report
     with_claims = [p for p in chosen if any(path.stem == f"paper{p}" for path in claim_files())]
     if with_claims:
-        report = claims_report(with_claims, args.out, maps=not args.no_maps, workers=args.workers, progress=say)
+        report = claims_report(with_claims, args.out, maps=not args.no_maps, workers=args.workers, progress=say,
+                               command=args.paper)
         name = "claims.md" if args.paper == "all" else f"claims_paper{args.paper}.md"
         print(f"wrote {write_claims_report(report, args.out, name)}", file=sys.stderr)
 

@@ -252,7 +252,8 @@ def write_sweep_csv(rows: list, path, axes=None) -> None:
     keys = list(rows[0].settings) if rows else []
     n = len(next((row.scores.tracking_max for row in rows if row.scores), ()))
     axes = list(axes or [f"axis{i}" for i in range(n)])
-    per_axis = [f"{name}_{axis}" for name in ("tracking_max_m", "tracking_rms_m", "effort_rms") for axis in axes]
+    per_axis = [f"{name}_{axis}{unit}" for name, unit in (("tracking_max", "_m"), ("tracking_rms", "_m"),
+                                                           ("effort_rms", "")) for axis in axes]
     with open(path, "w", newline="") as stream:
         writer = csv.writer(stream)
         writer.writerow(["rank"] + keys + ["status", "mce_m", "tace_m", "rms_m", "estimation_max_m",

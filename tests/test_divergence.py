@@ -49,7 +49,7 @@ def test_a_sweep_with_unstable_points_keeps_going_and_writes_every_row(tmp_path)
     assert all(row.scores is None and row.failure.startswith("diverged at t = ") for row in rows[2:])
     write_sweep_csv(rows, tmp_path / "sweep.csv", ["x", "y"])
     lines = (tmp_path / "sweep.csv").read_text().splitlines()
-    assert len(lines) == 5 and "effort_rms_x" in lines[0] and "travel_time_s" in lines[0]
+    assert len(lines) == 5 and "effort_rms_x" in lines[0] and "tracking_max_y_m" in lines[0] and "travel_time_s" in lines[0]
     assert lines[3].split(",")[2].startswith("diverged at t = ") or "diverged at t = " in lines[3]
 
 
