@@ -39,14 +39,14 @@ BODY = """\
     model: first_order_velocity
     gain: 10.3
     time_constant: 0.040
-    disturbance: {{type: constant, value: 1.5e-4}}
+    disturbance: {disturbance_x}
 
 /y/plant:
   ros__parameters:
     model: first_order_velocity
     gain: 10.0
     time_constant: 0.045
-    disturbance: {{type: constant, value: 1.5e-4}}
+    disturbance: {disturbance_y}
 
 /x/servo:
   ros__parameters:
@@ -99,12 +99,16 @@ CASES = [
 ]
 
 
+CONSTANT_LOAD = "{type: constant, value: 1.5e-4}"    # the faithful load: D_i = +0.15 paper units
+
+
 def main():
     out = Path(__file__).resolve().parent.parent / "config"
     for stem, section, title, h, T, servo, (estimator, ccc), mce, tace in CASES:
         text = HEADER.format(section=section, title=title, mce=mce, tace=tace, tolerance=TOLERANCE,
                              max_iterations=MAX_ITERATIONS) + "\n" + \
-            BODY.format(servo_x=servo["x"], servo_y=servo["y"], estimator=estimator, ccc=ccc, shared=shared_section(
+            BODY.format(servo_x=servo["x"], servo_y=servo["y"], estimator=estimator, ccc=ccc,
+                        disturbance_x=CONSTANT_LOAD, disturbance_y=CONSTANT_LOAD, shared=shared_section(
                 stem, title, {"source": f"000 section {section}", "mce_um": mce, "tace_um": tace}, ["x", "y"],
                 f"{{type: parabola, a: 0.02, h: {h}}}",
                 f"{{type: uniform, theta_start: -0.02, theta_end: 0.02, duration: {T}}}"))
@@ -183,39 +187,9 @@ LOAD_HEADER = """\
 #
 """
 
-MECH_BODY = """\
-{shared}
-/x/plant:
-  ros__parameters:
-    model: first_order_velocity
-    gain: 10.3
-    time_constant: 0.040
-    disturbance: {disturbance_x}
-
-/y/plant:
-  ros__parameters:
-    model: first_order_velocity
-    gain: 10.0
-    time_constant: 0.045
-    disturbance: {disturbance_y}
-
-/x/servo:
-  ros__parameters:
-{servo_x}
-/y/servo:
-  ros__parameters:
-{servo_y}
-/contour_estimator:
-  ros__parameters:
-{estimator}
-/ccc:
-  ros__parameters:
-{ccc}"""
-
 LAG_KP = 2.5          # units/m: K_v = 25 1/s (see LAG_HEADER)
 P_LOOP = {axis: f"    law: pid  # proportional position loop, no feedforward: K_v = k kp\n"
                 f"    kp: {LAG_KP}\n    ki: 0.0\n    kd: 0.0\n" for axis in ("x", "y")}
-CONSTANT_LOAD = "{type: constant, value: 1.5e-4}"
 LOAD_FREQUENCY = 2.0  # Hz (see LOAD_HEADER)
 SINE_LOAD = {"x": f"{{type: sinusoid, amplitude: 1.5e-4, frequency: {LOAD_FREQUENCY}, phase: 0.0}}",
              "y": f"{{type: sinusoid, amplitude: 1.5e-4, frequency: {LOAD_FREQUENCY}, phase: 1.5707963267948966}}"}
@@ -241,7 +215,7 @@ def write_mechanism_scenarios():
     out = Path(__file__).resolve().parent.parent / "config"
     common = MECH_COMMON.format(newton=", ".join(line.strip() for line in NEWTON[0].splitlines()[1:]))
     for stem, header, title, h, T, servo, (estimator, ccc), disturbance in MECH_CASES:
-        text = header.format(title=title) + common + "\n" + MECH_BODY.format(
+        text = header.format(title=title) + common + "\n" + BODY.format(
             servo_x=servo["x"], servo_y=servo["y"], estimator=estimator, ccc=ccc,
             disturbance_x=disturbance["x"], disturbance_y=disturbance["y"],
             shared=shared_section(stem, title, {"source": "000 mechanism scenario (no paper figure)"}, ["x", "y"],
