@@ -85,8 +85,12 @@ def test_the_ccc_check_fails_when_the_ccc_sign_is_flipped(entry):
     kind = experiment.controller["type"]
     if kind == "tvt":                    # its output is the whole velocity command: flip the contour term
         loop.controller.kc = -loop.controller.kc
+    elif kind == "task_frame_pd":        # the whole command too: flip the normal (and binormal) PD gains of eq. 24
+        assert loop.controller.kp[1:].min() > 0
+        loop.controller.kp[1:] *= -1.0
+        loop.controller.kd[1:] *= -1.0
     elif kind in WHOLE_COMMAND_CONTROLLERS:
-        pytest.skip(f"{kind} computes the whole command: no correction to flip")
+        pytest.fail(f"{kind} computes the whole command: say here how its contour action is flipped")
     else:
         step = loop.controller.step
         loop.controller.step = lambda *args: -step(*args)
