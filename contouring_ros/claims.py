@@ -377,13 +377,9 @@ def map_ratios(claim: Claim, spec: RegimeMap, workers: int | None = None, progre
 
 def _base_value(name: str, key: str):
     """The value a grid key has in a scenario file (None where the file leaves it to a default)."""
-    from .config import GLOBAL_SECTION, ROS_PARAMETERS, read_yaml
-    data = read_yaml((CONFIG_DIR / f"{name}.yaml").read_text(), name)
-    section, _, rest = key.partition(".")
-    if f"/{section}" in data and rest:
-        target, path = data[f"/{section}"][ROS_PARAMETERS], rest.split(".")
-    else:
-        target, path = data[GLOBAL_SECTION][ROS_PARAMETERS], key.split(".")
+    from .config import read_yaml
+    from .sweep import grid_key_location
+    target, path = grid_key_location(read_yaml((CONFIG_DIR / f"{name}.yaml").read_text(), name), key)
     for part in path:
         if not isinstance(target, dict) or part not in target:
             return None

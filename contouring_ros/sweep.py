@@ -42,13 +42,18 @@ def parse_grid(specs: list) -> dict:
     return grid
 
 
-def _set(data: dict, key: str, value):
+def grid_key_location(data: dict, key: str) -> tuple:
+    """(the parameter mapping a grid key starts in, the key's path inside it): a node's section for
+    ``<node>.<key>...`` when the file has that node, else the shared /** section."""
     section, _, rest = key.partition(".")
     node = f"/{section}"
     if node in data and rest:
-        target, path = data[node][ROS_PARAMETERS], rest.split(".")
-    else:
-        target, path = data[GLOBAL_SECTION][ROS_PARAMETERS], key.split(".")
+        return data[node][ROS_PARAMETERS], rest.split(".")
+    return data[GLOBAL_SECTION][ROS_PARAMETERS], key.split(".")
+
+
+def _set(data: dict, key: str, value):
+    target, path = grid_key_location(data, key)
     for part in path[:-1]:
         target = target.setdefault(part, {})
         if not isinstance(target, dict):
