@@ -637,19 +637,24 @@ def write_simulation(path, experiment, result) -> Path:
 
     Used to record long runs without the node graph (benchmarks, sweeps) and as a second writer in tests.
     """
+    from .config import build_schedule
+    from .core.simulation import step_time
     axes = list(experiment.axes)
     ts_ns = int(round(experiment.sample_time * 1e9))
     names = axes + [graph.THETA_NAME]
     metadata = {EXPERIMENT_METADATA: {"yaml": experiment.text, "axes": ",".join(axes),
                                       "steps": str(len(result.time)), "sample_time": repr(experiment.sample_time)}}
+    schedule = build_schedule(experiment)
     with BagWriter(path, [(t.name, t.type) for t in graph.topics(axes)], metadata=metadata) as writer:
         for k in range(len(result.time)):
             stamp = graph.step_to_stamp(k, ts_ns)
             ns = k * ts_ns
+            # theta's rates as the interpolator computes them (the result keeps theta alone)
+            _, theta_dot, theta_ddot = schedule(step_time(k, experiment.sample_time))
             writer.write(graph.CLOCK, ns, cdr.encode_clock(*stamp))
             writer.write(graph.REFERENCE, ns, cdr.encode_joint_trajectory(
                 *stamp, names, [*result.reference_position[k], result.theta[k]],
-                [*result.reference_velocity[k], 0.0], [*result.reference_acceleration[k], 0.0], stamp))
+                [*result.reference_velocity[k], float(theta_dot)], [*result.reference_acceleration[k], float(theta_ddot)]))
             for i, axis in enumerate(axes):
                 writer.write(graph.state_topic(axis), ns, cdr.encode_joint_state(
                     *stamp, [axis], [result.position[k, i]], [result.velocity[k, i]]))

@@ -69,6 +69,24 @@ def test_two_runs_record_identical_payloads(default_runs):
         assert sorted(first[topic]) == sorted(second[topic]), topic
 
 
+def test_graph_payloads_equal_the_simulation_writer(default_runs, tmp_path):
+    """The graph's bag and :func:`write_simulation` of the same experiment hold the same bytes on every
+    topic (so the pinned payload hashes of tests/test_payload_hashes.py hold for the graph too); the
+    reference's one point is due now (time_from_start 0) and carries theta's rates."""
+    from contouring_ros import cdr
+    from contouring_ros.bag import write_simulation
+    path, bags = default_runs
+    experiment = load_experiment(path)
+    written = write_simulation(tmp_path / "simulation.mcap", experiment, simulate(build_loop(experiment)))
+    graph_payloads, simulation_payloads = (read_run(bag, keep_payloads=True).payloads for bag in (bags[0], written))
+    assert set(graph_payloads) == set(simulation_payloads)
+    for topic in graph_payloads:
+        assert graph_payloads[topic] == simulation_payloads[topic], topic
+    point = cdr.decode_joint_trajectory(graph_payloads["/reference"][5]).points[0]
+    assert (point.time_from_start.sec, point.time_from_start.nanosec) == (0, 0)
+    assert point.velocities[-1] == pytest.approx(0.04 / 2.0)     # theta_dot of the uniform schedule
+
+
 def test_bag_opens_with_plain_mcap_and_ros2_decoder(default_runs):
     from mcap.reader import make_reader
     from mcap_ros2.decoder import DecoderFactory

@@ -31,7 +31,7 @@ class InterpolatorNode(LockstepNode):
         stamp = self.stamp(k)
         self.reference_pub.publish(cdr.encode_joint_trajectory(
             *stamp, self.names, [*ref.position, float(ref.theta)], [*ref.velocity, float(ref.theta_dot)],
-            [*ref.acceleration, float(ref.theta_ddot)], stamp))
+            [*ref.acceleration, float(ref.theta_ddot)]))
 
     def start(self):
         self.clock_pub.publish(cdr.encode_clock(0, 0))
