@@ -207,7 +207,9 @@ def node_reports(path) -> dict:
     reports = {}
     with open(path, "rb") as stream:
         reader = make_reader(stream, decoder_factories=[DecoderFactory()])
-        for _, _, _, array_msg in reader.iter_decoded_messages(topics=[graph.DIAGNOSTICS]):
+        diagnostics = [channel.topic for channel in reader.get_summary().channels.values()
+                       if channel.topic.endswith(graph.DIAGNOSTICS)] if reader.get_summary() else [graph.DIAGNOSTICS]
+        for _, _, _, array_msg in reader.iter_decoded_messages(topics=diagnostics):
             for status in array_msg.status:
                 if status.message.startswith("completed"):
                     reports[status.name] = {kv.key: kv.value for kv in status.values}
@@ -521,7 +523,7 @@ def read_run(path, keep_payloads: bool = False, experiment_text: str | None = No
                 schemas[record.id] = record
             elif isinstance(record, Channel):
                 type_name = schemas[record.schema_id].name if record.schema_id in schemas else None
-                if type_name in _KEPT_TYPES and record.topic != graph.DIAGNOSTICS:
+                if type_name in _KEPT_TYPES and not record.topic.endswith(graph.DIAGNOSTICS):
                     keepers[record.id] = kept.setdefault(record.topic, _TopicColumns(record.topic, type_name))
             elif isinstance(record, Metadata):
                 if record.name == EXPERIMENT_METADATA:
@@ -532,7 +534,7 @@ def read_run(path, keep_payloads: bool = False, experiment_text: str | None = No
                 if columns is None:
                     continue
                 columns.add(record.data)
-                if joint_names is None and columns.topic == graph.REFERENCE:
+                if joint_names is None and columns.topic.endswith(graph.REFERENCE):
                     joint_names = cdr.decode_joint_trajectory(record.data).joint_names
                 if keep_payloads:
                     payloads.setdefault(columns.topic, []).append(bytes(record.data))
@@ -546,6 +548,13 @@ def read_run(path, keep_payloads: bool = False, experiment_text: str | None = No
     if not experiment_text:
         raise BagError(f"{path}: the bag holds no experiment ('{EXPERIMENT_METADATA}' metadata); give the "
                        "experiment file that produced it")
+    try:      # a graph run under a namespace (/m1/reference ...): its topics by the graph's own names
+        namespace = graph.namespace_of_topics(kept)
+    except ValueError as error:
+        raise BagError(f"{path}: {error}") from None
+    if namespace != "/":
+        kept = {name[len(namespace):]: columns for name, columns in kept.items() if name.startswith(namespace + "/")}
+        payloads = {name[len(namespace):]: data for name, data in payloads.items() if name.startswith(namespace + "/")}
     if graph.REFERENCE not in kept or joint_names is None:
         raise BagError(f"{path}: the bag has no {graph.REFERENCE} messages")
     axes = list(joint_names[:-1])

@@ -35,6 +35,16 @@ def _seconds(text: str) -> float:
     return value
 
 
+def _domain_id(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if not 0 <= value <= 232:
+        raise argparse.ArgumentTypeError(f"expected a ROS domain id from 0 to 232, got {text!r}")
+    return value
+
+
 def _warn(run):
     for warning in run.warnings:
         print(f"warning: {warning}", file=sys.stderr)
@@ -47,7 +57,8 @@ def _run(args):
     config = _experiment_path(args.config)
     try:
         bag = run_graph(config, args.bag, progress=lambda m: print(m, flush=True),
-                        layout="composed" if args.composed else "process")
+                        layout="composed" if args.composed else "process", namespace=args.namespace,
+                        domain_id=args.domain, shared_domain=args.domain is not None)
     except RunError as error:
         print(f"error: {error}", file=sys.stderr)
         if error.bag is not None and Path(error.bag).is_file():
@@ -256,6 +267,11 @@ def main(argv=None):
     p.add_argument("config", nargs="?", default=DEFAULT_EXPERIMENT, help=f"experiment YAML (default {DEFAULT_EXPERIMENT})")
     p.add_argument("--bag", help="bag to write (default bags/<experiment>_<time>.mcap)")
     p.add_argument("--composed", action="store_true", help="run every node in one process under one executor")
+    p.add_argument("--namespace", default="/", metavar="NS",
+                   help="run every node and topic under /NS (e.g. m1: /m1/x/plant publishes /m1/x/state)")
+    p.add_argument("--domain", type=_domain_id, metavar="ID",
+                   help="run on this ROS domain, shared with ROS tools and other runs there (give each graph its "
+                        "own --namespace) instead of a private one")
     p.set_defaults(func=_run)
     p = sub.add_parser("simulate", help="run an experiment in-process (no ROS) and print its scores")
     p.add_argument("config")

@@ -9,12 +9,14 @@ python -m contouring_ros.composed EXPERIMENT.yaml BAG.mcap [lean|stock] [--start
 from __future__ import annotations
 
 import sys
+import tempfile
 import time
+from pathlib import Path
 
 from . import graph
 from .config import load_experiment
 from .errors import ContouringError, RunError
-from .runner import override_arguments, shared_overrides
+from .runner import override_arguments, shared_overrides, write_parameter_file
 
 __all__ = ["main"]
 
@@ -45,7 +47,8 @@ def _lean_spin_once(nodes, wait_set, handles, timeout_ns: int):
         node.take_all(node.admitted)
 
 
-def run_composed(experiment_path: str, bag: str, executor_kind: str = "lean", start_time: float = 0.0):
+def run_composed(experiment_path: str, bag: str, executor_kind: str = "lean", start_time: float = 0.0,
+                 namespace: str = "/"):
     """Create every node in this process, run the lockstep to the end, close the bag.
 
     ``executor_kind`` ``lean`` waits on one wait set holding every node's subscriptions and dispatches
@@ -56,19 +59,21 @@ def run_composed(experiment_path: str, bag: str, executor_kind: str = "lean", st
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.parameter import Parameter
     experiment = load_experiment(experiment_path)
-    arguments = ["--ros-args", "--params-file", str(experiment_path)] + override_arguments(shared_overrides(experiment))
+    namespace = graph.normalize_namespace(namespace)
+    directory = tempfile.TemporaryDirectory(prefix="contouring_ros_")
+    parameter_file = write_parameter_file(Path(experiment_path), namespace, directory.name)
+    arguments = ["--ros-args", "--params-file", str(parameter_file)] + override_arguments(shared_overrides(experiment))
     if start_time:
         arguments += ["-p", f"start_time:={start_time!r}"]
     rclpy.init(args=arguments)
     classes, nodes = _node_classes(), []
     executor = SingleThreadedExecutor()
     try:
-        for full_name in graph.node_names(experiment.axes):
-            parts = full_name.strip("/").split("/")
-            namespace, name = ("/" + parts[0], parts[1]) if len(parts) == 2 else ("/", parts[0])
-            overrides = [Parameter("bag", value=str(bag)), Parameter("experiment_file", value=str(experiment_path))] \
-                if name == "recorder" else []
-            node = classes[name](name=name, namespace=namespace, parameter_overrides=overrides, callbacks=True)
+        specs = graph.node_specs(experiment.axes, None, str(bag), str(experiment_path), namespace)
+        for spec in specs[1:] + specs[:1]:        # the recorder last: it takes what the others published
+            overrides = [Parameter(key, value=value) for key, value in spec.overrides]
+            node = classes[spec.executable](name=spec.name, namespace=spec.namespace, parameter_overrides=overrides,
+                                            callbacks=True)
             nodes.append(node)
             executor.add_node(node.node)
         for node in nodes:
@@ -89,6 +94,9 @@ def run_composed(experiment_path: str, bag: str, executor_kind: str = "lean", st
         last, last_progress = -1, time.monotonic()
         while not all(node.finished for node in nodes):
             spin_once(timeout_sec=0.2)
+            if executor_kind == "lean":
+                for node in nodes:
+                    node.serve_requests()
             progress = sum(node.next_step for node in nodes) + sum(getattr(node, "counts", {}).values())
             if progress != last:
                 last, last_progress = progress, time.monotonic()
@@ -108,6 +116,7 @@ def run_composed(experiment_path: str, bag: str, executor_kind: str = "lean", st
         for node in reversed(nodes):
             node.destroy()
         rclpy.try_shutdown()
+        directory.cleanup()
 
 
 def _run_realtime(nodes, experiment):
@@ -152,9 +161,10 @@ def main(argv=None) -> int:
     parser.add_argument("bag")
     parser.add_argument("executor", nargs="?", default="lean", choices=["lean", "stock"])
     parser.add_argument("--start-time", type=float, default=0.0, help="Unix time of tick 0 (realtime runs)")
+    parser.add_argument("--namespace", default="/", help="the graph's namespace (default: the root)")
     args = parser.parse_args(sys.argv[1:] if argv is None else argv)
     try:
-        run_composed(args.experiment, args.bag, args.executor, args.start_time)
+        run_composed(args.experiment, args.bag, args.executor, args.start_time, args.namespace)
     except KeyboardInterrupt:
         return 130
     except ContouringError as error:

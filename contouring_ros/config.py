@@ -35,7 +35,7 @@ __all__ = ["Experiment", "load_experiment", "parse_experiment", "read_yaml", "ex
            "build_curve",
            "build_schedule", "build_plant", "build_servo", "build_estimator", "build_controller",
            "initial_state", "controller_uses_state", "check_ccc_takes_state", "GLOBAL_SECTION", "node_sections", "section_from_parameters",
-           "experiment_for_node"]
+           "experiment_for_node", "namespaced_parameter_file"]
 
 GLOBAL_SECTION = "/**"
 ROS_PARAMETERS = "ros__parameters"
@@ -1085,7 +1085,8 @@ def experiment_for_node(parameters: dict, node: str, role: str, where: str | Non
     globals_ = _validate_globals(where, {k: v for k, v in nested.items() if k in GLOBALS})
     section = _validate_role(where, node, role, {k: v for k, v in nested.items() if k not in GLOBALS}, globals_)
     axes = tuple(globals_["axes"])
-    axis = node.strip("/").split("/")[0]
+    parts = node.strip("/").split("/")
+    axis = parts[-2] if len(parts) > 1 else ""       # a per-axis node's namespace ends in its axis
     return Experiment(
         path=where, text="", sample_time=globals_["sample_time"], duration=globals_["duration"], axes=axes,
         curve=globals_["curve"], schedule=globals_["schedule"], initial_state=globals_["initial_state"],
@@ -1111,6 +1112,25 @@ def controller_uses_state(experiment: Experiment) -> bool:
     """Whether the experiment's contour controller uses the reference and the axis states (``needs_state``),
     i.e. whether the CCC node must take them (the shared key ``ccc_takes_state``)."""
     return bool(getattr(build_controller(experiment, build_curve(experiment)), "needs_state", False))
+
+
+def namespaced_parameter_file(text: str, namespace: str) -> str:
+    """The experiment file ``text`` for nodes started under the graph ``namespace``: each node section's
+    key gets the namespace in front (/x/plant: becomes "/m1/x/plant":, which the ROS parameter parser
+    matches with the node's fully qualified name); the shared section /** and every value stay as
+    written, byte for byte (only the keys' text is replaced, at the positions the YAML parser gives)."""
+    from . import graph
+    if namespace in ("", "/"):
+        return text
+    root = yaml.compose(text, Loader=yaml.SafeLoader)
+    if not isinstance(root, yaml.MappingNode):
+        return text
+    out = text
+    for key, _ in sorted(root.value, key=lambda pair: pair[0].start_mark.index, reverse=True):
+        if isinstance(key, yaml.ScalarNode) and key.value.startswith("/") and key.value != GLOBAL_SECTION:
+            start, end = key.start_mark.index, key.end_mark.index
+            out = out[:start] + f'"{graph.resolve(namespace, key.value)}"' + out[end:]
+    return out
 
 
 def load_experiment(path) -> Experiment:

@@ -2,7 +2,9 @@
 
 No rclpy import here: the bag reader and the analysis use the same layouts on decoded messages.
 
-Topic table (N axes named in the experiment's ``axes``; every message stamped t_k = k Ts):
+Topic table (N axes named in the experiment's ``axes``; every message stamped t_k = k Ts). The names are
+the graph's own, relative to the namespace it runs under (``contouring-ros run --namespace m1`` puts /m1
+before every node and topic: /m1/x/plant publishes /m1/x/state); :func:`resolve` gives the name on the wire.
 
 | topic               | type                             | publisher          | content (SI units)                                  |
 |---------------------|----------------------------------|--------------------|-----------------------------------------------------|
@@ -17,6 +19,7 @@ Topic table (N axes named in the experiment's ``axes``; every message stamped t_
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass
 
 import numpy as np
@@ -24,7 +27,8 @@ import numpy as np
 __all__ = ["Topic", "topics", "node_names", "NodeSpec", "node_specs", "CONTOUR_ERROR_NAME", "FOOT_POINT_NAME", "THETA_NAME",
            "LOOKAHEAD", "step_to_stamp", "reference_from_msg",
            "estimate_from_msg", "estimate_names", "estimate_values", "state_topic", "command_topic",
-           "message_problem", "recorded_topics"]
+           "message_problem", "recorded_topics", "normalize_namespace", "resolve", "graph_namespace",
+           "namespace_of_topics"]
 
 CLOCK = "/clock"
 DIAGNOSTICS = "/diagnostics"
@@ -48,6 +52,45 @@ class Topic:
     layout: tuple = ()    # (field, length) pairs every message must have, values finite
     every_step: bool = True   # one message per step (else event-driven, like /diagnostics)
     names: tuple | None = None   # the joint names every message must carry (None: not checked)
+
+
+_NAMESPACE_TOKEN = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+
+
+def normalize_namespace(namespace: str | None) -> str:
+    """The absolute form of a graph namespace ("m1", "/m1/", "/lab/m1" -> "/m1", "/m1", "/lab/m1"; None or
+    "" or "/" -> "/"); ValueError, in one line, for a name ROS refuses (each part a letter or '_', then
+    letters, digits, '_')."""
+    text = (namespace or "").strip()
+    tokens = [t for t in text.strip("/").split("/")] if text.strip("/") else []
+    for token in tokens:
+        if not _NAMESPACE_TOKEN.fullmatch(token):
+            raise ValueError(f"namespace {namespace!r}: {token!r} is not a ROS name part (a letter or '_', "
+                             "then letters, digits and '_', parts separated by one '/')")
+    return "/" + "/".join(tokens)
+
+
+def resolve(namespace: str, name: str) -> str:
+    """The name on the wire of the graph's topic or node ``name`` (absolute in the graph, e.g. /x/state)
+    under the graph ``namespace``."""
+    return name if namespace in ("", "/") else namespace.rstrip("/") + name
+
+
+def graph_namespace(node_full_name: str, per_axis: bool) -> str:
+    """The namespace of the graph a node belongs to, from its fully qualified name: its own namespace,
+    less the axis part for a per-axis node (/m1/x/plant -> /m1; /m1/ccc -> /m1; /x/plant -> /)."""
+    parts = node_full_name.strip("/").split("/")
+    return "/" + "/".join(parts[:-2] if per_axis else parts[:-1])
+
+
+def namespace_of_topics(names) -> str:
+    """The namespace a set of recorded topic names was recorded under: the part before the one name that
+    ends in /reference (the graph's own names end the same way under any namespace). ValueError when
+    several graphs' /reference topics are there."""
+    prefixes = sorted({name[:-len(REFERENCE)] or "/" for name in names if name.endswith(REFERENCE)})
+    if len(prefixes) > 1:
+        raise ValueError(f"topics of several graphs (namespaces {', '.join(prefixes)}); record one graph a bag")
+    return prefixes[0] if prefixes else "/"
 
 
 def state_topic(axis: str) -> str:
@@ -83,20 +126,20 @@ class NodeSpec:
 
 
 def node_specs(axes, overrides: dict | None = None, bag: str | None = None,
-               experiment_file: str | None = None) -> list:
-    """Every node of the graph for ``axes``, recorder first: its name, namespace, executable and the
-    parameters set on top of the experiment file (``overrides`` for every node; the recorder also gets
-    ``bag`` and ``experiment_file`` where given)."""
+               experiment_file: str | None = None, namespace: str = "/") -> list:
+    """Every node of the graph for ``axes``, recorder first: its name, namespace (under the graph's
+    ``namespace``), executable and the parameters set on top of the experiment file (``overrides`` for
+    every node; the recorder also gets ``bag`` and ``experiment_file`` where given)."""
     shared = tuple((overrides or {}).items())
     out = []
     for full_name in ["/recorder"] + [n for n in node_names(axes) if n != "/recorder"]:
-        parts = full_name.strip("/").split("/")
-        namespace, name = ("/" + parts[0], parts[1]) if len(parts) == 2 else ("/", parts[0])
+        parts = resolve(namespace, full_name).strip("/").split("/")
+        name, node_namespace = parts[-1], "/" + "/".join(parts[:-1])
         extra = ()
         if name == "recorder":
             extra = tuple((key, value) for key, value in (("bag", bag), ("experiment_file", experiment_file))
                           if value is not None)
-        out.append(NodeSpec(name, namespace, name, extra + shared))
+        out.append(NodeSpec(name, node_namespace, name, extra + shared))
     return out
 
 

@@ -20,10 +20,11 @@ from datetime import datetime
 from pathlib import Path
 
 from . import graph
-from .config import Experiment, controller_uses_state, load_experiment
+from .config import Experiment, controller_uses_state, load_experiment, namespaced_parameter_file
 from .errors import RunError
 
-__all__ = ["NodeProcess", "DomainLease", "graph_commands", "private_environment", "run_graph", "default_bag_path"]
+__all__ = ["NodeProcess", "DomainLease", "graph_commands", "write_parameter_file", "private_environment", "run_graph",
+           "default_bag_path"]
 
 FASTDDS_PROFILE = Path(__file__).resolve().parent / "fastdds_profile.xml"
 SHUTDOWN_GRACE = 10.0
@@ -120,20 +121,33 @@ def override_arguments(overrides) -> list:
     return out
 
 
-def graph_commands(experiment_path, experiment: Experiment, bag: Path, start_time: float = 0.0) -> list:
+def graph_commands(experiment_path, experiment: Experiment, bag: Path, start_time: float = 0.0,
+                   namespace: str = "/", parameter_file=None) -> list:
     """One NodeProcess per node of the graph (recorder first, see :func:`graph.node_specs`), each a
-    `python -m` of its node module; realtime runs also get the shared ``start_time`` of tick 0."""
+    `python -m` of its node module under the graph ``namespace``; realtime runs also get the shared
+    ``start_time`` of tick 0. The nodes read ``parameter_file`` (default: the experiment file; under a
+    namespace, :func:`namespaced_parameter_file`'s copy of it); the recorder stores the experiment file."""
     shared = shared_overrides(experiment)
     if start_time:
         shared = {"start_time": start_time, **shared}
     out = []
-    for spec in graph.node_specs(experiment.axes, shared, str(bag), str(experiment_path)):
+    for spec in graph.node_specs(experiment.axes, shared, str(bag), str(experiment_path), namespace):
         command = [sys.executable, "-m", f"contouring_ros.nodes.{spec.executable}", "--ros-args",
                    "-r", f"__ns:={spec.namespace}", "-r", f"__node:={spec.name}", "--params-file",
-                   str(experiment_path)]
+                   str(parameter_file or experiment_path)]
         command += override_arguments(spec.overrides)
         out.append(NodeProcess(spec.full_name, command))
     return out
+
+
+def write_parameter_file(experiment_path: Path, namespace: str, directory) -> Path:
+    """The parameter file the nodes of a graph under ``namespace`` read: the experiment file itself at the
+    root, else its copy with the namespace before each node section (in ``directory``)."""
+    if namespace in ("", "/"):
+        return experiment_path
+    path = Path(directory) / experiment_path.name
+    path.write_text(namespaced_parameter_file(experiment_path.read_text(), namespace))
+    return path
 
 
 def _load_libc():
@@ -239,7 +253,10 @@ class DomainLease:
     DIRECTORY = Path(tempfile.gettempdir()) / "contouring_ros_domains"
     IDS = range(1, 101)   # Fast DDS port arithmetic allows up to 232; 100 concurrent runs are plenty
 
-    def __init__(self, domain_id: int | None = None):
+    def __init__(self, domain_id: int | None = None, shared: bool = False):
+        """Hold ``domain_id`` (default: a free one, exclusively). ``shared``: hold the given id together
+        with other shared holders (graphs under different namespaces in one domain), never with a run that
+        holds it exclusively."""
         self.DIRECTORY.mkdir(parents=True, exist_ok=True)
         candidates = [domain_id] if domain_id is not None else random.SystemRandom().sample(list(self.IDS),
                                                                                               len(self.IDS))
@@ -247,12 +264,16 @@ class DomainLease:
         for candidate in candidates:
             handle = open(self.DIRECTORY / f"{candidate}.lock", "w")
             try:
-                fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                fcntl.flock(handle, (fcntl.LOCK_SH if shared and domain_id is not None else fcntl.LOCK_EX)
+                            | fcntl.LOCK_NB)
             except OSError:
                 handle.close()
                 continue
             self.domain_id, self._file = candidate, handle
             return
+        if domain_id is not None:
+            raise RunError(f"ROS domain {domain_id} is held by another run of this machine "
+                           f"({'exclusively' if shared else 'already'}; lock files in {self.DIRECTORY})")
         raise RunError(f"no free ROS domain id among {list(candidates)[:5]}... (lock files in {self.DIRECTORY})")
 
     def lock_fds(self) -> tuple:
@@ -280,14 +301,16 @@ def _raise_terminated(signum, frame):
     raise _Terminated()
 
 
-def composed_command(experiment_path, bag: Path, start_time: float = 0.0) -> list:
+def composed_command(experiment_path, bag: Path, start_time: float = 0.0, namespace: str = "/") -> list:
     """The composed layout: one process running every node under one executor."""
     return [NodeProcess("/composed", [sys.executable, "-m", "contouring_ros.composed", str(experiment_path),
-                                      str(bag)] + (["--start-time", repr(start_time)] if start_time else []))]
+                                      str(bag)] + (["--start-time", repr(start_time)] if start_time else [])
+                        + (["--namespace", namespace] if namespace not in ("", "/") else []))]
 
 
 def run_graph(experiment_path, bag=None, *, timeout: float | None = None, domain_id: int | None = None,
-              progress=None, on_started=None, layout: str = "process") -> Path:
+              progress=None, on_started=None, layout: str = "process", namespace: str = "/",
+              shared_domain: bool = False) -> Path:
     """Run the experiment through the process graph and return the bag's path.
 
     On any failure (a node dying, a stall, a timeout, SIGINT or SIGTERM) every node is stopped, the
@@ -303,12 +326,17 @@ def run_graph(experiment_path, bag=None, *, timeout: float | None = None, domain
         Wall-clock limit in seconds (default: generous for the run's length).
     domain_id : int, optional
         ROS domain (default: a free one, held exclusively for the run).
+    shared_domain : bool
+        With ``domain_id``: share that domain with other runs that share it (each under its own
+        ``namespace``) and with whatever else listens there (ROS tools), instead of holding it alone.
     progress : callable(str), optional
         Receives one-line status messages.
     on_started : callable(list of NodeProcess), optional
         Called once every node process has been started.
     layout : str
         ``process`` (every node its own process) or ``composed`` (all nodes in one process).
+    namespace : str
+        Graph namespace: every node and topic under it (``m1``: /m1/x/plant publishes /m1/x/state).
     """
     experiment_path = Path(experiment_path)
     experiment = load_experiment(experiment_path)
@@ -319,15 +347,21 @@ def run_graph(experiment_path, bag=None, *, timeout: float | None = None, domain
     timeout = timeout if timeout is not None else 60.0 + experiment.n_steps / 50.0
     if layout not in ("process", "composed"):
         raise RunError(f"unknown layout {layout!r} (expected process or composed)")
+    try:
+        namespace = graph.normalize_namespace(namespace)
+    except ValueError as error:
+        raise RunError(str(error)) from None
     start_time = time.time() + REALTIME_START_DELAY if experiment.timing == "realtime" else 0.0
-    nodes = graph_commands(experiment_path.resolve(), experiment, bag.resolve(), start_time) \
-        if layout == "process" else composed_command(experiment_path.resolve(), bag.resolve(), start_time)
+    parameter_directory = tempfile.TemporaryDirectory(prefix="contouring_ros_")
+    parameter_file = write_parameter_file(experiment_path.resolve(), namespace, parameter_directory.name)
+    nodes = graph_commands(experiment_path.resolve(), experiment, bag.resolve(), start_time, namespace, parameter_file) \
+        if layout == "process" else composed_command(experiment_path.resolve(), bag.resolve(), start_time, namespace)
     say = progress or (lambda message: None)
     in_main_thread = threading.current_thread() is threading.main_thread()
     previous_handler = signal.signal(signal.SIGTERM, _raise_terminated) if in_main_thread else None
     started, wall_started = time.monotonic(), time.time()
     try:
-        with DomainLease(domain_id) as lease:
+        with DomainLease(domain_id, shared=shared_domain) as lease:
             env = private_environment(lease.domain_id, network=experiment.network)
             say(f"starting {len(nodes)} nodes on ROS domain {lease.domain_id}: {experiment.n_steps} steps")
             try:
@@ -357,6 +391,7 @@ def run_graph(experiment_path, bag=None, *, timeout: float | None = None, domain
                 if any(node.process is not None and (node.process.returncode or 0) < 0 for node in nodes):
                     clean_shared_memory(wall_started - 1.0)
     finally:
+        parameter_directory.cleanup()
         if in_main_thread:
             signal.signal(signal.SIGTERM, previous_handler)
     say(f"ran {experiment.n_steps} steps in {time.monotonic() - started:.1f} s wall time")

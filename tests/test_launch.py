@@ -8,12 +8,13 @@ overrides."""
 import importlib.util
 import sys
 import types
+from pathlib import Path
 
 import pytest
 import yaml
 
 from contouring_ros.config import load_experiment
-from contouring_ros.runner import graph_commands
+from contouring_ros.runner import graph_commands, write_parameter_file
 from conftest import CONFIG, DEFAULT, ROOT
 
 
@@ -51,25 +52,27 @@ def launch_file(monkeypatch):
     return module
 
 
-def _launched(module, experiment: str, bag: str) -> dict:
+def _launched(module, experiment: str, bag: str, namespace: str = "/") -> dict:
     entities = module.generate_launch_description()
     arguments = {e.args[0] for e in entities if type(e).__name__ == "DeclareLaunchArgument"}
-    assert arguments == {"experiment", "bag"}
+    assert arguments == {"experiment", "bag", "namespace"}
     opaque = next(e for e in entities if type(e).__name__ == "OpaqueFunction")
-    nodes = opaque.kwargs["function"]({"experiment": experiment, "bag": bag})
+    nodes = opaque.kwargs["function"]({"experiment": experiment, "bag": bag, "namespace": namespace})
     out = {}
     for node in nodes:
         kw = node.kwargs
         assert kw["package"] == "contouring_ros"
         params_file, overrides = kw["parameters"]
-        out[f"{kw['namespace'].rstrip('/')}/{kw['name']}"] = (kw["executable"], kw["namespace"], params_file,
-                                                              overrides)
+        out[f"{kw['namespace'].rstrip('/')}/{kw['name']}"] = (kw["executable"], kw["namespace"],
+                                                              Path(params_file).read_text(), overrides)
     return out
 
 
-def _runner(path, bag) -> dict:
+def _runner(path, bag, namespace: str, directory) -> dict:
     out = {}
-    for node in graph_commands(path.resolve(), load_experiment(path), bag):
+    parameter_file = write_parameter_file(path.resolve(), namespace, directory)
+    for node in graph_commands(path.resolve(), load_experiment(path), bag, namespace=namespace,
+                               parameter_file=parameter_file):
         command = node.command
         ros = command[command.index("--ros-args") + 1:]
         remaps = dict(ros[i + 1].split(":=") for i, a in enumerate(ros) if a == "-r")
@@ -78,27 +81,34 @@ def _runner(path, bag) -> dict:
             if a == "-p":
                 key, value = ros[i + 1].split(":=", 1)
                 params[key] = yaml.safe_load(value)
-        out[node.name] = (command[2].rsplit(".", 1)[1], remaps["__ns"], ros[ros.index("--params-file") + 1], params)
+        out[node.name] = (command[2].rsplit(".", 1)[1], remaps["__ns"],
+                          Path(ros[ros.index("--params-file") + 1]).read_text(), params)
     return out
 
 
 @pytest.mark.parametrize("scenario", [DEFAULT.name, "paper003_helix_natural_local_f15_10.yaml"])
-def test_the_launch_file_starts_the_runners_graph(launch_file, scenario, tmp_path):
+@pytest.mark.parametrize("namespace", ["/", "/m1"])
+def test_the_launch_file_starts_the_runners_graph(launch_file, scenario, namespace, tmp_path):
+    """Same nodes, namespaces, parameter files (by content: under a namespace both write a copy) and
+    overrides as the runner, at the root and under a namespace."""
     path = CONFIG / scenario
     bag = tmp_path / "run.mcap"
-    launched, runner = _launched(launch_file, str(path), str(bag)), _runner(path, bag)
+    launched, runner = _launched(launch_file, str(path), str(bag), namespace), _runner(path, bag, namespace, tmp_path)
     assert launched.keys() == runner.keys()
+    assert all(name.startswith(namespace.rstrip("/") + "/") for name in runner)
     for name in runner:
-        executable, namespace, params_file, overrides = launched[name]
-        assert (executable, namespace, params_file) == runner[name][:3], name
+        executable, node_namespace, params_text, overrides = launched[name]
+        assert (executable, node_namespace, params_text) == runner[name][:3], name
         assert {k: (str(v) if k in ("bag", "experiment_file") else v) for k, v in overrides.items()} == runner[name][3]
+    if namespace != "/":
+        assert '"/m1/x/plant":' in runner["/m1/x/plant"][2]
 
 
 def test_the_launch_file_takes_an_installed_scenario_by_name(launch_file, tmp_path):
     launched = _launched(launch_file, "paper000_b_ismc_h50_newton", str(tmp_path / "b.mcap"))
     assert {"/recorder", "/interpolator", "/x/plant", "/y/plant", "/x/servo", "/y/servo", "/contour_estimator",
             "/ccc"} == set(launched)
-    assert launched["/x/plant"][2] == str(DEFAULT.resolve())
+    assert launched["/x/plant"][2] == DEFAULT.read_text()
 
 
 def test_setup_installs_the_launch_file():

@@ -10,6 +10,7 @@ from .lockstep import LockstepNode, run_node
 class PlantNode(LockstepNode):
     role = "plant"
     default_name = "plant"
+    per_axis = True
     realtime_offset = -1
 
     def setup(self):

@@ -45,9 +45,12 @@ class RecorderNode(LockstepNode):
         self.lockstep_topics = [topic.name for topic in self.topic_list if topic.every_step]
         self._incomplete = len(self.lockstep_topics)      # lockstep topics still short of n_steps messages
         self.first_receive = self.last_receive = None
-        self.writer = BagWriter(options["bag"], [(t.name, t.type) for t in self.topic_list], background=True, metadata={
+        # channels carry the names on the wire (under the graph's namespace, as `ros2 bag record` would)
+        self.channel_names = {t.name: self.wire_name(t.name) for t in self.topic_list}
+        self.writer = BagWriter(options["bag"], [(self.channel_names[t.name], t.type) for t in self.topic_list],
+                                background=True, metadata={
             EXPERIMENT_METADATA: {"yaml": text, "axes": ",".join(self.axes), "steps": str(self.n_steps),
-                                  "sample_time": repr(self.experiment.sample_time),
+                                  "sample_time": repr(self.experiment.sample_time), "namespace": self.graph_namespace,
                                   "contouring_ros_version": __version__}})
 
     def stamp_problem(self, topic, stamp, k, off_step):
@@ -98,7 +101,7 @@ class RecorderNode(LockstepNode):
         return {"messages recorded": sum(self.counts.values()), "messages refused": self.strangers}
 
     def file_message(self, topic, data):
-        self.writer.write(topic, cdr.stamp_ns(data), data)
+        self.writer.write(self.channel_names[topic], cdr.stamp_ns(data), data)
         self.counts[topic] += 1
         if self.counts[topic] == self.n_steps and topic in self.lockstep_topics:
             self._incomplete -= 1

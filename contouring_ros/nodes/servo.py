@@ -9,6 +9,7 @@ from .lockstep import LockstepNode, run_node
 class ServoNode(LockstepNode):
     role = "servo"
     default_name = "servo"
+    per_axis = True
 
     def setup(self):
         self.axis = self.own_axis()

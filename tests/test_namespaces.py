@@ -1,0 +1,94 @@
+"""Graphs under a namespace: every node and topic under it, two graphs in one ROS domain apart."""
+import re
+import subprocess
+import sys
+import threading
+
+import pytest
+from mcap.reader import make_reader
+
+from contouring_ros import graph
+from contouring_ros.bag import read_run, write_simulation
+from contouring_ros.config import build_loop, load_experiment, namespaced_parameter_file, read_yaml
+from contouring_ros.core.simulation import simulate
+from contouring_ros.runner import DomainLease, run_graph
+from conftest import DEFAULT, shortened
+
+
+@pytest.mark.parametrize("given, expected", [
+    ("m1", "/m1"), ("/m1", "/m1"), ("/m1/", "/m1"), ("lab/m_2", "/lab/m_2"), ("", "/"), ("/", "/"), (None, "/")])
+def test_namespaces_are_read_as_ros_reads_them(given, expected):
+    assert graph.normalize_namespace(given) == expected
+
+
+@pytest.mark.parametrize("bad", ["1m", "m-1", "m1//x", "m 1", "é"])
+def test_a_name_ros_refuses_is_refused_naming_the_part(bad):
+    with pytest.raises(ValueError, match="is not a ROS name part"):
+        graph.normalize_namespace(bad)
+
+
+def test_topics_and_nodes_resolve_under_the_graph_namespace():
+    assert graph.resolve("/m1", "/x/state") == "/m1/x/state"
+    assert graph.resolve("/", "/x/state") == "/x/state"
+    assert graph.graph_namespace("/m1/x/plant", per_axis=True) == "/m1"
+    assert graph.graph_namespace("/m1/ccc", per_axis=False) == "/m1"
+    assert graph.graph_namespace("/x/servo", per_axis=True) == "/"
+    specs = graph.node_specs(["x", "y"], namespace="/lab/m1")
+    assert {s.full_name for s in specs} == {"/lab/m1" + n for n in graph.node_names(["x", "y"])}
+    assert graph.namespace_of_topics(["/lab/m1/reference", "/lab/m1/x/state"]) == "/lab/m1"
+    with pytest.raises(ValueError, match="several graphs"):
+        graph.namespace_of_topics(["/m1/reference", "/m2/reference"])
+
+
+def test_the_namespaced_parameter_file_changes_only_the_node_keys():
+    text = DEFAULT.read_text()
+    namespaced = namespaced_parameter_file(text, "/m1")
+    original, changed = read_yaml(text), read_yaml(namespaced)
+    assert {key: value for key, value in changed.items()} == {
+        (key if key == "/**" else "/m1" + key): value for key, value in original.items()}
+    assert re.sub(r'"/m1(/[^"]*)"', r"\1", namespaced) == text     # every byte but the keys as written
+
+
+@pytest.mark.graph
+@pytest.mark.slow
+def test_two_namespaced_graphs_share_a_domain_without_hearing_each_other(tmp_path):
+    """Two runs of one experiment at once in one ROS domain, under /m1 (process layout) and /m2 (composed):
+    each bag holds only its own graph's topics, under its namespace, with the payloads of the simulation
+    (a message heard from the other graph would be refused by the nodes' publisher checks and stop the run)."""
+    path = tmp_path / "short.yaml"
+    path.write_text(shortened(DEFAULT, 0.3))
+    experiment = load_experiment(path)
+    expected = read_run(write_simulation(tmp_path / "simulation.mcap", experiment,
+                                         simulate(build_loop(experiment))), keep_payloads=True).payloads
+    with DomainLease() as lease:
+        domain = lease.domain_id
+    bags, errors = {}, []
+
+    def run(namespace, layout):
+        try:
+            bags[namespace] = run_graph(path, tmp_path / f"{namespace}.mcap", namespace=namespace, layout=layout,
+                                        domain_id=domain, shared_domain=True)
+        except Exception as error:     # reported below with the namespace
+            errors.append(f"{namespace}: {error}")
+
+    threads = [threading.Thread(target=run, args=args) for args in (("m1", "process"), ("m2", "composed"))]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    assert not errors
+    for namespace, bag in bags.items():
+        with open(bag, "rb") as stream:
+            channels = {c.topic for c in make_reader(stream).get_summary().channels.values()}
+        assert channels == {f"/{namespace}{t.name}" for t in graph.recorded_topics(["x", "y"])}
+        recorded = read_run(bag, keep_payloads=True)
+        assert recorded.complete_steps == experiment.n_steps
+        assert recorded.payloads == expected, namespace
+
+
+def test_a_bad_namespace_is_refused_in_one_line():
+    result = subprocess.run([sys.executable, "-m", "contouring_ros.cli", "run", str(DEFAULT), "--namespace", "m-1"],
+                            capture_output=True, text=True, timeout=60)
+    assert result.returncode == 1
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and "namespace 'm-1'" in lines[0] and "Traceback" not in result.stderr
