@@ -191,12 +191,23 @@ def test_saturated_servo_does_not_wind_up():
 
 def test_domain_leases_are_exclusive():
     with DomainLease(77) as first:
-        with pytest.raises(RunError, match="no free ROS domain"):
+        with pytest.raises(RunError, match="ROS domain 77 is held by another run"):
             DomainLease(77)
+        with pytest.raises(RunError, match="ROS domain 77 is held by another run"):
+            DomainLease(77, shared=True)                  # a private run's domain is never shared
         with DomainLease() as other:
             assert other.domain_id != first.domain_id
     with DomainLease(77):
         pass
+
+
+def test_shared_leases_share_a_domain_and_keep_private_runs_out():
+    """--domain: runs sharing one domain (each under its own namespace) hold it together; a run picking a
+    free private domain never lands there while they do."""
+    with DomainLease(78, shared=True), DomainLease(78, shared=True):
+        with pytest.raises(RunError, match="ROS domain 78 is held by another run"):
+            DomainLease(78)
+        assert all(DomainLease().domain_id != 78 for _ in range(30))
 
 
 @graph
@@ -266,3 +277,25 @@ def test_a_node_alone_waits_graph_timeout_then_names_what_it_waited_for(tmp_path
     assert out.returncode == 1 and time.monotonic() - started < 30
     assert "/x/plant: the graph did not come up within 1.5 s (graph_timeout; still waiting for" in out.stderr
     assert "waiting up to 1.5 s (graph_timeout)" in out.stderr      # logged through rclpy
+
+
+@pytest.mark.graph
+def test_a_node_waiting_for_its_graph_stops_at_once_on_sigterm():
+    """A node started by hand waits up to graph_timeout (300 s) for the rest of the graph; SIGTERM (or its
+    runner dying, through the parent-death signal) must still stop it within seconds, not at the timeout."""
+    from contouring_ros.runner import private_environment
+    with DomainLease() as lease:
+        node = subprocess.Popen([sys.executable, "-m", "contouring_ros.nodes.plant", "--ros-args", "-r", "__ns:=/x",
+                                 "-r", "__node:=plant", "--params-file", str(DEFAULT)],
+                                env=private_environment(lease.domain_id), stdout=subprocess.PIPE,
+                                stderr=subprocess.STDOUT, text=True)
+        try:
+            for line in node.stdout:                   # up and waiting
+                if "waiting up to" in line:
+                    break
+            node.send_signal(signal.SIGTERM)
+            started = time.monotonic()
+            node.wait(timeout=60)
+        finally:
+            node.kill()
+    assert time.monotonic() - started < 10 and node.returncode != 0

@@ -26,6 +26,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 
 from .. import cdr, graph
 from ..config import experiment_for_node
+from ..parameters import descriptor, node_parameters
 from ..errors import ConfigError, ContouringError, RunError
 
 __all__ = ["GRAPH_QOS", "message_class", "LockstepNode", "run_node"]
@@ -37,6 +38,7 @@ _DECODERS = {"sensor_msgs/msg/JointState": cdr.decode_joint_state,
 DIAGNOSTICS_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE,
                              history=HistoryPolicy.KEEP_LAST, depth=100)
 PROGRESS_PERIOD = 5.0    # s between a node's progress log lines
+SERVICE_PERIOD = 0.1     # s at most between two turns answering the node's service requests (ros2 param)
 #: how many steps past the one a node works on an input may be stamped: the graph's own nodes run at most
 #: LOOKAHEAD + 1 steps apart, so this bounds every pending-step buffer (at most MAX_AHEAD + 1 steps held)
 MAX_AHEAD = 64
@@ -65,6 +67,8 @@ class LockstepNode:
     realtime_offset = 0
     #: realtime: whether a tick needs every input (False for the interpolator, whose input only paces it)
     realtime_needs_inputs = True
+    #: one node per axis, in the axis' namespace (the plant and the servo: /x/plant serves x)
+    per_axis = False
 
     def __init__(self, args=None, *, name: str | None = None, namespace: str | None = None,
                  parameter_overrides=None, callbacks: bool = False):
@@ -76,8 +80,11 @@ class LockstepNode:
                                       parameter_overrides=parameter_overrides or [],
                                       automatically_declare_parameters_from_overrides=True)
         self.name = self.node.get_fully_qualified_name()
+        #: the namespace of the graph this node belongs to: every topic is resolved under it
+        self.graph_namespace = graph.graph_namespace(self.name, self.per_axis)
         parameters = {name: p.value for name, p in self.node.get_parameters_by_prefix("").items()}
         self.experiment = experiment_for_node(parameters, self.name, self.role)
+        self.declare_described(parameters)
         self.sample_time_ns = int(round(self.experiment.sample_time * 1e9))
         self.n_steps = self.experiment.n_steps
         self.axes = list(self.experiment.axes)
@@ -90,11 +97,38 @@ class LockstepNode:
         self._sequence = {}        # topic -> publication sequence number expected of its one publisher
         self._last_step = {}       # topic -> step of the last message admitted
         self.strangers = 0         # messages refused before filing (wrong publisher, stamp, size)
-        self._diagnostics = self.node.create_publisher(DiagnosticArray, graph.DIAGNOSTICS, DIAGNOSTICS_QOS)
+        self._diagnostics = self.node.create_publisher(DiagnosticArray, self.wire_name(graph.DIAGNOSTICS),
+                                                       DIAGNOSTICS_QOS)
         self.next_step = 0
         self.finished = False
         self._realtime = self.experiment.timing == "realtime"
         self.setup()
+
+    def declare_described(self, parameters: dict):
+        """Declare every parameter of this node again, now with its descriptor (meaning and unit, range,
+        read-only: :mod:`contouring_ros.parameters`), and the defaults the file left out, so that
+        ``ros2 param describe`` and ``ros2 param get`` show what the node runs with."""
+        for name, parameter in node_parameters(parameters, self.name, self.role, self.experiment).items():
+            if self.node.has_parameter(name):
+                self.node.undeclare_parameter(name)
+            self.node.declare_parameter(name, parameter.value, descriptor(parameter))
+
+    def serve_requests(self, now: float | None = None):
+        """Answer the requests waiting at the node's services (the standard parameter services: `ros2 param
+        list|describe|get|set`), at most every SERVICE_PERIOD seconds. The lean loops wait on the inputs
+        alone (no executor takes the node's messages away from them), so they call this between steps."""
+        now = time.monotonic() if now is None else now
+        if now < getattr(self, "_next_service_turn", 0.0):
+            return
+        self._next_service_turn = now + SERVICE_PERIOD
+        for service in self.node.services:
+            while True:
+                with service.handle:
+                    taken = service.handle.service_take_request(service.srv_type.Request)
+                request, header = taken if taken is not None else (None, None)
+                if header is None:
+                    break
+                service.send_response(service.callback(request, service.srv_type.Response()), header)
 
     # -- wiring -----------------------------------------------------------------------------------
     def add_input(self, topic: str, qos=GRAPH_QOS, used: bool = True):
@@ -106,7 +140,7 @@ class LockstepNode:
         type_name = self._topics[topic].type
         cls = message_class(type_name)
         callback = (lambda data, topic=topic: self.on_message(topic, data)) if self.callbacks else (lambda _: None)
-        sub = self.node.create_subscription(cls, topic, callback, qos, raw=True)
+        sub = self.node.create_subscription(cls, self.wire_name(topic), callback, qos, raw=True)
         self._inputs.append((topic, sub, cls, _DECODERS.get(type_name) if used else None))
         if self._topics[topic].every_step:
             # one publisher per graph topic, matched before it publishes (wait_for_graph), reliable and
@@ -115,13 +149,17 @@ class LockstepNode:
         self._last_step[topic] = -1
 
     def add_output(self, topic: str):
-        pub = self.node.create_publisher(message_class(self._topics[topic].type), topic, GRAPH_QOS)
+        pub = self.node.create_publisher(message_class(self._topics[topic].type), self.wire_name(topic), GRAPH_QOS)
         self._outputs[topic] = pub
         return pub
 
+    def wire_name(self, topic: str) -> str:
+        """The name on the wire of the graph's ``topic`` (/x/state is /m1/x/state under /m1)."""
+        return graph.resolve(self.graph_namespace, topic)
+
     def own_axis(self) -> str:
-        """The axis a per-axis node serves: its namespace (/x/plant serves x)."""
-        axis = self.name.strip("/").split("/")[0]
+        """The axis a per-axis node serves: the last part of its namespace (/x/plant and /m1/x/plant serve x)."""
+        axis = self.name.strip("/").split("/")[-2] if self.name.count("/") > 1 else ""
         if axis not in self.axes:
             raise ConfigError(f"{self.name}: the namespace names axis {axis!r}, which is not in axes {self.axes}")
         return axis
@@ -162,6 +200,10 @@ class LockstepNode:
             if time.monotonic() > deadline:
                 raise RunError(f"{self.name}: the graph did not come up within {timeout:g} s (graph_timeout; "
                                f"still waiting for {missing[0]})")
+            if not rclpy.ok(context=self.node.context):      # SIGINT/SIGTERM while waiting: stop now
+                raise ExternalShutdownException()
+            if not self.callbacks:
+                self.serve_requests()
             time.sleep(0.01)
 
     def take_all(self, handle=None):
@@ -321,6 +363,7 @@ class LockstepNode:
         last_progress = next_log = time.monotonic()
         while not done():
             wait_on(wait_set, handles, 200_000_000)
+            self.serve_requests()
             if time.monotonic() >= next_log + PROGRESS_PERIOD:
                 next_log = time.monotonic()
                 self.node.get_logger().info(f"step {self.next_step} of {self.n_steps}")
@@ -408,6 +451,7 @@ class LockstepNode:
             wait_until(self.tick_time(tick), wait_set, handles, lambda: self.take_all(self.keep_newest),
                        self.node.context)
             self.realtime_tick(tick)
+            self.serve_requests()
 
     def realtime_counters(self) -> dict:
         """Deadline misses, late and missing inputs, loop latency (tick to outputs sent) p50/p99/max and

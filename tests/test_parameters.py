@@ -1,0 +1,116 @@
+"""Every node parameter carries a descriptor built from the validator's specs, and ROS tools read it.
+
+The graph-level test starts one node (/x/plant, waiting for the rest of its graph) and reads its parameters
+back through the standard parameter services (list, describe, get, set) with a plain rclpy client in its
+own process, on the node's private domain: what `ros2 param list|describe|get|set` would show.
+"""
+import json
+import subprocess
+import sys
+
+import pytest
+
+from contouring_ros.config import BOUNDS, GLOBALS, read_yaml, section_from_parameters
+from contouring_ros.parameters import describe, node_parameters
+from contouring_ros.runner import DomainLease, private_environment
+from conftest import CONFIG, DEFAULT
+
+
+def _flat(mapping: dict, prefix: str = "") -> dict:
+    out = {}
+    for key, value in mapping.items():
+        out.update(_flat(value, f"{prefix}{key}.") if isinstance(value, dict) else {f"{prefix}{key}": value})
+    return out
+
+
+def _received(path, node: str) -> dict:
+    """The flat parameters a node gets from the file: the shared section and its own."""
+    data = read_yaml(path.read_text())
+    return {**_flat(data["/**"]["ros__parameters"]), **_flat(data.get(node, {}).get("ros__parameters", {}))}
+
+
+@pytest.mark.parametrize("scenario, node, role", [
+    (DEFAULT, "/x/plant", "plant"), (DEFAULT, "/y/servo", "servo"), (DEFAULT, "/contour_estimator", "contour_estimator"),
+    (DEFAULT, "/ccc", "ccc"), (CONFIG / "paper003_helix_natural_local_f15_10.yaml", "/ccc", "ccc"),
+    (CONFIG / "paper004_saddle_eso.yaml", "/z/servo", "servo"), (DEFAULT, "/interpolator", "interpolator")])
+def test_every_given_key_and_every_default_is_described(scenario, node, role):
+    received = _received(scenario, node)
+    described = node_parameters(received, node, role)
+    assert set(received) <= set(described)                   # nothing the file gives is left out
+    assert {k for k in GLOBALS if GLOBALS[k].kind != "dict"} <= {k.split(".")[0] for k in described}
+    for name, value in received.items():
+        assert described[name].value == value and described[name].given
+    assert section_from_parameters({n: p.value for n, p in described.items() if p.given}) == \
+        section_from_parameters(received)
+    for parameter in described.values():
+        assert parameter.description and "read once at start" in describe(parameter)
+
+
+def test_descriptions_carry_units_and_the_validators_ranges():
+    described = node_parameters(_received(DEFAULT, "/x/plant"), "/x/plant", "plant")
+    assert "[s]" in described["time_constant"].description and "[s]" in described["sample_time"].description
+    low, high = BOUNDS["PLANTS"]["time_constant"]
+    assert f"from {low:g} to {high:g}" in describe(described["time_constant"])
+    assert not described["saturation"].given and described["saturation"].value == 0.0     # a default
+    assert "one of: on_reference, at_rest" in described["initial_state"].description
+
+
+_CLIENT = r"""
+import json, sys, rclpy
+from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
+from rcl_interfaces.srv import DescribeParameters, GetParameters, ListParameters, SetParameters
+rclpy.init()
+node = rclpy.create_node("parameter_reader")
+target = sys.argv[1]
+
+def call(kind, name, request):
+    client = node.create_client(kind, f"{target}/{name}")
+    if not client.wait_for_service(timeout_sec=60.0):
+        raise SystemExit(f"no {name} service")
+    future = client.call_async(request)
+    rclpy.spin_until_future_complete(node, future, timeout_sec=30.0)
+    return future.result()
+
+names = list(call(ListParameters, "list_parameters", ListParameters.Request()).result.names)
+descriptors = call(DescribeParameters, "describe_parameters", DescribeParameters.Request(names=names)).descriptors
+values = call(GetParameters, "get_parameters", GetParameters.Request(names=["gain", "time_constant", "axes"])).values
+change = Parameter(name="gain", value=ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=1.0))
+result = call(SetParameters, "set_parameters", SetParameters.Request(parameters=[change])).results[0]
+print(json.dumps({
+    "names": names,
+    "descriptors": {d.name: {"type": d.type, "description": d.description, "read_only": d.read_only,
+                             "range": [[r.from_value, r.to_value] for r in d.floating_point_range]
+                                      + [[r.from_value, r.to_value] for r in d.integer_range],
+                             "constraints": d.additional_constraints} for d in descriptors},
+    "values": [values[0].double_value, values[1].double_value, list(values[2].string_array_value)],
+    "set": [result.successful, result.reason]}))
+"""
+
+
+@pytest.mark.graph
+def test_a_plain_rclpy_client_reads_the_descriptors_through_the_parameter_services(tmp_path):
+    script = tmp_path / "client.py"
+    script.write_text(_CLIENT)
+    with DomainLease() as lease:
+        env = private_environment(lease.domain_id)
+        node = subprocess.Popen([sys.executable, "-m", "contouring_ros.nodes.plant", "--ros-args", "-r", "__ns:=/x",
+                                 "-r", "__node:=plant", "--params-file", str(DEFAULT), "-p", "graph_timeout:=90.0"],
+                                env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        try:
+            client = subprocess.run([sys.executable, str(script), "/x/plant"], env=env, capture_output=True,
+                                    text=True, timeout=120)
+        finally:
+            node.terminate()
+            node.wait(timeout=30)
+    assert client.returncode == 0, client.stderr[-2000:]
+    seen = json.loads(client.stdout.strip().splitlines()[-1])
+    expected = node_parameters({**_received(DEFAULT, "/x/plant"), "graph_timeout": 90.0}, "/x/plant", "plant")
+    assert set(expected) <= set(seen["names"])
+    for name, parameter in expected.items():
+        got = seen["descriptors"][name]
+        assert got["read_only"] and got["description"] == describe(parameter), name
+    assert seen["descriptors"]["gain"]["range"] == [list(BOUNDS["PLANTS"]["gain"])]
+    assert seen["descriptors"]["disturbance.type"]["type"] == 4          # PARAMETER_STRING
+    assert seen["values"] == [10.3, 0.04, ["x", "y"]]
+    successful, reason = seen["set"]
+    assert not successful and "read-only" in reason.lower().replace("read only", "read-only")
