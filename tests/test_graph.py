@@ -118,14 +118,19 @@ def test_stock_executor_path_reproduces_simulation(tmp_path):
 
 
 @pytest.mark.parametrize("layout", ["process", "composed"])
-def test_realtime_run_records_every_step_and_its_timing(layout, tmp_path):
+def test_realtime_run_records_every_step_and_its_timing(layout, tmp_path, monkeypatch):
     """timing: realtime ticks every node on the wall clock with zero-order hold on late inputs. What is
     asserted is function, not speed: every step recorded, each node's deadline misses, late inputs and
-    latency percentiles in the bag's /diagnostics, and the loop stable under the extra delays."""
+    latency percentiles in the bag's /diagnostics, and the loop stable under the extra delays. (On this
+    shared 2-core machine the process layout gets more time to start and a wider max_lag: the overrun trip
+    has its own tests, tests/test_overrun.py.)"""
     from contouring_ros.bag import node_reports
     from contouring_ros.scoring import format_realtime
+    if layout == "process":
+        monkeypatch.setattr("contouring_ros.runner.REALTIME_START_DELAY", 12.0)
     path = tmp_path / "realtime.yaml"
-    path.write_text(shortened(DEFAULT, 0.5).replace("    duration: 0.5\n", "    duration: 0.5\n    timing: realtime\n"))
+    path.write_text(shortened(DEFAULT, 0.5).replace("    duration: 0.5\n",
+                                                    "    duration: 0.5\n    timing: realtime\n    max_lag: 0.5\n"))
     bag = run_graph(path, tmp_path / "realtime.mcap", layout=layout)
     scores, run = score_bag(bag)
     # downstream nodes may lack an input at the first ticks (its producer ticks at the same instant in
