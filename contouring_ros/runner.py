@@ -383,7 +383,9 @@ def run_graph(experiment_path, bag=None, *, timeout: float | None = None, domain
     try:
         with DomainLease(domain_id) as lease:
             env = private_environment(lease.domain_id, network=experiment.network)
-            say(f"starting {len(nodes)} nodes on ROS domain {lease.domain_id}: {experiment.n_steps} steps")
+            count = len(graph.node_names(experiment.axes))
+            say(f"starting {count} nodes" + (f" in {len(nodes)} processes" if len(nodes) != count else "")
+                + f" on ROS domain {lease.domain_id}: {experiment.n_steps} steps")
             try:
                 runner_pid = os.getpid()
                 for node in nodes:

@@ -100,6 +100,29 @@ def test_composed_layout_records_the_same_payloads(default_runs, tmp_path):
     assert all(sorted(first[topic]) == sorted(second[topic]) for topic in first)
 
 
+def test_grouped_layout_records_the_same_payloads(default_runs, tmp_path):
+    """Per-axis groups and one for the interpolator, estimator and CCC (the recorder alone): the same bag
+    as the process layout."""
+    path, bags = default_runs
+    grouped = run_graph(path, tmp_path / "grouped.mcap",
+                        groups=["x/plant,x/servo", "y/plant,y/servo", ["/interpolator", "contour_estimator", "ccc"]])
+    _assert_identical(path, grouped)
+    first, second = (read_run(bag, keep_payloads=True).payloads for bag in (bags[0], grouped))
+    assert set(first) == set(second)
+    assert all(sorted(first[topic]) == sorted(second[topic]) for topic in first)
+
+
+def test_groups_are_checked_before_any_node_starts(tmp_path):
+    from contouring_ros.errors import ConfigError
+    from contouring_ros.runner import parse_groups
+    axes = ("x", "y")
+    assert parse_groups(["x/servo,/x/plant", "recorder"], axes) == [["/x/plant", "/x/servo"], ["/recorder"]]
+    for groups, expected in (([",,"], "an empty group"), (["z/plant"], "/z/plant is not a node of this graph"),
+                             (["x/plant,ccc", "ccc"], "/ccc is in two groups")):
+        with pytest.raises(ConfigError, match=expected):
+            parse_groups(groups, axes)
+
+
 def test_stock_executor_path_reproduces_simulation(tmp_path):
     """The nodes' subscription callbacks under rclpy's SingleThreadedExecutor (how users embed them)."""
     import os
