@@ -1,7 +1,8 @@
 """One command for the speed figures of issue "Speed": everything measured in one run, with the ratios.
 
 Prints, on this machine, now:
-- the rclpy ping-pong floor: time per message hop between two processes on the graph's lean loop;
+- the rclpy ping-pong floor: time per message hop between two processes on the graph's lean loop, and the
+  same on rclpy's EventsExecutor and SingleThreadedExecutor (wall time per hop and CPU time per round);
 - the graph's lockstep rate (control steps per wall second, measured by the recorder between the first and
   last message) for every layout (process: a process per node; composed: one process; grouped: a process
   per axis' plant and servo, one for the interpolator, estimator and CCC, the recorder alone; grouped-lean:
@@ -74,20 +75,23 @@ def with_globals(path: Path, **keys) -> str:
     return path.read_text().replace("    sample_time: 0.001", "    sample_time: 0.001" + extra, 1)
 
 
-def floor_hop_us(rounds: int) -> float:
+def floor_hop_us(rounds: int, executor: str = "lean") -> tuple[float, float]:
+    """The ping-pong between two processes on ``executor`` (lean: the graph's own loop; events: rclpy's
+    EventsExecutor; single: its SingleThreadedExecutor): (wall us per hop, ping's CPU us per round)."""
     with DomainLease() as lease:
         env = private_environment(lease.domain_id)
         script = str(ROOT / "bench" / "pingpong.py")
-        pong = subprocess.Popen([sys.executable, script, "pong", str(rounds)], env=env, stdout=subprocess.DEVNULL)
+        pong = subprocess.Popen([sys.executable, script, "pong", str(rounds), executor], env=env,
+                                stdout=subprocess.DEVNULL)
         try:
-            out = subprocess.run([sys.executable, script, "ping", str(rounds)], env=env, capture_output=True,
-                                 text=True, timeout=300)
+            out = subprocess.run([sys.executable, script, "ping", str(rounds), executor], env=env,
+                                 capture_output=True, text=True, timeout=300)
         finally:
             pong.wait(timeout=30)
-    for line in out.stdout.splitlines():
-        if line.startswith("hop_us"):
-            return float(line.split()[1])
-    raise SystemExit(f"ping-pong failed: {out.stderr.strip().splitlines()[-1:]}")
+    figures = dict(line.split() for line in out.stdout.splitlines() if line.startswith(("hop_us", "cpu_us")))
+    if "hop_us" not in figures:
+        raise SystemExit(f"ping-pong failed: {out.stderr.strip().splitlines()[-1:]}")
+    return float(figures["hop_us"]), float(figures["cpu_us_per_round"])
 
 
 def lockstep_rate(path: Path, layout: str, seconds: float, tmp: Path, runs: int) -> float:
@@ -141,10 +145,14 @@ def main():
     say = lambda *a: print(*a, flush=True)  # noqa: E731
     with tempfile.TemporaryDirectory() as directory:
         tmp = Path(directory)
-        hop = floor_hop_us(args.rounds)
+        hop, cpu = floor_hop_us(args.rounds)
         floor_rate = 1e6 / (4 * hop)
-        say(f"ping-pong floor: {hop:.0f} us per hop; four hops (one lockstep step's critical path) "
-            f"{4 * hop:.0f} us = at most {floor_rate:.0f} steps/s")
+        say(f"ping-pong floor: {hop:.0f} us per hop ({cpu:.0f} us of CPU a round); four hops (one lockstep "
+            f"step's critical path) {4 * hop:.0f} us = at most {floor_rate:.0f} steps/s")
+        for executor, name in (("events", "EventsExecutor"), ("single", "SingleThreadedExecutor")):
+            other, other_cpu = floor_hop_us(args.rounds, executor)
+            say(f"ping-pong on rclpy's {name}: {other:.0f} us per hop ({other / hop:.1f}x the lean loop), "
+                f"{other_cpu:.0f} us of CPU a round ({other_cpu / cpu:.1f}x)")
         rates = {}
         for label, path in (("2 axes", DEFAULT), ("3 axes", THREE_AXES)):
             for layout in LAYOUTS:
