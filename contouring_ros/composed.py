@@ -1,5 +1,7 @@
-"""The composed layout: every node of the graph as its own rclpy node, all in one process under one
-SingleThreadedExecutor (the stock callback path of :class:`~contouring_ros.nodes.lockstep.LockstepNode`).
+"""The composed layout: every node of the graph as its own rclpy node, all in one process on one lean loop
+(or under one SingleThreadedExecutor: the stock callback path of
+:class:`~contouring_ros.nodes.lockstep.LockstepNode`). The same loop over a subset of the nodes is one
+process of the grouped layout (``--nodes``; the runner starts the other nodes elsewhere).
 
 Same nodes, same topics, same step semantics as the process layout, hence the same bag payloads.
 Usage (the runner does this):
