@@ -39,6 +39,7 @@ sys.path.insert(0, str(ROOT))
 
 from contouring_ros.bag import node_reports  # noqa: E402
 from contouring_ros.config import load_experiment  # noqa: E402
+from contouring_ros.errors import RunError  # noqa: E402
 from contouring_ros.runner import DomainLease, private_environment  # noqa: E402
 from contouring_ros.scoring import miss_rate  # noqa: E402
 from contouring_ros.sweep import BATCH, run_sweep  # noqa: E402
@@ -102,10 +103,14 @@ def lockstep_rate(path: Path, layout: str, seconds: float, tmp: Path, runs: int)
 
 
 def realtime(layout: str, seconds: float, tmp: Path) -> dict:
+    """One realtime run's figures; {"error": ...} when the run failed (e.g. a graph that came up late)."""
     config = tmp / "realtime.yaml"
     config.write_text(with_globals(DEFAULT, duration=seconds, timing="realtime", on_overrun="skip"))
-    reports = {name: v for name, v in node_reports(run_layout(config, tmp / f"realtime_{layout}.mcap", layout)).items()
-               if "deadline misses" in v}
+    try:
+        bag = run_layout(config, tmp / f"realtime_{layout}.mcap", layout)
+    except RunError as error:
+        return {"error": str(error)}
+    reports = {name: v for name, v in node_reports(bag).items() if "deadline misses" in v}
     skipped = {name: int(v.get("skipped ticks", 0)) for name, v in reports.items()}
     ticks = sum(int(v["ticks"]) + skipped[name] for name, v in reports.items())
     misses = sum(int(v["deadline misses"]) + skipped[name] for name, v in reports.items())
@@ -179,6 +184,9 @@ def main():
                 "else ran")
         for layout in LAYOUTS:
             r = realtime(layout, args.realtime_seconds, tmp)
+            if "error" in r:
+                say(f"realtime {layout:12s} 1 kHz, {args.realtime_seconds:g} s: failed: {r['error']}")
+                continue
             work = ", ".join(f"{name} {us:.0f}" for name, us in sorted(r["work"].items()))
             say(f"realtime {layout:12s} 1 kHz, {args.realtime_seconds:g} s: deadline misses {r['miss rate']:.1f}% of "
                 f"all node ticks (worst node {r['worst node miss rate']:.1f}%; {r['skipped']} ticks skipped), "

@@ -153,6 +153,10 @@ class LockstepNode:
         """Block until every expected subscriber of our outputs and a publisher of every input matched."""
         timeout = self.experiment.graph_timeout
         deadline = time.monotonic() + timeout
+        # realtime: a node that comes up after the run's last tick waits no longer (a node that already
+        # finished and left will never match)
+        run_end = self.experiment.start_time + self.n_steps * self.experiment.sample_time \
+            if self._realtime and self.experiment.start_time > 0.0 else None
         self.node.get_logger().info(f"waiting up to {timeout:g} s (graph_timeout) for the rest of the graph")
         while True:
             missing = [f"subscribers of {topic} ({', '.join(self._topics[topic].subscribers)})"
@@ -166,6 +170,9 @@ class LockstepNode:
             if time.monotonic() > deadline:
                 raise RunError(f"{self.name}: the graph did not come up within {timeout:g} s (graph_timeout; "
                                f"still waiting for {missing[0]})")
+            if run_end is not None and time.time() > run_end:
+                raise RunError(f"{self.name}: the graph was not up by the realtime run's last tick (still waiting "
+                               f"for {missing[0]}): the machine was too busy to start the graph in time")
             time.sleep(0.01)
 
     def take_all(self, handle=None):
