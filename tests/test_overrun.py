@@ -96,3 +96,20 @@ def test_slow_tick_knob_names_nodes(monkeypatch):
     assert slow_tick_seconds("/x/servo") == 0.002
     assert slow_tick_seconds("/ccc") == 0.001
     assert slow_tick_seconds("/y/servo") == 0.0
+
+
+def test_a_node_up_after_the_run_s_last_tick_gives_up(tmp_path):
+    """A node that comes up after the realtime run's end waits no longer for the rest of the graph (nodes
+    that already finished never come back): one line, exit 1, long before graph_timeout."""
+    import subprocess
+    import sys
+    import time
+    from contouring_ros.runner import DomainLease, private_environment
+    path = _realtime(tmp_path)
+    with DomainLease() as lease:
+        start = time.monotonic()
+        done = subprocess.run([sys.executable, "-m", "contouring_ros.nodes.servo", "--ros-args", "-r", "__ns:=/x",
+                               "--params-file", str(path), "-p", f"start_time:={time.time() - 60.0!r}"],
+                              env=private_environment(lease.domain_id), capture_output=True, text=True, timeout=120)
+    assert done.returncode == 1 and time.monotonic() - start < 60.0
+    assert "error: /x/servo: the graph was not up by the realtime run's last tick" in done.stderr
