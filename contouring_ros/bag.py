@@ -94,6 +94,8 @@ class BagWriter:
         (the recorder's take loop, or the composed layout's one loop) never waits for a chunk to compress.
     """
 
+    BATCH = 256    # messages a background writer collects before handing them to its thread
+
     def __init__(self, path, topics, *, metadata=None, chunk_size: int = 256 * 1024, background: bool = False):
         from mcap.writer import CompressionType, Writer
         self.path = Path(path)
@@ -114,6 +116,7 @@ class BagWriter:
             self._writer.add_metadata(name, record)
         self.closed = False
         self._queue = self._thread = None
+        self._batch = []
         if background:
             import queue
             import threading
@@ -123,23 +126,35 @@ class BagWriter:
 
     def _drain(self):
         while True:
-            item = self._queue.get()
-            if item is None:
+            batch = self._queue.get()
+            if batch is None:
                 return
-            item[0](*item[1:])
+            for call in batch:
+                call[0](*call[1:])
 
     def _do(self, *call):
         if self._queue is not None:
-            self._queue.put(call)
+            self._batch.append(call)
+            if len(self._batch) >= self.BATCH:
+                self.flush()
         else:
             call[0](*call[1:])
+
+    def flush(self):
+        """Hand what :meth:`write` collected to the writer thread (background writers; else nothing)."""
+        if self._queue is not None and self._batch:
+            self._queue.put(self._batch)
+            self._batch = []
 
     def add_metadata(self, name: str, record: dict):
         """Add a metadata record (str -> str) before the bag is closed."""
         self._do(self._writer.add_metadata, name, record)
+        self.flush()
 
     def write(self, topic: str, stamp_ns: int, data: bytes):
-        """Append one serialised message, logged at its stamp."""
+        """Append one serialised message, logged at its stamp (a background writer collects BATCH
+        messages before it hands them to its thread: waking the thread for each message cost the caller
+        about 40 us a message, most of the recorder's cost in the composed layout)."""
         self._do(self._write, topic, stamp_ns, data)
 
     def _write(self, topic: str, stamp_ns: int, data: bytes):
@@ -152,6 +167,7 @@ class BagWriter:
         if not self.closed:
             self.closed = True
             if self._thread is not None:
+                self.flush()
                 self._queue.put(None)
                 self._thread.join()
             self._writer.finish()

@@ -209,10 +209,24 @@ class _Layout:
         self.fixed = [(edges[i], edges[i + 1], data[edges[i]:edges[i + 1]]) for i in range(0, len(edges), 2)]
         self.size = len(data)
 
+    @property
+    def spans(self) -> tuple:
+        """(start, end) of the bytes every message of this layout shares."""
+        return tuple((start, end) for start, end, _ in self.fixed)
+
+    def signature(self) -> bytes:
+        """The shared bytes, in one string: a message of this layout's length whose bytes at :attr:`spans`
+        join to this string is of this layout."""
+        return b"".join(fixed for _, _, fixed in self.fixed)
+
     def read(self, data: bytes):
         """(the stamps, the float64 arrays as tuples) of ``data``, or None when its layout is another."""
         if len(data) != self.size or any(data[start:end] != fixed for start, end, fixed in self.fixed):
             return None
+        return self.values(data)
+
+    def values(self, data: bytes):
+        """:meth:`read` of a message known to be of this layout."""
         values, arrays, start = self.struct.unpack_from(data), [], 0
         for count in self.counts:
             arrays.append(values[start:start + count])
@@ -229,6 +243,10 @@ class _Codec:
     def __init__(self, read, write):
         self.read_full, self.write_full = read, write
         self.templates, self.layouts = {}, {}
+        # length -> [(spans, {signature: layout})]: the layouts of one length found by one dictionary look-up
+        # of their shared bytes, not by trying each (N axes' states share a length: trying them in turn cost
+        # O(N) comparisons a message)
+        self.index = {}
 
     def encode(self, key, stamps, arrays, *fields) -> bytes:
         """The message of ``stamps`` [(sec, nanosec)], float64 ``arrays`` and the other ``fields`` (which,
@@ -243,17 +261,23 @@ class _Codec:
         return template.fill(stamps, arrays)
 
     def decode(self, data: bytes, assemble):
-        candidates = self.layouts.setdefault(len(data), [])
-        for layout in candidates:
-            found = layout.read(data)
-            if found is not None:
-                return assemble(layout.parsed, *found)
+        for spans, table in self.index.get(len(data), ()):
+            layout = table.get(b"".join([data[start:end] for start, end in spans]))
+            if layout is not None:
+                return assemble(layout.parsed, *layout.values(data))
         reader = _Reader(data)
         parsed = self.read_full(reader)
         if sum(len(c) for c in self.layouts.values()) >= self.LIMIT:
             self.layouts.clear()
-            candidates = self.layouts[len(data)] = []
-        candidates.append(_Layout(data, reader, copy.deepcopy(parsed)))
+            self.index.clear()
+        layout = _Layout(data, reader, copy.deepcopy(parsed))
+        self.layouts.setdefault(len(data), []).append(layout)
+        groups, spans = self.index.setdefault(len(data), []), layout.spans
+        table = next((table for group_spans, table in groups if group_spans == spans), None)
+        if table is None:
+            table = {}
+            groups.append((spans, table))
+        table[layout.signature()] = layout
         return parsed
 
 

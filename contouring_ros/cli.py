@@ -56,9 +56,11 @@ def _run(args):
     from .scoring import format_scores, score_bag
     config = _experiment_path(args.config)
     try:
+        if args.composed and args.group:
+            raise ConfigError("--composed and --group are two layouts: give one")
         bag = run_graph(config, args.bag, progress=lambda m: print(m, flush=True),
-                        layout="composed" if args.composed else "process", namespace=args.namespace,
-                        domain_id=args.domain, shared_domain=args.domain is not None)
+                        layout="composed" if args.composed else "process", groups=args.group,
+                        namespace=args.namespace, domain_id=args.domain, shared_domain=args.domain is not None)
     except RunError as error:
         print(f"error: {error}", file=sys.stderr)
         if error.bag is not None and Path(error.bag).is_file():
@@ -267,6 +269,9 @@ def main(argv=None):
     p.add_argument("config", nargs="?", default=DEFAULT_EXPERIMENT, help=f"experiment YAML (default {DEFAULT_EXPERIMENT})")
     p.add_argument("--bag", help="bag to write (default bags/<experiment>_<time>.mcap)")
     p.add_argument("--composed", action="store_true", help="run every node in one process under one executor")
+    p.add_argument("--group", action="append", metavar="NODE,NODE,...",
+                   help="grouped layout: run these nodes (e.g. x/plant,x/servo) in one process on the composed "
+                        "loop; repeat for more groups; every node in no group runs in its own process")
     p.add_argument("--namespace", default="/", metavar="NS",
                    help="run every node and topic under /NS (e.g. m1: /m1/x/plant publishes /m1/x/state)")
     p.add_argument("--domain", type=_domain_id, metavar="ID",

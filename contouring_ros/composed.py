@@ -1,10 +1,12 @@
-"""The composed layout: every node of the graph as its own rclpy node, all in one process under one
-SingleThreadedExecutor (the stock callback path of :class:`~contouring_ros.nodes.lockstep.LockstepNode`).
+"""The composed layout: every node of the graph as its own rclpy node, all in one process on one lean loop
+(or under one SingleThreadedExecutor: the stock callback path of
+:class:`~contouring_ros.nodes.lockstep.LockstepNode`). The same loop over a subset of the nodes is one
+process of the grouped layout (``--nodes``; the runner starts the other nodes elsewhere).
 
 Same nodes, same topics, same step semantics as the process layout, hence the same bag payloads.
 Usage (the runner does this):
-python -m contouring_ros.composed EXPERIMENT.yaml BAG.mcap [lean|stock] [--start-time UNIX_TIME]
-(``--start-time``: tick 0 of a realtime run)
+python -m contouring_ros.composed EXPERIMENT.yaml BAG.mcap [lean|stock] [--start-time UNIX_TIME] [--nodes A,B]
+(``--start-time``: tick 0 of a realtime run; ``--nodes``: only these nodes, one group of the grouped layout)
 """
 from __future__ import annotations
 
@@ -16,7 +18,8 @@ from pathlib import Path
 from . import graph
 from .config import load_experiment
 from .errors import ContouringError, RunError
-from .runner import override_arguments, shared_overrides, write_parameter_file
+from .nodes.lockstep import COMPOSED_LOOP
+from .runner import group_label, override_arguments, shared_overrides, write_parameter_file
 
 __all__ = ["main"]
 
@@ -48,17 +51,24 @@ def _lean_spin_once(nodes, wait_set, handles, timeout_ns: int):
 
 
 def run_composed(experiment_path: str, bag: str, executor_kind: str = "lean", start_time: float = 0.0,
-                 namespace: str = "/"):
-    """Create every node in this process, run the lockstep to the end, close the bag.
+                 names=None, namespace: str = "/"):
+    """Create the nodes ``names`` (the graph's own full names, e.g. /x/plant; default every node of the
+    graph: the composed layout) in this process under the graph ``namespace``, run the lockstep to the
+    end, close the bag if the recorder is one of them.
 
     ``executor_kind`` ``lean`` waits on one wait set holding every node's subscriptions and dispatches
     serialised messages directly; ``stock`` spins rclpy's SingleThreadedExecutor over the same nodes'
-    subscription callbacks (the path for users who embed the nodes in their own executor).
+    subscription callbacks (the path for users who embed the nodes in their own executor). A subset of the
+    graph is one group of the grouped layout: the other nodes run in other processes (the runner starts
+    them), and the same loop serves it.
     """
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.parameter import Parameter
     experiment = load_experiment(experiment_path)
+    every = graph.node_names(experiment.axes)
+    names = every if names is None else [n for n in every if n in set(names)]   # graph order, recorder last
+    label = COMPOSED_LOOP if names == every else f"the group {group_label(names)}"
     namespace = graph.normalize_namespace(namespace)
     directory = tempfile.TemporaryDirectory(prefix="contouring_ros_")
     parameter_file = write_parameter_file(Path(experiment_path), namespace, directory.name)
@@ -69,13 +79,16 @@ def run_composed(experiment_path: str, bag: str, executor_kind: str = "lean", st
     classes, nodes = _node_classes(), []
     executor = SingleThreadedExecutor()
     try:
-        specs = graph.node_specs(experiment.axes, None, str(bag), str(experiment_path), namespace)
-        for spec in specs[1:] + specs[:1]:        # the recorder last: it takes what the others published
+        specs = {spec.full_name: spec for spec in graph.node_specs(experiment.axes, None, str(bag),
+                                                                   str(experiment_path), namespace)}
+        for name in names:
+            spec = specs[graph.resolve(namespace, name)]
             overrides = [Parameter(key, value=value) for key, value in spec.overrides]
             node = classes[spec.executable](name=spec.name, namespace=spec.namespace, parameter_overrides=overrides,
                                             callbacks=True)
             nodes.append(node)
             executor.add_node(node.node)
+        recorder = nodes[-1] if nodes[-1].role == "recorder" else None
         for node in nodes:
             node.wait_for_graph()
         for node in nodes:
@@ -83,14 +96,14 @@ def run_composed(experiment_path: str, bag: str, executor_kind: str = "lean", st
         if executor_kind == "lean" or experiment.timing == "realtime":
             from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
             handles = [sub.handle for node in nodes for _, sub, _, _ in node._inputs]
-            wait_set = _rclpy.WaitSet(len(handles), 0, 0, 0, 0, 0, nodes[0].node.context.handle)
+            wait_set = _rclpy.WaitSet(max(len(handles), 1), 0, 0, 0, 0, 0, nodes[0].node.context.handle)
 
             def spin_once(timeout_sec):
                 _lean_spin_once(nodes, wait_set, handles, int(timeout_sec * 1e9))
         else:
             spin_once = executor.spin_once
         if experiment.timing == "realtime":
-            _run_realtime(nodes, nodes[0].experiment)
+            _run_realtime(nodes, label)
         last, last_progress = -1, time.monotonic()
         while not all(node.finished for node in nodes):
             spin_once(timeout_sec=0.2)
@@ -102,16 +115,17 @@ def run_composed(experiment_path: str, bag: str, executor_kind: str = "lean", st
                 last, last_progress = progress, time.monotonic()
             elif time.monotonic() - last_progress > experiment.stall_timeout:
                 stuck = [node for node in nodes if not node.finished]
-                raise RunError(f"composed graph stalled for {experiment.stall_timeout:g} s: "
+                raise RunError(f"{label} stalled for {experiment.stall_timeout:g} s: "
                                + "; ".join(f"{n.name} at step {n.next_step}, no message on "
                                            f"{', '.join(n.missing_inputs())}" for n in stuck if n.missing_inputs()))
-        recorder = nodes[-1]
-        for node in nodes[:-1]:
-            node.finish()
-        deadline = time.monotonic() + 0.3            # let the recorder take the end-of-run diagnostics
-        while time.monotonic() < deadline:
-            spin_once(timeout_sec=0.02)
-        recorder.finish()
+        for node in nodes:
+            if node is not recorder:
+                node.finish()
+        if recorder is not None:
+            deadline = time.monotonic() + 0.3        # let the recorder take the end-of-run diagnostics
+            while time.monotonic() < deadline:
+                spin_once(timeout_sec=0.02)
+            recorder.finish()
     finally:
         for node in reversed(nodes):
             node.destroy()
@@ -119,38 +133,43 @@ def run_composed(experiment_path: str, bag: str, executor_kind: str = "lean", st
         directory.cleanup()
 
 
-def _run_realtime(nodes, experiment):
-    """Every node's realtime ticks in one loop: wait for tick k on all subscriptions, then tick each node
-    in graph order (interpolator, plants, estimator, CCC, servos); the recorder takes what arrives.
-    ``experiment`` is a node's (it holds the run's start_time)."""
+def _run_realtime(nodes, label: str):
+    """The nodes' realtime ticks in one loop (:func:`~contouring_ros.nodes.lockstep.realtime_loop`): wait for
+    tick k on all subscriptions, then tick each node in graph order (interpolator, plants, estimator, CCC,
+    servos); the recorder, if one of them, takes what arrives after each tick."""
     import rclpy
     from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
-    from .nodes.lockstep import wait_until
-    lockstep_nodes, recorder = nodes[:-1], nodes[-1]
+    from .nodes.lockstep import realtime_loop, wait_until
+    from .nodes.recorder import REALTIME_GRACE
+    lockstep_nodes = [node for node in nodes if node.role != "recorder"]
+    recorder = nodes[-1] if nodes[-1].role == "recorder" else None
     for node in lockstep_nodes:
         node.realtime_setup()
     handles = [sub.handle for node in nodes for _, sub, _, _ in node._inputs]
-    wait_set = _rclpy.WaitSet(len(handles), 0, 0, 0, 0, 0, nodes[0].node.context.handle)
+    wait_set = _rclpy.WaitSet(max(len(handles), 1), 0, 0, 0, 0, 0, nodes[0].node.context.handle)
+    context = nodes[0].node.context
+    record = (lambda: recorder.take_all(recorder.admitted)) if recorder is not None else None
 
     def take():
         for node in lockstep_nodes:
             node.take_all(node.keep_newest)
-        recorder.take_all(recorder.admitted)
+        if record is not None:
+            record()
 
     switch_interval = sys.getswitchinterval()
     sys.setswitchinterval(REALTIME_SWITCH_INTERVAL)
     try:
-        for tick in range(experiment.n_steps):
-            wait_until(lockstep_nodes[0].tick_time(tick), wait_set, handles, take, nodes[0].node.context,
-                       spin=REALTIME_SPIN)
-            for node in lockstep_nodes:
-                node.realtime_tick(tick)
-            recorder.take_all(recorder.admitted)
+        if lockstep_nodes:
+            realtime_loop(lockstep_nodes, label, wait_set, handles, take, spin=REALTIME_SPIN, after_tick=record)
     finally:
         sys.setswitchinterval(switch_interval)
-    end = time.time() + 1.0
-    while not recorder.complete() and time.time() < end and rclpy.ok(context=nodes[0].node.context):
-        wait_until(time.time() + 0.01, wait_set, handles, take, nodes[0].node.context)
+    if recorder is None:
+        return
+    experiment = recorder.experiment
+    end = max(time.time() + 1.0, experiment.start_time + experiment.n_steps * experiment.sample_time
+              + REALTIME_GRACE)
+    while not recorder.complete() and time.time() < end and rclpy.ok(context=context):
+        wait_until(time.time() + 0.01, wait_set, handles, take, context)
     recorder.finished = True
 
 
@@ -161,10 +180,13 @@ def main(argv=None) -> int:
     parser.add_argument("bag")
     parser.add_argument("executor", nargs="?", default="lean", choices=["lean", "stock"])
     parser.add_argument("--start-time", type=float, default=0.0, help="Unix time of tick 0 (realtime runs)")
+    parser.add_argument("--nodes", help="comma-separated full node names: run only these (one group of the "
+                        "grouped layout; default every node)")
     parser.add_argument("--namespace", default="/", help="the graph's namespace (default: the root)")
     args = parser.parse_args(sys.argv[1:] if argv is None else argv)
     try:
-        run_composed(args.experiment, args.bag, args.executor, args.start_time, args.namespace)
+        run_composed(args.experiment, args.bag, args.executor, args.start_time,
+                     args.nodes.split(",") if args.nodes else None, args.namespace)
     except KeyboardInterrupt:
         return 130
     except ContouringError as error:

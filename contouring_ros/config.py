@@ -67,6 +67,7 @@ def _gains(**defaults):
 
 TIMINGS = ("lockstep", "realtime")
 INVALID_INPUT_POLICIES = ("stop", "hold")
+OVERRUN_POLICIES = ("stop", "skip")
 INITIAL_STATES = ("on_reference", "at_rest")
 DISTURBANCE_UNITS = ("command", "acceleration")
 # task-frame controllers: the local approximation they act on -> the estimator that reports its errors
@@ -344,6 +345,11 @@ GLOBALS = {
                                                                              # non-finite or malformed input
     "timing": Param("str", "lockstep", choices=TIMINGS),   # docs/ARCHITECTURE.md, "One control step"
     "start_time": Param("float", 0.0, "nonnegative"),  # realtime: Unix time of tick 0 (the runner sets it)
+    # realtime: s a node (or a group's loop) may fall behind its ticks before on_overrun acts
+    "max_lag": Param("float", 0.02, "positive"),
+    # realtime, past max_lag: stop the run with one line (like a drive's following-error trip), or skip to
+    # the tick now due and count the skipped ones
+    "on_overrun": Param("str", "stop", choices=OVERRUN_POLICIES),
     # whether the CCC subscribes to /reference and the states: contouring-ros run sets false where the
     # controller does not use them (3 fewer deliveries a step with 2 axes); true is always safe
     "ccc_takes_state": Param("bool", True),
@@ -372,7 +378,7 @@ _AXIS_GAIN, _TIME_CONSTANT = (1e-9, 1e9), (1e-6, 1e3)      # command units -> m/
 BOUNDS = {
     "GLOBALS": {"sample_time": (1e-5, 1.0), "duration": (0.0, MAX_DURATION), "settle_time": (0.0, MAX_DURATION),
                 "stall_timeout": (1e-3, 3600.0), "graph_timeout": (1e-3, 86400.0), "start_time": (0.0, 1e10),
-                "divergence_factor": (0.0, 1e6)},
+                "divergence_factor": (0.0, 1e6), "max_lag": (1e-6, 3600.0)},
     "CURVES": {"a": _SIZE, "b": _SIZE, "radius": _SIZE, "scale": _SIZE, "length": (1e-9, 1e6), "h": (-1e3, 1e3),
                "c": (-1e3, 1e3), "omega": (-1e4, 1e4), "center": _COORDINATE, "start": _COORDINATE,
                "end": _COORDINATE, "x": _COORDINATE, "y": _COORDINATE, "z": _COORDINATE,
@@ -462,6 +468,8 @@ class Experiment:
     on_invalid_input: str = "stop"
     timing: str = "lockstep"
     start_time: float = 0.0
+    max_lag: float = 0.02
+    on_overrun: str = "stop"
     ccc_takes_state: bool = True
     plants: dict = field(default_factory=dict)     # axis -> plant section
     servos: dict = field(default_factory=dict)     # axis -> servo section
@@ -1065,6 +1073,7 @@ def experiment_from_data(data, where: str = "<experiment>", text: str = "") -> E
         initial_state=globals_["initial_state"], network=globals_["network"],
         stall_timeout=globals_["stall_timeout"], on_invalid_input=globals_["on_invalid_input"],
         graph_timeout=globals_["graph_timeout"], timing=globals_["timing"], start_time=globals_["start_time"],
+        max_lag=globals_["max_lag"], on_overrun=globals_["on_overrun"],
         divergence_factor=globals_["divergence_factor"],
         ccc_takes_state=globals_["ccc_takes_state"],
         plants={a: parsed[f"/{a}/plant"] for a in axes}, servos={a: parsed[f"/{a}/servo"] for a in axes},
@@ -1094,7 +1103,8 @@ def experiment_for_node(parameters: dict, node: str, role: str, where: str | Non
         graph_timeout=globals_["graph_timeout"], on_invalid_input=globals_["on_invalid_input"],
         divergence_factor=globals_["divergence_factor"],
         timing=globals_["timing"],
-        start_time=globals_["start_time"], ccc_takes_state=globals_["ccc_takes_state"],
+        start_time=globals_["start_time"], max_lag=globals_["max_lag"],
+        on_overrun=globals_["on_overrun"], ccc_takes_state=globals_["ccc_takes_state"],
         plants={axis: section} if role == "plant" else {}, servos={axis: section} if role == "servo" else {},
         estimator=section if role == "contour_estimator" else {}, controller=section if role == "ccc" else {},
         info={"experiment": globals_["experiment"], "paper": globals_["paper"], "node": section})

@@ -190,7 +190,7 @@ def message_problem(topic: Topic, msg) -> str | None:
         values = getattr(holder, name)
         if len(values) != length:
             return f"{name} has {len(values)} values, expected {length}"
-        if not all(math.isfinite(v) for v in values):
+        if not all(map(math.isfinite, values)):
             return f"{name} holds a non-finite value {list(values)}"
     return None
 

@@ -23,8 +23,8 @@ from . import graph
 from .config import Experiment, controller_uses_state, load_experiment, namespaced_parameter_file
 from .errors import RunError
 
-__all__ = ["NodeProcess", "DomainLease", "graph_commands", "write_parameter_file", "private_environment", "run_graph",
-           "default_bag_path"]
+__all__ = ["NodeProcess", "DomainLease", "graph_commands", "grouped_commands", "parse_groups", "write_parameter_file",
+           "private_environment", "run_graph", "default_bag_path"]
 
 FASTDDS_PROFILE = Path(__file__).resolve().parent / "fastdds_profile.xml"
 SHUTDOWN_GRACE = 10.0
@@ -308,8 +308,55 @@ def composed_command(experiment_path, bag: Path, start_time: float = 0.0, namesp
                         + (["--namespace", namespace] if namespace not in ("", "/") else []))]
 
 
+def parse_groups(groups, axes) -> list:
+    """The grouped layout's groups: each a list of full node names (``x/plant`` or ``/x/plant``) in graph
+    order. Every name must be a node of the graph for ``axes`` and in one group at most; a ConfigError in
+    one line otherwise."""
+    from .errors import ConfigError
+    every = graph.node_names(axes)
+    seen, out = set(), []
+    for group in groups:
+        names = [n.strip() for n in (group.split(",") if isinstance(group, str) else group) if n.strip()]
+        if not names:
+            raise ConfigError("--group: an empty group (expected NODE,NODE,... e.g. x/plant,x/servo)")
+        full = []
+        for name in names:
+            name = "/" + name.strip("/")
+            if name not in every:
+                raise ConfigError(f"--group: {name} is not a node of this graph (its nodes: {', '.join(every)})")
+            if name in seen:
+                raise ConfigError(f"--group: {name} is in two groups (a node runs in one process)")
+            seen.add(name)
+            full.append(name)
+        out.append([n for n in every if n in full])
+    return out
+
+
+def group_label(names) -> str:
+    """How a group's process is named: its nodes' full names joined by commas."""
+    return ",".join(names)
+
+
+def grouped_commands(experiment_path, experiment: Experiment, bag: Path, groups, start_time: float = 0.0,
+                     namespace: str = "/", parameter_file=None) -> list:
+    """The grouped layout: one process per group of two or more nodes (the composed loop over that subset,
+    ``python -m contouring_ros.composed --nodes``), and every node in no such group in its own process as
+    in the process layout, all under the graph ``namespace``. ``groups`` as :func:`parse_groups` returns
+    them (the graph's own names)."""
+    shared = [group for group in groups if len(group) > 1]
+    grouped = {graph.resolve(namespace, name) for group in shared for name in group}
+    out = [node for node in graph_commands(experiment_path, experiment, bag, start_time, namespace, parameter_file)
+           if node.name not in grouped]
+    for group in shared:
+        out.append(NodeProcess(group_label(group), [sys.executable, "-m", "contouring_ros.composed", str(experiment_path),
+                                                    str(bag), "--nodes", ",".join(group)]
+                               + (["--start-time", repr(start_time)] if start_time else [])
+                               + (["--namespace", namespace] if namespace not in ("", "/") else [])))
+    return out
+
+
 def run_graph(experiment_path, bag=None, *, timeout: float | None = None, domain_id: int | None = None,
-              progress=None, on_started=None, layout: str = "process", namespace: str = "/",
+              progress=None, on_started=None, layout: str = "process", groups=None, namespace: str = "/",
               shared_domain: bool = False) -> Path:
     """Run the experiment through the process graph and return the bag's path.
 
@@ -335,6 +382,9 @@ def run_graph(experiment_path, bag=None, *, timeout: float | None = None, domain
         Called once every node process has been started.
     layout : str
         ``process`` (every node its own process) or ``composed`` (all nodes in one process).
+    groups : list, optional
+        The grouped layout (with ``layout`` ``process``): each group, a list of node names or a string
+        ``x/plant,x/servo``, runs in one process on the composed loop; every other node in its own process.
     namespace : str
         Graph namespace: every node and topic under it (``m1``: /m1/x/plant publishes /m1/x/state).
     """
@@ -347,6 +397,8 @@ def run_graph(experiment_path, bag=None, *, timeout: float | None = None, domain
     timeout = timeout if timeout is not None else 60.0 + experiment.n_steps / 50.0
     if layout not in ("process", "composed"):
         raise RunError(f"unknown layout {layout!r} (expected process or composed)")
+    if groups and layout != "process":
+        raise RunError("groups are a layout of their own: give them with layout process (the default)")
     try:
         namespace = graph.normalize_namespace(namespace)
     except ValueError as error:
@@ -354,8 +406,14 @@ def run_graph(experiment_path, bag=None, *, timeout: float | None = None, domain
     start_time = time.time() + REALTIME_START_DELAY if experiment.timing == "realtime" else 0.0
     parameter_directory = tempfile.TemporaryDirectory(prefix="contouring_ros_")
     parameter_file = write_parameter_file(experiment_path.resolve(), namespace, parameter_directory.name)
-    nodes = graph_commands(experiment_path.resolve(), experiment, bag.resolve(), start_time, namespace, parameter_file) \
-        if layout == "process" else composed_command(experiment_path.resolve(), bag.resolve(), start_time, namespace)
+    if groups:
+        nodes = grouped_commands(experiment_path.resolve(), experiment, bag.resolve(),
+                                 parse_groups(groups, experiment.axes), start_time, namespace, parameter_file)
+    elif layout == "process":
+        nodes = graph_commands(experiment_path.resolve(), experiment, bag.resolve(), start_time, namespace,
+                               parameter_file)
+    else:
+        nodes = composed_command(experiment_path.resolve(), bag.resolve(), start_time, namespace)
     say = progress or (lambda message: None)
     in_main_thread = threading.current_thread() is threading.main_thread()
     previous_handler = signal.signal(signal.SIGTERM, _raise_terminated) if in_main_thread else None
@@ -363,7 +421,9 @@ def run_graph(experiment_path, bag=None, *, timeout: float | None = None, domain
     try:
         with DomainLease(domain_id, shared=shared_domain) as lease:
             env = private_environment(lease.domain_id, network=experiment.network)
-            say(f"starting {len(nodes)} nodes on ROS domain {lease.domain_id}: {experiment.n_steps} steps")
+            count = len(graph.node_names(experiment.axes))
+            say(f"starting {count} nodes" + (f" in {len(nodes)} processes" if len(nodes) != count else "")
+                + f" on ROS domain {lease.domain_id}: {experiment.n_steps} steps")
             try:
                 runner_pid = os.getpid()
                 for node in nodes:
@@ -404,9 +464,12 @@ def _watch(nodes, timeout, started, say):
     while True:
         codes = {node.name: node.process.poll() for node in nodes}
         if any(code not in (None, 0) for code in codes.values()):
-            time.sleep(0.2)     # let the other nodes report too, then name the root cause first
+            first = {name for name, code in codes.items() if code not in (None, 0)}
+            time.sleep(0.2)     # let the other nodes report too, then name the root cause first: a node
+            # that failed first, before one that failed meanwhile (perhaps for want of the first), and a
+            # stall (the consequence of another node's failure) last
             failed = [node for node in nodes if node.process.poll() not in (None, 0)]
-            failed.sort(key=lambda node: "stalled" in node.last_error_line())
+            failed.sort(key=lambda node: (node.name not in first, "stalled" in node.last_error_line()))
             reasons = []
             for node in failed:
                 detail = node.last_error_line()

@@ -8,10 +8,12 @@ from .config import build_curve, parse_experiment
 from .core.metrics import Scores, score
 from .errors import BagError, ScoreError
 
-__all__ = ["score_run", "score_bag", "check_experiment_matches", "curve_of", "format_scores", "format_realtime"]
+__all__ = ["score_run", "score_bag", "check_experiment_matches", "curve_of", "format_scores", "format_realtime",
+           "miss_rate"]
 
-REALTIME_COLUMNS = ("ticks", "deadline misses", "late inputs", "ticks missing an input", "latency p50 [us]",
-                    "latency p99 [us]", "latency max [us]", "jitter [us]")
+REALTIME_COLUMNS = ("ticks", "deadline misses", "skipped ticks", "late inputs", "ticks missing an input",
+                    "latency p50 [us]", "latency p99 [us]", "latency max [us]", "work p50 [us]", "work p99 [us]",
+                    "jitter [us]")
 
 
 def score_run(curve, run, from_time: float = 0.0) -> Scores:
@@ -89,6 +91,13 @@ def format_scores(named: list, axes=None) -> str:
     return "\n".join(lines)
 
 
+def miss_rate(values: dict) -> float:
+    """A node's deadline misses in percent of its ticks, a tick skipped (``on_overrun: skip``) counting as a
+    miss; ``values`` is one node's end-of-run report (:func:`contouring_ros.bag.node_reports`)."""
+    skipped = int(values.get("skipped ticks", 0))
+    return 100.0 * (int(values["deadline misses"]) + skipped) / max(1, int(values["ticks"]) + skipped)
+
+
 def format_realtime(reports: dict) -> str:
     """The realtime summary of a run, one row per node, from :func:`contouring_ros.bag.node_reports`
     ('' when the run was not realtime)."""
@@ -97,9 +106,10 @@ def format_realtime(reports: dict) -> str:
         return ""
     width = max(len(name) for name in rows)
     header = ["node".ljust(width)] + [c.rjust(max(8, len(c))) for c in REALTIME_COLUMNS] + ["miss rate".rjust(9)]
-    lines = ["realtime (per node; latency = tick to outputs sent):", "  ".join(header)]
+    lines = ["realtime (per node; latency = tick to outputs sent; work = the node's own handling of a tick; "
+             "a skipped tick counts as a miss):", "  ".join(header)]
     for name, values in sorted(rows.items()):
         cells = [str(values.get(c, "-")).rjust(max(8, len(c))) for c in REALTIME_COLUMNS]
-        rate = 100.0 * int(values["deadline misses"]) / max(1, int(values["ticks"]))
+        rate = miss_rate(values)
         lines.append("  ".join([name.ljust(width)] + cells + [f"{rate:8.2f}%"]))
     return "\n".join(lines)

@@ -51,10 +51,11 @@ def test_the_namespaced_parameter_file_changes_only_the_node_keys():
 
 @pytest.mark.graph
 @pytest.mark.slow
-def test_two_namespaced_graphs_share_a_domain_without_hearing_each_other(tmp_path):
-    """Two runs of one experiment at once in one ROS domain, under /m1 (process layout) and /m2 (composed):
-    each bag holds only its own graph's topics, under its namespace, with the payloads of the simulation
-    (a message heard from the other graph would be refused by the nodes' publisher checks and stop the run)."""
+def test_namespaced_graphs_share_a_domain_without_hearing_each_other(tmp_path):
+    """Three runs of one experiment at once in one ROS domain, under /m1 (process layout), /m2 (composed)
+    and /m3 (grouped): each bag holds only its own graph's topics, under its namespace, with the payloads
+    of the simulation (a message heard from another graph would be refused by the nodes' publisher checks
+    and stop the run)."""
     path = tmp_path / "short.yaml"
     path.write_text(shortened(DEFAULT, 0.3))
     experiment = load_experiment(path)
@@ -64,14 +65,15 @@ def test_two_namespaced_graphs_share_a_domain_without_hearing_each_other(tmp_pat
         domain = lease.domain_id
     bags, errors = {}, []
 
-    def run(namespace, layout):
+    def run(namespace, layout, groups=None):
         try:
             bags[namespace] = run_graph(path, tmp_path / f"{namespace}.mcap", namespace=namespace, layout=layout,
-                                        domain_id=domain, shared_domain=True)
+                                        groups=groups, domain_id=domain, shared_domain=True)
         except Exception as error:     # reported below with the namespace
             errors.append(f"{namespace}: {error}")
 
-    threads = [threading.Thread(target=run, args=args) for args in (("m1", "process"), ("m2", "composed"))]
+    threads = [threading.Thread(target=run, args=args) for args in (
+        ("m1", "process"), ("m2", "composed"), ("m3", "process", ["x/plant,x/servo", "y/plant,y/servo"]))]
     for thread in threads:
         thread.start()
     for thread in threads:

@@ -11,7 +11,9 @@ recorder; nodes start publishing only once every expected subscriber has matched
 """
 from __future__ import annotations
 
+import gc
 import importlib
+import os
 import sys
 import time
 
@@ -45,6 +47,8 @@ MAX_AHEAD = 64
 REPORT_LIMIT = 20        # rejections reported on /diagnostics per topic; the rest are counted
 _MIN_STAMPED = 12        # bytes of the smallest stamped message: encapsulation, sec, nanosec
 ACK_TIMEOUT = 5.0        # s to wait for the last messages to be acknowledged
+SLOW_TICK_ENV = "CONTOURING_ROS_SLOW_TICK"   # overrun rehearsal: see slow_tick_seconds
+COMPOSED_LOOP = "the composed loop"          # how the overrun error names the composed layout's one loop
 
 
 def message_class(type_name: str):
@@ -187,6 +191,10 @@ class LockstepNode:
         """Block until every expected subscriber of our outputs and a publisher of every input matched."""
         timeout = self.experiment.graph_timeout
         deadline = time.monotonic() + timeout
+        # realtime: a node that comes up after the run's last tick waits no longer (a node that already
+        # finished and left will never match)
+        run_end = self.experiment.start_time + self.n_steps * self.experiment.sample_time \
+            if self._realtime and self.experiment.start_time > 0.0 else None
         self.node.get_logger().info(f"waiting up to {timeout:g} s (graph_timeout) for the rest of the graph")
         while True:
             missing = [f"subscribers of {topic} ({', '.join(self._topics[topic].subscribers)})"
@@ -202,6 +210,9 @@ class LockstepNode:
                                f"still waiting for {missing[0]})")
             if not rclpy.ok(context=self.node.context):      # SIGINT/SIGTERM while waiting: stop now
                 raise ExternalShutdownException()
+            if run_end is not None and time.time() > run_end:
+                raise RunError(f"{self.name}: the graph was not up by the realtime run's last tick (still waiting "
+                               f"for {missing[0]}): the machine was too busy to start the graph in time")
             if not self.callbacks:
                 self.serve_requests()
             time.sleep(0.01)
@@ -398,7 +409,12 @@ class LockstepNode:
         self._first_tick = max(0, -self.realtime_offset)
         ticks = self.n_steps - self._first_tick
         self.latency, self.lateness = np.full(ticks, np.nan), np.full(ticks, np.nan)
-        self.deadline_misses = self.late_inputs = self.missing_inputs_count = 0
+        self.work = np.full(ticks, np.nan)
+        self.deadline_misses = self.late_inputs = self.missing_inputs_count = self.skipped_ticks = 0
+        self._extra_work = slow_tick_seconds(self.name)
+        if self._extra_work:
+            self.node.get_logger().warning(f"{SLOW_TICK_ENV}: every tick takes {self._extra_work * 1e3:g} ms "
+                                           "longer (an overrun rehearsal)")
         return self._first_tick
 
     def keep_newest(self, topic: str, data: bytes):
@@ -426,10 +442,12 @@ class LockstepNode:
         else:
             self.on_step(step, self._checked_inputs(step, {topic: newest[topic][1] for topic in present})
                          if self.realtime_needs_inputs else {})
+        if self._extra_work:
+            time.sleep(self._extra_work)
         done = time.time()
         self.next_step = step + 1
         i = tick - self._first_tick
-        self.lateness[i], self.latency[i] = woke - deadline, done - deadline
+        self.lateness[i], self.latency[i], self.work[i] = woke - deadline, done - deadline, done - woke
         if done - deadline > self.experiment.sample_time:
             self.deadline_misses += 1
         if tick == self.n_steps - 1:
@@ -441,29 +459,35 @@ class LockstepNode:
         step k + ``realtime_offset`` with them. A tick that starts late is still handled, at once, so every
         step is published; it counts as a deadline miss when its outputs leave after the next tick. An input
         older than the previous step counts as late, a tick without some input as missing (nothing is
-        published for it)."""
+        published for it). A tick that starts more than ``max_lag`` late trips :func:`realtime_loop`'s
+        overrun policy."""
         self.wait_for_graph()
         self.start()
-        first = self.realtime_setup()
+        self.realtime_setup()
         handles = [sub.handle for _, sub, _, _ in self._inputs]
         wait_set = _rclpy.WaitSet(max(len(handles), 1), 0, 0, 0, 0, 0, self.node.context.handle)
-        for tick in range(first, self.n_steps):
-            wait_until(self.tick_time(tick), wait_set, handles, lambda: self.take_all(self.keep_newest),
-                       self.node.context)
-            self.realtime_tick(tick)
-            self.serve_requests()
+        realtime_loop([self], self.name, wait_set, handles, lambda: self.take_all(self.keep_newest),
+                      after_tick=self.serve_requests)
 
     def realtime_counters(self) -> dict:
-        """Deadline misses, late and missing inputs, loop latency (tick to outputs sent) p50/p99/max and
-        wake-up jitter, in microseconds: the end-of-run realtime summary."""
+        """Deadline misses, skipped ticks (``on_overrun: skip``), late and missing inputs, loop latency (tick
+        to outputs sent) p50/p99/max, work time (the node's own handling of a tick) p50/p99 and wake-up
+        jitter, in microseconds: the end-of-run realtime summary."""
         if getattr(self, "latency", None) is None or not np.isfinite(self.latency).any():
             return {}
         latency = self.latency[np.isfinite(self.latency)] * 1e6
-        return {"ticks": latency.size, "deadline misses": self.deadline_misses,
+        work = self.work[np.isfinite(self.work)] * 1e6
+        return {"ticks": latency.size, "deadline misses": self.deadline_misses, "skipped ticks": self.skipped_ticks,
                 "late inputs": self.late_inputs, "ticks missing an input": self.missing_inputs_count,
                 "latency p50 [us]": f"{np.percentile(latency, 50):.0f}",
                 "latency p99 [us]": f"{np.percentile(latency, 99):.0f}", "latency max [us]": f"{latency.max():.0f}",
+                "work p50 [us]": f"{np.percentile(work, 50):.0f}", "work p99 [us]": f"{np.percentile(work, 99):.0f}",
                 "jitter [us]": f"{np.std(self.lateness[np.isfinite(self.lateness)]) * 1e6:.0f}"}
+
+    def recent_work(self, ticks: int = 100) -> float:
+        """Mean work time per tick (s) over the last ``ticks`` ticks handled (0 before any)."""
+        done = self.work[np.isfinite(self.work)][-ticks:]
+        return float(done.mean()) if done.size else 0.0
 
     def finish(self):
         """Wait until every subscriber still in the graph acknowledged what we published.
@@ -472,10 +496,15 @@ class LockstepNode:
         acknowledgements follow the writers' heartbeats, every 20 ms with the package's Fast DDS profile.
         """
         self.node.get_logger().info(f"completed {self.next_step} steps")
-        self.report(DiagnosticStatus.OK if not self.rejected else DiagnosticStatus.WARN,
-                    f"completed {self.next_step} steps", {"steps": self.next_step, **self.counters(),
-                                                          **self.realtime_counters(), **{
-                        f"rejected {topic}": count for topic, count in self.rejected.items()}})
+        skipped = getattr(self, "skipped_ticks", 0)
+        message = f"completed {self.next_step} steps"
+        if skipped:
+            message += (f"; skipped {skipped} ticks that started more than max_lag "
+                        f"({self.experiment.max_lag * 1e3:g} ms) late (on_overrun: skip)")
+        counts = {"steps": self.next_step, **self.counters(), **self.realtime_counters(),
+                  **{f"rejected {topic}": count for topic, count in self.rejected.items()}}
+        self.report(DiagnosticStatus.OK if not self.rejected and not skipped else DiagnosticStatus.WARN,
+                    message, counts)
         deadline = time.monotonic() + ACK_TIMEOUT
         for pub in self._outputs.values():
             while time.monotonic() < deadline:
@@ -493,6 +522,75 @@ def wait_on(wait_set, handles, timeout_ns: int):
     for handle in handles:
         wait_set.add_subscription(handle)
     wait_set.wait(timeout_ns)
+
+
+def slow_tick_seconds(name: str) -> float:
+    """Extra seconds each realtime tick of node ``name`` takes, from the environment variable SLOW_TICK_ENV
+    ("NODE=SECONDS[,NODE=SECONDS ...]", e.g. "/x/servo=0.005"; 0 for a node it does not name). A rehearsal
+    knob: it makes a node too slow for its ticks on purpose, so that the overrun policy can be seen (and
+    tested) to act; it is never set by the package itself."""
+    for item in os.environ.get(SLOW_TICK_ENV, "").split(","):
+        node, _, seconds = item.partition("=")
+        if node.strip() and "/" + node.strip().strip("/") == name:
+            try:
+                return max(0.0, float(seconds))
+            except ValueError:
+                raise ConfigError(f"{SLOW_TICK_ENV}: {item!r} is not NODE=SECONDS") from None
+    return 0.0
+
+
+def realtime_loop(nodes, label: str, wait_set, handles, take, spin: float = 0.0, after_tick=None):
+    """Tick ``nodes`` on the wall clock, in order, every Ts from the experiment's ``start_time``: one node in
+    its own process (:meth:`LockstepNode.spin_realtime`) or a group sharing one thread
+    (:mod:`contouring_ros.composed`). Between ticks wait on ``handles`` and ``take()`` what arrives; after
+    each tick call ``after_tick()``. ``label`` names the loop in the overrun error.
+
+    Overrun policy: the loop knows its lag, how late a tick starts. Past ``max_lag`` (a shared key) it
+    either stops the run with one line naming the loop, its lag and the step (``on_overrun: stop``, the
+    default: like a drive's following-error trip, never a silent drift), or jumps to the tick now due and
+    counts the ticks it skipped on every node (``on_overrun: skip``; reported at the end and on
+    /diagnostics). The garbage collector's generations are frozen before the first tick (``gc.freeze``).
+    """
+    experiment = nodes[0].experiment
+    context = nodes[0].node.context
+    # everything allocated so far (modules, nodes, the core objects) leaves the collector's generations:
+    # a full collection over it stalls a tick 10-20 ms on this machine, after the freeze about nothing
+    gc.collect()
+    gc.freeze()
+    first = tick = min(node._first_tick for node in nodes)
+    while tick < experiment.n_steps:
+        due = nodes[0].tick_time(tick)
+        wait_until(due, wait_set, handles, take, context, spin=spin)
+        lag = time.time() - due
+        if lag > experiment.max_lag:
+            if experiment.on_overrun == "stop":
+                raise RunError(overrun_message(nodes, label, tick, lag, start=tick == first))
+            now = min(int((time.time() - experiment.start_time) / experiment.sample_time), experiment.n_steps - 1)
+            for node in nodes:
+                node.skipped_ticks += max(0, now - max(tick, node._first_tick))
+            tick = max(tick, now)
+        for node in nodes:
+            node.realtime_tick(tick)
+        if after_tick is not None:
+            after_tick()
+        tick += 1
+
+
+def overrun_message(nodes, label: str, tick: int, lag: float, start: bool = False) -> str:
+    """The one line of an overrun trip (``on_overrun: stop``); ``start``: the loop's first tick was late
+    already (the graph came up after its ``start_time``)."""
+    experiment = nodes[0].experiment
+    if start:
+        return (f"{label} came up {lag:.2f} s after its first tick at step {tick} (start_time; max_lag "
+                f"{experiment.max_lag * 1e3:g} ms): the machine was too busy to start the graph in time; try "
+                "--composed or a grouping (--group: fewer processes to start), or timing: lockstep")
+    busiest = ""
+    if len(nodes) > 1:
+        node = max(nodes, key=lambda n: n.recent_work())
+        busiest = f"; most work per tick: {node.name}, {node.recent_work() * 1e3:.2f} ms"
+    remedy = "timing: lockstep" if label == COMPOSED_LOOP else "--composed, a grouping (--group), or timing: lockstep"
+    return (f"{label} fell {lag * 1e3:.1f} ms behind its ticks at step {tick} (max_lag "
+            f"{experiment.max_lag * 1e3:g} ms{busiest}): the machine cannot keep up; try {remedy}")
 
 
 def wait_until(deadline: float, wait_set, handles, take, context, spin: float = 0.0):
