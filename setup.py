@@ -8,6 +8,7 @@ NODES = ["interpolator", "plant", "servo", "contour_estimator", "ccc", "recorder
 setup(
     name=package_name,
     version="0.1.0",
+    python_requires=">=3.11",
     packages=find_packages(exclude=["tests"]),
     package_data={package_name: ["fastdds_profile.xml", "fastdds_profile_network.xml"]},
     data_files=[

@@ -1,4 +1,5 @@
-"""The contouring-ros command line: run, simulate, score, paper."""
+"""The contouring-ros command line: run an experiment through the node graph or simulate it in-process;
+score, compare, export, plot and replay its bags; sweep its keys; measure the papers' claims."""
 from __future__ import annotations
 
 import argparse
@@ -21,6 +22,9 @@ def _experiment_path(name: str) -> Path:
     for candidate in (CONFIG_DIR / path.name, CONFIG_DIR / f"{path.name}.yaml"):
         if candidate.exists():
             return candidate
+    if not path.suffix and len(path.parts) == 1:      # meant as a scenario name
+        raise ConfigError(f"{name}: no such file, nor a scenario of that name in {CONFIG_DIR} (names like "
+                          f"{Path(DEFAULT_EXPERIMENT).stem}; the file names there without .yaml)")
     return path
 
 

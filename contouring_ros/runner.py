@@ -422,8 +422,10 @@ def run_graph(experiment_path, bag=None, *, timeout: float | None = None, domain
         with DomainLease(domain_id, shared=shared_domain) as lease:
             env = private_environment(lease.domain_id, network=experiment.network)
             count = len(graph.node_names(experiment.axes))
-            say(f"starting {count} nodes" + (f" in {len(nodes)} processes" if len(nodes) != count else "")
-                + f" on ROS domain {lease.domain_id}: {experiment.n_steps} steps")
+            processes = "" if len(nodes) == count else " in one process" if len(nodes) == 1 else f" in {len(nodes)} processes"
+            under = f" under {namespace}" if namespace != "/" else ""
+            say(f"starting {count} nodes{processes}{under} on ROS domain {lease.domain_id}"
+                + (" (shared)" if shared_domain else "") + f": {experiment.n_steps} steps")
             try:
                 runner_pid = os.getpid()
                 for node in nodes:
