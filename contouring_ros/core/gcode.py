@@ -193,8 +193,6 @@ def parse_program(text: str, start=(0.0, 0.0, 0.0)) -> Program:
             end[axis] = (value * unit) if absolute else position[axis] + value * unit
         if (2 in axes and end[2] != position[2]) or (motion in (2, 3) and plane != _PLANES[17]):
             moved_z = True                                  # an arc in the ZX or YZ plane moves Z
-        if motion != 0 and has_feed and feed is None:
-            raise ProgramError(f"line {number}: G{motion} before any feed rate (F)")
         block_feed = None if motion == 0 or feed is None else feed * unit / 60.0
         if motion in (0, 1):
             if centre or radius is not None:
@@ -207,6 +205,10 @@ def parse_program(text: str, start=(0.0, 0.0, 0.0)) -> Program:
         position = end
     if not blocks:
         raise ProgramError("the program has no motion")
+    for block in blocks:                # F words given: every feed move needs one (none: the schedule's feed)
+        if has_feed and block.kind != "rapid" and block.feed is None:
+            code = "G1" if block.kind == "line" else "G2" if block.clockwise else "G3"
+            raise ProgramError(f"line {block.line}: {code} before any feed rate (F)")
     return Program(blocks, 3 if moved_z else 2, has_feed)
 
 
