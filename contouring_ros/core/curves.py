@@ -5,6 +5,7 @@ derivatives with respect to ``theta`` analytically (papers 000 eq. 3, 003 eq. 1-
 """
 from __future__ import annotations
 
+import bisect
 import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
@@ -471,6 +472,16 @@ class ToolPath(Curve):
 
     def _finish(self, lengths, kinds):
         self._starts = np.concatenate([[0.0], np.cumsum(lengths)])
+        self._start_list = [float(v) for v in self._starts]
+        plain = []                   # each segment's vectors as tuples of floats (the scalar path)
+        for kind, origin, direction, *_ in self.segments:
+            if kind == "line":
+                plain.append((_floats(origin), _floats(direction)))
+            elif kind == "helix":
+                plain.append((_floats(origin), *(_floats(v) for v in direction[:3]), float(direction[3])))
+            else:
+                plain.append(None)
+        self._plain = plain
         self.domain = (0.0, float(self._starts[-1]))
         self.closed = False
         blocks = []
@@ -483,33 +494,66 @@ class ToolPath(Curve):
         self.blocks = blocks
 
     def _segment(self, i: int, u: float) -> list:
+        """[R, dR, d2R, d3R] at distance u into segment i, as tuples of floats (the estimators' scalar path)."""
         kind, origin, direction, radius, a0, turn = self.segments[i]
+        n = self.dimension
         if kind == "line":
-            zero = (0.0,) * self.dimension
-            return [tuple(origin + u * direction), tuple(direction), zero, zero]
+            o, d = self._plain[i]
+            zero = (0.0,) * n
+            return [tuple(o[k] + u * d[k] for k in range(n)), d, zero, zero]
         if kind == "helix":
-            e1, e2, w, rho = direction
+            o, e1, e2, w, rho = self._plain[i]
             a = a0 + turn * u / rho
             c, si = math.cos(a), math.sin(a)
             k1, k2, k3 = radius * turn / rho, radius / rho**2, radius * turn / rho**3
-            return [tuple(origin + radius * (c * e1 + si * e2) + w * u), tuple(k1 * (c * e2 - si * e1) + w),
-                    tuple(-k2 * (c * e1 + si * e2)), tuple(k3 * (si * e1 - c * e2))]
+            return [tuple(o[k] + radius * (c * e1[k] + si * e2[k]) + w[k] * u for k in range(n)),
+                    tuple(k1 * (c * e2[k] - si * e1[k]) + w[k] for k in range(n)),
+                    tuple(-k2 * (c * e1[k] + si * e2[k]) for k in range(n)),
+                    tuple(k3 * (si * e1[k] - c * e2[k]) for k in range(n))]
         a = a0 + turn * u / radius
         c, si = np.cos(a), np.sin(a)
         return [(origin[0] + radius * c, origin[1] + radius * si), (-turn * si, turn * c),
                 (-c / radius, -si / radius), (turn * si / radius**2, -turn * c / radius**2)]
 
     def _one(self, s: float) -> list:
-        i = min(max(int(np.searchsorted(self._starts, s, side="right")) - 1, 0), len(self.segments) - 1)
-        return self._segment(i, s - self._starts[i])
+        i = min(max(bisect.bisect_right(self._start_list, s) - 1, 0), len(self.segments) - 1)
+        return self._segment(i, s - self._start_list[i])
 
     def columns(self, t) -> list:
         if np.ndim(t) == 0:
             return [tuple(float(v) for v in row) for row in self._one(float(t))]
-        rows = [self._one(float(s)) for s in np.ravel(t)]
-        shape = np.shape(t)
-        return [tuple(np.array([r[j][i] for r in rows]).reshape(shape) for i in range(self.dimension))
-                for j in range(4)]
+        shape, flat = np.shape(t), np.ravel(np.asarray(t, dtype=float))
+        index = np.clip(np.searchsorted(self._starts, flat, side="right") - 1, 0, len(self.segments) - 1)
+        out = [np.empty((flat.size, self.dimension)) for _ in range(4)]
+        for i in np.unique(index):       # each segment's points at once
+            inside = index == i
+            for j, rows in enumerate(self._segment_array(int(i), flat[inside] - self._starts[i])):
+                out[j][inside] = rows
+        return [tuple(out[j][:, c].reshape(shape) for c in range(self.dimension)) for j in range(4)]
+
+    def _segment_array(self, i: int, u: np.ndarray) -> list:
+        """:meth:`_segment` for an array of distances ``u`` into segment i: 4 arrays of shape (len(u), dim)."""
+        kind, origin, direction, radius, a0, turn = self.segments[i]
+        u = u[:, None]
+        if kind == "line":
+            zero = np.zeros((u.shape[0], self.dimension))
+            return [origin + u * direction, np.broadcast_to(direction, zero.shape), zero, zero]
+        if kind == "helix":
+            e1, e2, w, rho = direction
+            a = a0 + turn * u / rho
+            c, si = np.cos(a), np.sin(a)
+            k1, k2, k3 = radius * turn / rho, radius / rho**2, radius * turn / rho**3
+            return [origin + radius * (c * e1 + si * e2) + w * u, k1 * (c * e2 - si * e1) + w,
+                    -k2 * (c * e1 + si * e2), k3 * (si * e1 - c * e2)]
+        a = a0 + turn * u[:, 0] / radius
+        c, si = np.cos(a), np.sin(a)
+        return [np.column_stack([origin[0] + radius * c, origin[1] + radius * si]),
+                np.column_stack([-turn * si, turn * c]), np.column_stack([-c / radius, -si / radius]),
+                np.column_stack([turn * si / radius**2, -turn * c / radius**2])]
+
+
+def _floats(vector) -> tuple:
+    return tuple(float(x) for x in vector)
 
 
 def _blend(items, tolerance: float) -> list:

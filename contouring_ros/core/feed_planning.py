@@ -95,7 +95,7 @@ def tolerance_feed(tolerance: float, lags, tangent, curvature: float) -> float:
         a = 0.0
     if a > 0.0:
         return (-c + math.sqrt(c * c + 4.0 * a * tolerance)) / (2.0 * a)
-    return tolerance / c if c > 0.0 else math.inf
+    return tolerance / c if c > 1e-12 * float(lags.max()) else math.inf
 
 
 @dataclass(frozen=True)
