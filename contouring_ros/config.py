@@ -1227,7 +1227,36 @@ def load_experiment(path) -> Experiment:
         raise ConfigError(f"{where}: not a text file (not UTF-8 at byte {error.start})") from None
     if "\x00" in text:
         raise ConfigError(f"{where}: not a text file (contains NUL bytes)")
-    return experiment_from_data(read_yaml(text, where, ros=True), where, text)
+    data = read_yaml(text, where, ros=True)
+    experiment = experiment_from_data(data, where, text)
+    if experiment.curve["type"] == "gcode":
+        given = data[GLOBAL_SECTION][ROS_PARAMETERS]["curve"]["file"]
+        experiment = replace(experiment, text=_program_path_in_text(text, given, experiment.curve["file"]))
+    return experiment
+
+
+def recorded_text(path) -> str:
+    """The text a bag keeps of the experiment file ``path``: the file's own, with a part program's relative
+    ``file`` made absolute (see :func:`load_experiment`)."""
+    text = Path(path).read_text()
+    try:
+        experiment = load_experiment(path)
+    except ConfigError:
+        return text
+    return experiment.text if experiment.curve["type"] == "gcode" else text
+
+
+def _program_path_in_text(text: str, given: str, resolved: str) -> str:
+    """The experiment's YAML with its part program's ``file`` made the absolute path it was resolved to, so
+    the text stands alone where it is kept (bags, sweeps); unchanged where the value is absolute already or
+    does not appear exactly once."""
+    if given == resolved:
+        return text
+    pattern = re.compile(r"(\bfile:\s*)([\"']?)" + re.escape(given) + r"\2(?=\s*[,}\n]|\s*$)")
+    if len(pattern.findall(text)) != 1:
+        return text
+    quoted = '"' + resolved.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    return pattern.sub(lambda match: match.group(1) + quoted, text)
 
 
 def _read_file(path: Path, where: str) -> bytes:

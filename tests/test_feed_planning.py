@@ -236,7 +236,12 @@ def write(tmp_path, program, schedule=SCHEDULE, file="part.ngc"):
 
 def test_experiment_reads_the_program_relative_to_its_file(tmp_path):
     experiment = load_experiment(write(tmp_path, "G1 X5 F600\nY5\n"))
-    assert experiment.curve["file"] == str((tmp_path / "parts" / "part.ngc").resolve())
+    resolved = str((tmp_path / "parts" / "part.ngc").resolve())
+    assert experiment.curve["file"] == resolved
+    # the text bags and sweeps keep names the program by its absolute path, so it reads from anywhere
+    assert f'file: "{resolved}"' in experiment.text and "file: parts/part.ngc" not in experiment.text
+    from contouring_ros.config import parse_experiment
+    assert parse_experiment(experiment.text, "a bag's copy").curve["file"] == resolved
     loop = build_loop(experiment)
     assert loop.curve.domain[1] == pytest.approx(0.01)
     assert experiment.duration == pytest.approx(loop.schedule.duration)
@@ -295,3 +300,27 @@ def test_example_part_square_corners_under_20_um_and_feeds_within_f():
     limit = np.array([b.feed if b.feed is not None else schedule.limits[i].feed for i, b in enumerate(path.blocks)])
     assert np.all(feed <= limit[block] * (1 + 1e-9))
     assert feed[np.isin(block, square)].max() == pytest.approx(0.02)          # F1200: 20 mm/s, reached
+
+
+def test_tool_path_runs_get_the_feed_and_per_block_figure(tmp_path):
+    from contouring_ros.analysis import figures
+    from contouring_ros.bag import read_run, write_simulation
+    path = write(tmp_path, "G1 X3 F600 (a corner)\nY3\nG2 X6 Y3 R1.5\n", SCHEDULE)
+    experiment = load_experiment(path)
+    loop = build_loop(experiment)
+    bag = write_simulation(tmp_path / "run.mcap", experiment, simulate(loop))
+    drawn = figures([("run", read_run(bag))])
+    assert "feed" in drawn
+    top, bottom = drawn["feed"].axes[:2]
+    assert [tick.get_text() for tick in bottom.get_xticklabels()] == ["line 1\nG1", "line 2\nG1", "line 3\nG2/G3"]
+    heights = [patch.get_height() for patch in bottom.patches]
+    assert len(heights) == 3 and all(h > 0 for h in heights)
+    feed = top.lines[0].get_ydata()
+    assert max(feed) == pytest.approx(10.0)                        # mm/s: F600
+    circle = CONFIG_DIR / "paper003_ellipse_first_order_fn60.yaml"
+    from conftest import shortened
+    other = tmp_path / "ellipse.yaml"
+    other.write_text(shortened(circle, 0.05))
+    experiment = load_experiment(other)
+    bag = write_simulation(tmp_path / "ellipse.mcap", experiment, simulate(build_loop(experiment)))
+    assert "feed" not in figures([("ellipse", read_run(bag))])
