@@ -324,3 +324,24 @@ def test_tool_path_runs_get_the_feed_and_per_block_figure(tmp_path):
     experiment = load_experiment(other)
     bag = write_simulation(tmp_path / "ellipse.mcap", experiment, simulate(build_loop(experiment)))
     assert "feed" not in figures([("ellipse", read_run(bag))])
+
+
+def test_long_simulations_show_progress(tmp_path, capsys):
+    loop = build_loop(load_experiment(write(tmp_path, "G1 X2 F600\n")))
+    simulate(loop, progress=True)
+    assert "step" in capsys.readouterr().err
+    simulate(loop)
+    assert capsys.readouterr().err == ""
+
+
+def test_inline_tool_paths_take_the_jerk_limited_plan_with_the_schedule_feedrate(tmp_path):
+    text = EXPERIMENT.replace("{{type: gcode, file: {file}}}",
+                              '{{type: toolpath, start: [0.0, 0.0], moves: ["G1 X0.01 Y0", "G1 X0.02 Y0", '
+                              '"G3 X0.03 Y0.01 I0 J0.01"]}}')
+    path = tmp_path / "inline.yaml"
+    path.write_text(text.format(file="", schedule="{type: feedrate, feedrate: 0.02, acceleration: 1.0, jerk: 20.0}"))
+    schedule = build_loop(load_experiment(path)).schedule
+    assert isinstance(schedule, FeedPlan)
+    assert schedule.junctions[1] == pytest.approx(0.02)           # collinear: no stop
+    assert schedule.junctions[2] == pytest.approx(0.02)           # line into a tangent arc: no stop
+    assert sampled(schedule)[2].max() == pytest.approx(0.02)
