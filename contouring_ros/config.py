@@ -157,6 +157,8 @@ def _feed_plan(where, curve, program, jerk, arguments, plan):
 def _gcode(s, context):
     """A part program's tool path; ``file`` is read relative to the experiment file (then the scenario
     directory, then the working directory)."""
+    if len(s["start"]) not in (2, 3):
+        raise ValueError(f"start: expected 2 or 3 coordinates [m], got {len(s['start'])}")
     path = resolve_part_program(s["file"], context.where)
     if path is None:
         raise ValueError(f"file: cannot find the part program {s['file']!r} (relative paths are read from the "

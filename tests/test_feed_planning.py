@@ -267,6 +267,13 @@ def test_experiment_refusals_are_one_line_naming_key_file_and_line(tmp_path, pro
     assert fragment in str(error.value) and "\n" not in str(error.value)
 
 
+def test_start_takes_two_or_three_coordinates(tmp_path):
+    path = write(tmp_path, "G1 X5 F600")
+    path.write_text(path.read_text().replace("file: parts/part.ngc", "file: parts/part.ngc, start: [0.0, 0.0, 0.0, 1.0]"))
+    with pytest.raises(ConfigError, match="curve: start: expected 2 or 3 coordinates"):
+        load_experiment(path)
+
+
 def test_missing_program_file_is_named(tmp_path):
     with pytest.raises(ConfigError, match="cannot find the part program 'parts/other.ngc'"):
         load_experiment(write(tmp_path, "G1 X5 F600", file="other.ngc"))

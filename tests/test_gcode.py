@@ -163,3 +163,13 @@ def test_guard_refuses_a_path_longer_than_ten_metres_with_a_units_hint():
         ToolPath.from_program(parse_program("G20 G1 X500 F60"))
     with pytest.raises(ValueError, match=r"G1 X50 is 50 m"):
         ToolPath([0.0, 0.0], ["G1 X50 Y0"])
+
+
+def test_dimension_two_for_planar_programs_three_where_z_is_used():
+    assert parse_program("G1 X1 Y1 F60").dimension == 2
+    assert parse_program("G1 X1 Z0 F60").dimension == 2                   # Z named but not moved
+    assert parse_program("G1 X1 Z1 F60").dimension == 3
+    assert parse_program("G18 G2 X2 Z0 I1 K0 F60").dimension == 3        # an arc in ZX moves Z
+    assert parse_program("G1 X1 F60", start=(0.0, 0.0, 0.01)).dimension == 3
+    path = ToolPath.from_program(parse_program("G1 X1 F60", start=(0.0, 0.0, 0.01)))
+    assert path.point(0.0) == pytest.approx([0.0, 0.0, 0.01])

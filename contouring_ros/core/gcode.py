@@ -72,7 +72,8 @@ class Block:
 
 @dataclass(frozen=True)
 class Program:
-    """A parsed part program: its motion blocks and whether it moves the third axis (Z)."""
+    """A parsed part program: its motion blocks and its dimension: 3 where it moves Z, arcs outside the XY
+    plane or starts off z = 0, else 2."""
 
     blocks: list
     dimension: int
@@ -130,7 +131,8 @@ def parse_program(text: str, start=(0.0, 0.0, 0.0)) -> Program:
     """
     position = np.array(list(start) + [0.0] * (3 - len(start)), dtype=float)
     unit, absolute, plane, motion, feed = MM, True, _PLANES[17], None, None
-    blocks, moved_z, has_feed, ended = [], False, False, None
+    blocks, has_feed, ended = [], False, None
+    moved_z = bool(position[2] != 0.0)         # a start off the XY plane keeps Z
     lines = text.splitlines()
     for number, raw in enumerate(lines, start=1):
         body = _strip_comments(raw, number).strip()
