@@ -352,3 +352,25 @@ def test_inline_tool_paths_take_the_jerk_limited_plan_with_the_schedule_feedrate
     assert schedule.junctions[1] == pytest.approx(0.02)           # collinear: no stop
     assert schedule.junctions[2] == pytest.approx(0.02)           # line into a tangent arc: no stop
     assert sampled(schedule)[2].max() == pytest.approx(0.02)
+
+
+@pytest.mark.slow
+def test_a_fifty_millimetre_square_at_fifty_mm_per_second_keeps_its_corners(tmp_path):
+    # the example's axes on another program: a 50 mm square at F3000, arcs, a helix, a rapid
+    program = ("(50 mm square at 50 mm/s)\nG21 G90 G17\nN1 G1 X50 F3000\nN2 Y50\nN3 X0\nN4 Y0\n"
+               "N5 G3 X40 Y0 R20 F2000 ; half circle\nN6 G2 X0 Y0 I-20 J0\n"
+               "N7 G91 G3 X0 Y0 Z-2 I10 J0 F1500 (helix)\nN8 G90 G0 Z5\nM30\n")
+    (tmp_path / "square.ngc").write_text(program)
+    text = (CONFIG_DIR / "gcode_example_part.yaml").read_text()
+    (tmp_path / "square.yaml").write_text(text.replace("file: parts/example_part.ngc", "file: square.ngc"))
+    experiment = load_experiment(tmp_path / "square.yaml")
+    loop = build_loop(experiment)
+    result = simulate(loop)
+    error = ExactContourError(loop.curve)(result.position, near=result.theta).distance
+    starts = np.array([b.start for b in loop.curve.blocks])
+    block = np.searchsorted(starts, result.theta, side="right") - 1
+    assert [b.line for b in loop.curve.blocks[:4]] == [3, 4, 5, 6]
+    assert error[block <= 3].max() < 20e-6
+    feed = np.linalg.norm(result.reference_velocity, axis=1)
+    assert feed[block <= 3].max() == pytest.approx(0.05)
+    assert np.all(feed <= np.array([limit.feed for limit in loop.schedule.limits])[np.clip(block, 0, None)] * (1 + 1e-9))

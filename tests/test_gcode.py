@@ -173,3 +173,10 @@ def test_dimension_two_for_planar_programs_three_where_z_is_used():
     assert parse_program("G1 X1 F60", start=(0.0, 0.0, 0.01)).dimension == 3
     path = ToolPath.from_program(parse_program("G1 X1 F60", start=(0.0, 0.0, 0.01)))
     assert path.point(0.0) == pytest.approx([0.0, 0.0, 0.01])
+
+
+@pytest.mark.parametrize("move, word", [("G1 X0.05 F100", "F100"), ("G1 X0.05 Z0.01", "Z0.01"),
+                                        ("G2 X0.06 Y0 I0.03 J0 K0", "K0"), ("G3 X0.06 Y0 R0.03", "R0.03")])
+def test_inline_moves_refuse_words_they_do_not_read(move, word):
+    with pytest.raises(ValueError, match=f"move 1 .*: {word} is not read in inline moves"):
+        ToolPath([0.0, 0.0], [move])

@@ -387,6 +387,11 @@ class ToolPath(Curve):
                 values = {w[0].upper(): float(w[1:]) for w in words[1:]}
             except ValueError:
                 raise ValueError(f"move {number} {move!r}: expected words like X0.05") from None
+            allowed = "XY" if code in ("G1", "G01") else "XYIJ"
+            extra = [w for w in words[1:] if w[0].upper() not in allowed]
+            if extra and code in ("G1", "G01", "G2", "G02", "G3", "G03"):
+                raise ValueError(f"move {number} {move!r}: {extra[0]} is not read in inline moves (planar, metres: "
+                                 f"{' '.join(allowed)}); a part program (curve type gcode) takes F, Z, K, R ...")
             if code in ("G1", "G01"):
                 end = np.array([values.get("X", position[0]), values.get("Y", position[1])])
                 length = float(np.linalg.norm(end - position))
