@@ -1,18 +1,18 @@
 """Part programs: the RS274/NGC subset CNC part programs use, read into a program of blocks in metres.
 
-Supported (section numbers of Kramer, Proctor, Messina, "The NIST RS274NGC Interpreter - Version 3",
-NISTIR 6556, 2000):
+The language is that of Kramer, Proctor and Messina, "The NIST RS274NGC Interpreter - Version 3", NISTIR
+6556, 2000 (chapter 3, the input language; LinuxCNC's G-code reference follows it). Supported:
 
-- G0 rapid, G1 line, G2 / G3 arc clockwise / counter-clockwise (3.5.2 - 3.5.4), centre format I J K
-  (offsets from the start point, 3.5.3.2) or radius format R (3.5.3.1: R > 0 the arc of at most a half
-  turn, R < 0 the longer one); an arc whose end differs from its start along the plane's normal axis is a
-  helix (the normal coordinate moves linearly with the angle, 3.5.3);
-- G17 / G18 / G19 plane selection XY / ZX / YZ (3.5.15): "clockwise" as seen from the positive end of the
-  normal axis (Z, Y, X);
-- G20 / G21 inch / millimetre units (3.5.16; millimetres until a program says otherwise);
-- G90 / G91 absolute / incremental distance mode (3.5.18); arc centre offsets are always incremental;
-- F feed rate in units per minute (3.7.2), modal; N line numbers (3.2.1); comments in parentheses and
-  after a semicolon (3.3.4); M2 / M30 program end (3.6.1); X Y Z (up to 3 axes).
+- G0 rapid, G1 line, G2 / G3 arc clockwise / counter-clockwise, in centre format I J K (offsets from the
+  start point, always incremental) or radius format R (R > 0 the arc of at most a half turn, R < 0 the
+  longer one); an arc whose end differs from its start along the plane's normal axis is a helix (the
+  normal coordinate moves linearly with the angle);
+- G17 / G18 / G19 plane selection XY / ZX / YZ: "clockwise" as seen from the positive end of the normal
+  axis (Z, Y, X);
+- G20 / G21 inch / millimetre units (millimetres until a program says otherwise);
+- G90 / G91 absolute / incremental distance mode;
+- F feed rate in units per minute, modal; N line numbers; comments in parentheses and after a semicolon;
+  ``%`` on the first and last lines; M2 / M30 program end; X Y Z (up to 3 axes).
 
 Every other word is refused with the line and the word; nothing is ignored silently.
 """
@@ -215,7 +215,9 @@ def parse_program(text: str, start=(0.0, 0.0, 0.0)) -> Program:
 
 
 def _arc(number, motion, plane, start, end, centre_words, radius, unit, feed) -> Block:
-    """A G2 / G3 block: centre from I J K (offsets, 3.5.3.2) or from R (3.5.3.1)."""
+    """A G2 / G3 block: centre from I J K (offsets from the start) or from R (on the chord's perpendicular
+    bisector, at sqrt(R^2 - (chord / 2)^2) from its middle: left of the chord for a short counter-clockwise
+    arc, right for a short clockwise one, the other side for R < 0)."""
     first, second, normal = plane
     name = f"G{motion}"
     allowed = {first, second}
