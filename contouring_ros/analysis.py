@@ -16,7 +16,8 @@ import numpy as np
 from tqdm import tqdm
 
 from .bag import RecordedRun
-from .config import ESTIMATORS, _check_entry, _typed, build_curve, build_estimator, parse_experiment
+from .config import ESTIMATORS, _check_entry, _typed, build_curve, build_estimator, build_schedule, parse_experiment
+from .core.curves import ToolPath
 from .core.geometry import ExactContourError
 from .core.interpolation import Reference
 from .errors import ConfigError, ContouringError
@@ -594,11 +595,69 @@ def draw_effort(traces):
          lambda t, i: t.run.result.correction[:, i])])
 
 
+BLOCK_NAMES = {"line": "G1", "rapid": "G0", "arc": "G2/G3", "blend": "blend"}
+
+
+def _block_limits(trace: _Trace) -> np.ndarray:
+    """The feed limit [m/s] of each block of a tool path run: the feed plan's (F, rapid rate, axes,
+    centripetal or contour-tolerance bound), else the programmed F (nan where there is none)."""
+    try:
+        schedule = build_schedule(trace.experiment, trace.curve)
+    except ContouringError:
+        schedule = None
+    limits = getattr(schedule, "limits", None)
+    if limits is not None:
+        return np.array([limit.feed for limit in limits])
+    return np.array([np.nan if b.feed is None else b.feed for b in trace.curve.blocks])
+
+
+def _block_of(trace: _Trace) -> np.ndarray:
+    starts = np.array([b.start for b in trace.curve.blocks])
+    theta = _finite(trace.run.result.theta)
+    return np.clip(np.searchsorted(starts, np.nan_to_num(theta), side="right") - 1, 0, len(starts) - 1)
+
+
+def draw_feed(traces):
+    """Tool path runs: the feed along the path against each block's limit, and the largest contour error of
+    each block (labelled by its source line)."""
+    paths = [t for t in traces if isinstance(t.curve, ToolPath)]
+    fig = _figure("Feed and contour error per block", 9.5, 7.6)
+    top, bottom = fig.subplots(2, 1)
+    from matplotlib.lines import Line2D
+    width = 0.8 / max(len(paths), 1)
+    labels = []
+    for k, t in enumerate(paths):
+        blocks = t.curve.blocks
+        feed = np.linalg.norm(_finite(t.run.result.reference_velocity), axis=1)
+        top.plot(_finite(t.run.result.theta) * 1e3, feed * 1e3, color=t.colour, lw=1.2)
+        edges = np.array([b.start for b in blocks] + [t.curve.domain[1]]) * 1e3
+        limits = _block_limits(t) * 1e3
+        top.stairs(limits, edges, color=t.colour, ls="--", lw=0.9, baseline=None)
+        for edge in edges[1:-1]:
+            top.axvline(edge, color="0.85", lw=0.6, zorder=0)
+        block = _block_of(t)
+        worst = np.array([np.nanmax(t.distance[block == i], initial=np.nan) if np.any(block == i) else np.nan
+                          for i in range(len(blocks))]) * 1e6
+        positions = np.arange(len(blocks)) + (k - (len(paths) - 1) / 2) * width
+        bottom.bar(positions, np.nan_to_num(worst), width=width, color=t.colour)
+        if len(blocks) > len(labels):
+            labels = [f"line {b.line}\n{BLOCK_NAMES.get(b.kind, b.kind)}" for b in blocks]
+    _style(top, "path length [mm]", "feed [mm/s]", "feed along the path (solid) and each block's limit (dashed)")
+    bottom.set_xticks(np.arange(len(labels)), labels, fontsize=8)
+    _style(bottom, "block", "largest contour error [um]", "contour error per block")
+    _run_legend(fig, paths, [Line2D([], [], color="0.3", label="feed"),
+                             Line2D([], [], color="0.3", ls="--", label="feed limit")])
+    return fig
+
+
 def _draw_all(traces, magnification=None) -> dict:
     with np.errstate(all="ignore"):
-        return {"path": draw_path(traces, magnification), "error_map": draw_error_map(traces),
-                "contour_error": draw_contour_error(traces), "estimate": draw_estimate(traces),
-                "tracking": draw_tracking(traces), "effort": draw_effort(traces)}
+        drawn = {"path": draw_path(traces, magnification), "error_map": draw_error_map(traces),
+                 "contour_error": draw_contour_error(traces), "estimate": draw_estimate(traces),
+                 "tracking": draw_tracking(traces), "effort": draw_effort(traces)}
+        if any(isinstance(t.curve, ToolPath) for t in traces):
+            drawn["feed"] = draw_feed(traces)
+        return drawn
 
 
 def figures(runs: list, magnification: float | None = None) -> dict:
@@ -609,7 +668,8 @@ def figures(runs: list, magnification: float | None = None) -> dict:
     axes (2 and 3) may be compared. Figures: ``path`` (error magnified; 3-D and projections for three
     axes), ``error_map`` (path coloured by contour error), ``contour_error`` (against time and path
     length), ``estimate`` (estimate against exact), ``tracking`` and ``effort`` (per axis; the CCC
-    correction on its own axes).
+    correction on its own axes); for tool paths also ``feed`` (feed along the path against each block's
+    limit, and the contour error per block).
     """
     return _draw_all(_traces(runs), magnification)
 

@@ -81,6 +81,11 @@ def _run(args):
     _warn(run)
     print(f"bag: {bag}")
     print(format_scores([(config.stem, scores)], run.axes))
+    from .config import parse_experiment
+    from .scoring import tolerance_line
+    held = tolerance_line(parse_experiment(run.experiment_text, str(config)).schedule, scores.mce)
+    if held:
+        print(held)
     from .bag import node_reports
     from .scoring import format_realtime
     realtime = format_realtime(node_reports(bag))
@@ -88,22 +93,29 @@ def _run(args):
         print(realtime)
 
 
+LONG_RUN_STEPS = 20_000       # simulate shows a progress bar beyond this many steps (about 20 s of run)
+
+
 def _simulate(args):
     from .config import build_loop, load_experiment
     from .core.simulation import simulate
-    from .scoring import format_scores, score_run
+    from .scoring import format_scores, score_run, tolerance_line
     from .errors import Diverged
     experiment = load_experiment(_experiment_path(args.config))
     loop = build_loop(experiment)
     try:
-        result = simulate(loop)
+        result = simulate(loop, progress=loop.n_steps > LONG_RUN_STEPS and sys.stderr.isatty())
     except Diverged as error:
         print(f"error: {error}", file=sys.stderr)
         if len(error.result.time):
             print(f"scores of the {len(error.result.time)} steps before it:")
             print(format_scores([(experiment.name, score_run(loop.curve, error.result))], list(experiment.axes)))
         raise SystemExit(1)
-    print(format_scores([(experiment.name, score_run(loop.curve, result))], list(experiment.axes)))
+    scores = score_run(loop.curve, result)
+    print(format_scores([(experiment.name, scores)], list(experiment.axes)))
+    held = tolerance_line(experiment.schedule, scores.mce)
+    if held:
+        print(held)
 
 
 def _experiment_text(args):

@@ -25,7 +25,8 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from .core import contouring, curves, disturbances, estimators, plants, servo
+from .core import contouring, curves, disturbances, estimators, gcode, plants, servo
+from .core.feed_planning import FeedPlan
 from .core.interpolation import FeedrateSchedule, UniformSchedule, reference
 from .core.simulation import ControlLoop
 from .errors import ConfigError
@@ -98,8 +99,25 @@ def _spline(s, context):
     return curves.SplineCurve(np.column_stack(coordinates), s["closed"])
 
 
+_PLAN_KEYS = ("rapid_feedrate", "axis_feedrate", "axis_acceleration", "axis_jerk", "contour_tolerance", "tracking_lag",
+              "exact_stop_dwell")
+
+
 def _feedrate_schedule(section, context):
+    """The feedrate schedule: with a ``jerk`` bound (always for a part program) the look-ahead, jerk-limited
+    feed plan of a tool path (core/feed_planning.py); without, the acceleration-bounded profile."""
     arguments = _kwargs(section)
+    where = context.where
+    program = getattr(context.curve, "program", None)
+    jerk = arguments.pop("jerk")
+    plan = {key: arguments.pop(key) for key in _PLAN_KEYS}
+    if jerk or program is not None:
+        return _feed_plan(where, context.curve, program, jerk, arguments, plan)
+    for key, value in plan.items():
+        if value not in (None, 0.0):
+            _fail(where, f"schedule.{key}", "applies to the jerk-limited feed plan of a tool path: give jerk too")
+    if arguments["feedrate"] is None:
+        _fail(where, "schedule.feedrate", "missing required key")
     for key, default in (("theta_start", context.curve.domain[0]), ("theta_end", context.curve.domain[1])):
         if arguments[key] is None:
             arguments[key] = default
@@ -107,6 +125,72 @@ def _feedrate_schedule(section, context):
         return FeedrateSchedule(context.curve, **arguments)
     except ValueError as error:
         raise ConfigError(f"{context.where}: schedule: {error}") from None
+
+
+def _feed_plan(where, curve, program, jerk, arguments, plan):
+    if not isinstance(curve, curves.ToolPath):
+        _fail(where, "schedule.jerk", "the jerk-limited feed plan runs along a tool path (curve type toolpath or "
+                                      "gcode)")
+    if not jerk:
+        _fail(where, "schedule.jerk", "missing required key (a part program is planned with a jerk bound)")
+    for key in ("theta_start", "theta_end"):
+        if arguments[key] is not None:
+            _fail(where, f"schedule.{key}", "the feed plan covers the whole tool path: leave it out")
+    if program is not None and program.has_feed_words and arguments["feedrate"] is not None:
+        _fail(where, "schedule.feedrate", "the part program sets its feeds with F words: leave feedrate out")
+    for key in ("axis_feedrate", "axis_acceleration", "axis_jerk", "tracking_lag"):
+        if plan[key] is not None and len(plan[key]) not in (1, curve.dimension):
+            _fail(where, f"schedule.{key}", f"expected 1 value or one per axis ({curve.dimension}), got "
+                                            f"{len(plan[key])}")
+    if plan["contour_tolerance"] and plan["tracking_lag"] is None:
+        _fail(where, "schedule.tracking_lag", "missing required key (the contour-tolerance planner predicts the "
+                                              "contour error from each axis' lag)")
+    if plan["tracking_lag"] is not None and not plan["contour_tolerance"]:
+        _fail(where, "schedule.tracking_lag", "used only with a contour_tolerance")
+    try:
+        return FeedPlan(curve, arguments["acceleration"], jerk, arguments["feedrate"], plan["rapid_feedrate"] or None,
+                        arguments["normal_acceleration"], plan["axis_feedrate"], plan["axis_acceleration"],
+                        plan["axis_jerk"], plan["contour_tolerance"], plan["tracking_lag"], plan["exact_stop_dwell"])
+    except ValueError as error:
+        raise ConfigError(f"{_printable(where)}: schedule: {_printable(error, 400)}") from None
+
+
+def _gcode(s, context):
+    """A part program's tool path; ``file`` is read relative to the experiment file (then the scenario
+    directory, then the working directory)."""
+    if len(s["start"]) not in (2, 3):
+        raise ValueError(f"start: expected 2 or 3 coordinates [m], got {len(s['start'])}")
+    path = resolve_part_program(s["file"], context.where)
+    if path is None:
+        raise ValueError(f"file: cannot find the part program {s['file']!r} (relative paths are read from the "
+                         "experiment file's directory)")
+    raw = _read_file(path, _printable(path))
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as error:
+        raise ValueError(f"{path}: not a text file (not UTF-8 at byte {error.start})") from None
+    try:
+        program = gcode.parse_program(text, s["start"])
+        tool_path = curves.ToolPath.from_program(program, s["blend_tolerance"])
+    except ValueError as error:
+        raise ValueError(f"{path.name}: {error}") from None
+    tool_path.program = program
+    tool_path.source = str(path.resolve())
+    return tool_path
+
+
+def resolve_part_program(name: str, where: str):
+    """The part program file ``name``: as given when absolute, else relative to the experiment file
+    ``where``, the scenario directory (config/) or the working directory, the first that exists."""
+    path = Path(name)
+    if path.is_absolute():
+        return path if path.exists() else None
+    from .paper import CONFIG_DIR
+    bases = [Path(where).parent] if where and Path(where).is_file() else []
+    for base in bases + [CONFIG_DIR, Path.cwd()]:
+        if (base / path).exists():
+            return base / path
+    return None
 
 
 def _ismc(s, c):
@@ -193,6 +277,8 @@ _CURVE_SPECS = {
                "h": Param("float"), "omega": Param("float", 6.283185307179586)},
     "spline": {"x": Param("floats"), "y": Param("floats"), "z": Param("floats", None), "closed": Param("bool", False)},
     "toolpath": {"start": Param("floats"), "moves": Param("strings")},
+    "gcode": {"file": Param("str"), "start": Param("floats", [0.0, 0.0, 0.0]),
+              "blend_tolerance": Param("float", 0.0, "nonnegative", help="m, as G64 P; 0: exact stop (G61)")},
     "helix": {"a": Param("float", check="positive"), "b": Param("float", check="positive"), "c": Param("float"),
               "omega": Param("float"), "length": Param("float", check="positive")},
 }
@@ -208,15 +294,23 @@ _register(CURVES, _CURVE_SPECS, {
     "saddle": lambda s, c: curves.Saddle(s["a"], s["b"], s["h"], s["omega"]),
     "spline": _spline,
     "toolpath": lambda s, c: curves.ToolPath(s["start"], s["moves"]),
+    "gcode": _gcode,
     "helix": lambda s, c: curves.Helix(s["a"], s["b"], s["c"], s["omega"], s["length"]),
 })
 _register(SCHEDULES, {
     "uniform": {"theta_start": Param("float"), "theta_end": Param("float"),
                 "duration": Param("float", check="positive")},
     "feedrate": {"theta_start": Param("float", None), "theta_end": Param("float", None),  # default: the curve's domain
-                 "feedrate": Param("float", check="positive"), "acceleration": Param("float", check="positive"),
+                 # default: none (a part program's F words give it)
+                 "feedrate": Param("float", None, "positive"), "acceleration": Param("float", check="positive"),
                  "normal_acceleration": Param("float", 0.0, "nonnegative"),
-                 "samples": Param("int", 20001, "positive")},
+                 "samples": Param("int", 20001, "positive"),
+                 # the jerk-limited feed plan of a tool path (core/feed_planning.py); jerk 0: not jerk-limited
+                 "jerk": Param("float", 0.0, "nonnegative"), "rapid_feedrate": Param("float", 0.0, "nonnegative"),
+                 "axis_feedrate": Param("floats", None), "axis_acceleration": Param("floats", None),
+                 "axis_jerk": Param("floats", None),
+                 "contour_tolerance": Param("float", 0.0, "nonnegative"),
+                 "tracking_lag": Param("floats", None), "exact_stop_dwell": Param("float", 0.0, "nonnegative")},
 }, {
     "uniform": lambda s, c: UniformSchedule(**_kwargs(s)),
     "feedrate": _feedrate_schedule,
@@ -382,10 +476,12 @@ BOUNDS = {
     "CURVES": {"a": _SIZE, "b": _SIZE, "radius": _SIZE, "scale": _SIZE, "length": (1e-9, 1e6), "h": (-1e3, 1e3),
                "c": (-1e3, 1e3), "omega": (-1e4, 1e4), "center": _COORDINATE, "start": _COORDINATE,
                "end": _COORDINATE, "x": _COORDINATE, "y": _COORDINATE, "z": _COORDINATE,
-               "contour_error_window": (0.0, 1e6)},
+               "contour_error_window": (0.0, 1e6), "blend_tolerance": (0.0, 1e-2)},
     "SCHEDULES": {"theta_start": (-1e6, 1e6), "theta_end": (-1e6, 1e6), "duration": (1e-6, MAX_DURATION),
                   "feedrate": (1e-6, 100.0), "acceleration": (1e-6, 1e5), "normal_acceleration": (0.0, 1e5),
-                  "samples": (2, 1_000_000)},
+                  "samples": (2, 1_000_000), "jerk": (0.0, 1e7), "rapid_feedrate": (0.0, 100.0),
+                  "axis_feedrate": (1e-6, 100.0), "axis_acceleration": (1e-6, 1e5), "axis_jerk": (1e-6, 1e7),
+                  "contour_tolerance": (0.0, 1e-2), "tracking_lag": (0.0, 10.0), "exact_stop_dwell": (0.0, 60.0)},
     "DISTURBANCES": {"value": (-1e9, 1e9), "amplitude": (-1e9, 1e9), "offset": (-1e9, 1e9),
                      "frequency": (1e-6, 1e5), "phase": (-1e3, 1e3), "std": (0.0, 1e9), "seed": (0, 2 ** 32 - 1)},
     "PLANTS": {"gain": _AXIS_GAIN, "time_constant": _TIME_CONSTANT, "mass": _MASS, "damping": _DAMPING,
@@ -917,7 +1013,10 @@ def _validate_globals(where, given: dict) -> dict:
         _fail(where, "experiment.name", f"expected 1 to 100 ASCII letters, digits, '_', '-' and '.' (no '/' "
                                         f"or '..': it names the bag file), got {_show(name)}")
     try:
-        dimension = build_curve_from(out["curve"], where).dimension
+        curve = build_curve_from(out["curve"], where)
+        dimension = curve.dimension
+        if out["curve"]["type"] == "gcode":
+            out["curve"]["file"] = curve.source      # absolute: every node reads the same file
     except (ArithmeticError, ValueError, MemoryError, np.linalg.LinAlgError) as error:
         _fail(where, "curve", f"cannot build the curve ({type(error).__name__}: {error})")
     if dimension != len(axes):
@@ -929,8 +1028,10 @@ def _validate_globals(where, given: dict) -> dict:
         except (ArithmeticError, ValueError, MemoryError, np.linalg.LinAlgError) as error:
             _fail(where, "schedule", f"cannot build the schedule ({type(error).__name__}: {error})")
         if not out["duration"] <= MAX_DURATION:
+            hint = "; check the part program's units (G20 inch, G21 mm) and feeds (F is per minute)" \
+                if out["curve"]["type"] in ("gcode", "toolpath") else ""
             _fail(where, "schedule", f"the schedule and settle_time take {_show(out['duration'])} s; at most "
-                                     f"{MAX_DURATION:g} s of simulated time")
+                                     f"{MAX_DURATION:g} s of simulated time{hint}")
     if out["sample_time"] > out["duration"]:
         _fail(where, "sample_time", f"expected at most the duration ({out['duration']} s)")
     steps = out["duration"] / out["sample_time"] + 1
@@ -1158,7 +1259,36 @@ def load_experiment(path) -> Experiment:
         raise ConfigError(f"{where}: not a text file (not UTF-8 at byte {error.start})") from None
     if "\x00" in text:
         raise ConfigError(f"{where}: not a text file (contains NUL bytes)")
-    return experiment_from_data(read_yaml(text, where, ros=True), where, text)
+    data = read_yaml(text, where, ros=True)
+    experiment = experiment_from_data(data, where, text)
+    if experiment.curve["type"] == "gcode":
+        given = data[GLOBAL_SECTION][ROS_PARAMETERS]["curve"]["file"]
+        experiment = replace(experiment, text=_program_path_in_text(text, given, experiment.curve["file"]))
+    return experiment
+
+
+def recorded_text(path) -> str:
+    """The text a bag keeps of the experiment file ``path``: the file's own, with a part program's relative
+    ``file`` made absolute (see :func:`load_experiment`)."""
+    text = Path(path).read_text()
+    try:
+        experiment = load_experiment(path)
+    except ConfigError:
+        return text
+    return experiment.text if experiment.curve["type"] == "gcode" else text
+
+
+def _program_path_in_text(text: str, given: str, resolved: str) -> str:
+    """The experiment's YAML with its part program's ``file`` made the absolute path it was resolved to, so
+    the text stands alone where it is kept (bags, sweeps); unchanged where the value is absolute already or
+    does not appear exactly once."""
+    if given == resolved:
+        return text
+    pattern = re.compile(r"(\bfile:\s*)([\"']?)" + re.escape(given) + r"\2(?=\s*[,}\n]|\s*$)")
+    if len(pattern.findall(text)) != 1:
+        return text
+    quoted = '"' + resolved.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    return pattern.sub(lambda match: match.group(1) + quoted, text)
 
 
 def _read_file(path: Path, where: str) -> bytes:

@@ -107,8 +107,13 @@ def private_environment(domain_id: int, network: bool = False) -> dict:
 
 def shared_overrides(experiment: Experiment) -> dict:
     """Shared keys the runner sets for every node from the whole experiment: ``ccc_takes_state`` false where
-    the controller does not use the reference and states (the CCC then does not subscribe to them)."""
-    return {} if controller_uses_state(experiment) else {"ccc_takes_state": False}
+    the controller does not use the reference and states (the CCC then does not subscribe to them); a part
+    program's ``curve.file`` as the absolute path the experiment resolved (a node reads its parameters, not
+    the experiment file's location)."""
+    out = {} if controller_uses_state(experiment) else {"ccc_takes_state": False}
+    if experiment.curve["type"] == "gcode":
+        out["curve.file"] = experiment.curve["file"]
+    return out
 
 
 def override_arguments(overrides) -> list:

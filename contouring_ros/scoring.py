@@ -9,7 +9,7 @@ from .core.metrics import Scores, score
 from .errors import BagError, ScoreError
 
 __all__ = ["score_run", "score_bag", "check_experiment_matches", "curve_of", "format_scores", "format_realtime",
-           "miss_rate"]
+           "miss_rate", "tolerance_line"]
 
 REALTIME_COLUMNS = ("ticks", "deadline misses", "skipped ticks", "late inputs", "ticks missing an input",
                     "latency p50 [us]", "latency p99 [us]", "latency max [us]", "work p50 [us]", "work p99 [us]",
@@ -24,6 +24,17 @@ def score_run(curve, run, from_time: float = 0.0) -> Scores:
                      theta=run.theta, from_time=from_time)[0]
     except ValueError as error:
         raise ScoreError(f"--from {from_time:g}: {error}") from None
+
+
+def tolerance_line(schedule: dict, mce: float) -> str | None:
+    """Whether a run held its schedule's ``contour_tolerance`` (the contour-tolerance planner's bound): one line
+    with the MCE, and by how much it exceeded the bound if it did; None without a tolerance."""
+    tolerance = schedule.get("contour_tolerance") or 0.0
+    if not tolerance:
+        return None
+    verdict = "held" if mce <= tolerance else f"exceeded by {(mce - tolerance) * 1e6:.4g} um " \
+                                              f"({mce / tolerance:.3g} x)"
+    return f"contour tolerance {tolerance * 1e6:.4g} um: {verdict} (MCE {mce * 1e6:.4g} um)"
 
 
 def score_bag(path, experiment_text: str | None = None, progress: bool = False,

@@ -5,11 +5,15 @@ derivatives with respect to ``theta`` analytically (papers 000 eq. 3, 003 eq. 1-
 """
 from __future__ import annotations
 
+import bisect
+import math
 from abc import ABC, abstractmethod
+from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Curve", "Parabola", "Line", "Circle", "Ellipse", "FigureEight", "Saddle", "Helix", "Butterfly", "SplineCurve", "ToolPath"]
+__all__ = ["Curve", "Parabola", "Line", "Circle", "Ellipse", "FigureEight", "Saddle", "Helix", "Butterfly", "SplineCurve", "ToolPath",
+           "PathBlock", "MAX_PATH_LENGTH"]
 
 
 class Curve(ABC):
@@ -321,14 +325,51 @@ class SplineCurve(Curve):
         return [tuple(v[..., i] for i in range(self.dimension)) for v in values]
 
 
+#: m: a tool path longer than this is refused (a unit slip: G1 X50 written for millimetres is 50 m)
+MAX_PATH_LENGTH = 10.0
+
+
+@dataclass(frozen=True)
+class PathBlock:
+    """One stretch of a tool path between two block boundaries, as the feed planner sees it.
+
+    Attributes
+    ----------
+    kind : str
+        ``line``, ``rapid``, ``arc`` (G2 / G3, helical or not) or ``blend`` (an arc inserted at a corner).
+    start : float
+        Arc length [m] where it begins; ``length`` its length [m].
+    feed : float or None
+        Its programmed feed limit [m/s] (None: the schedule's feedrate; rapids: the schedule's rapid rate).
+    line : int
+        Source line (part program) or move number (inline moves).
+    tangent_in, tangent_out : ndarray
+        Unit tangents at its two ends.
+    curvature : float
+        Curvature [1/m] (0 on lines; r / (r^2 + p^2) on a helix of radius r and pitch p per radian).
+    """
+
+    kind: str
+    start: float
+    length: float
+    feed: float | None
+    line: int
+    tangent_in: np.ndarray
+    tangent_out: np.ndarray
+    curvature: float
+
+
 class ToolPath(Curve):
-    """A planar CNC tool path of straight lines and circular arcs (G01 / G02 / G03), parametrised by arc
+    """A CNC tool path of straight lines and circular or helical arcs (G01 / G02 / G03), parametrised by arc
     length [m] from ``start``.
 
-    Each move is a string: ``"G1 X Y"`` a line to (X, Y); ``"G2 X Y I J"`` (clockwise) or ``"G3 X Y I J"``
-    (counter-clockwise) an arc to (X, Y) about the centre start + (I, J); coordinates in metres. The end
-    point of an arc must lie on its circle (to 1 um). Derivatives are analytic within each move; the
-    curvature jumps where moves meet, as on a machine.
+    Inline form (``ToolPath(start, moves)``, planar): each move is a string: ``"G1 X Y"`` a line to (X, Y);
+    ``"G2 X Y I J"`` (clockwise) or ``"G3 X Y I J"`` (counter-clockwise) an arc to (X, Y) about the centre
+    start + (I, J); coordinates in metres. The end point of an arc must lie on its circle (to 1 um).
+    :meth:`from_program` builds one from a part program (:mod:`contouring_ros.core.gcode`, 2 or 3 axes),
+    optionally blending line-line corners within a tolerance. Derivatives are analytic within each move; the
+    curvature jumps where moves meet, as on a machine. ``blocks`` lists the stretches between block
+    boundaries (:class:`PathBlock`) for feed planning.
     """
 
     dimension = 2
@@ -346,6 +387,11 @@ class ToolPath(Curve):
                 values = {w[0].upper(): float(w[1:]) for w in words[1:]}
             except ValueError:
                 raise ValueError(f"move {number} {move!r}: expected words like X0.05") from None
+            allowed = "XY" if code in ("G1", "G01") else "XYIJ"
+            extra = [w for w in words[1:] if w[0].upper() not in allowed]
+            if extra and code in ("G1", "G01", "G2", "G02", "G3", "G03"):
+                raise ValueError(f"move {number} {move!r}: {extra[0]} is not read in inline moves (planar, metres: "
+                                 f"{' '.join(allowed)}); a part program (curve type gcode) takes F, Z, K, R ...")
             if code in ("G1", "G01"):
                 end = np.array([values.get("X", position[0]), values.get("Y", position[1])])
                 length = float(np.linalg.norm(end - position))
@@ -370,26 +416,179 @@ class ToolPath(Curve):
                 raise ValueError(f"move {number} {move!r}: expected G1, G2 or G3")
             lengths.append(length)
             position = end
+            if sum(lengths) > MAX_PATH_LENGTH:
+                raise ValueError(f"move {number} {move!r}: the path is over {MAX_PATH_LENGTH:g} m long; inline "
+                                 "moves are in metres (G1 X50 is 50 m: write X0.05, or use a part program with "
+                                 "G21 for millimetres)")
         if not self.segments:
             raise ValueError("a tool path needs at least one move")
+        self._finish(lengths, [("arc" if seg[0] == "arc" else "line", None, n)
+                               for n, seg in enumerate(self.segments, start=1)])
+
+    @classmethod
+    def from_program(cls, program, blend_tolerance: float = 0.0) -> "ToolPath":
+        """The tool path of a part program (:class:`contouring_ros.core.gcode.Program`).
+
+        ``blend_tolerance`` > 0 (as G64 P): each corner between two G1 lines is rounded by the circular arc
+        tangent to both whose distance from the corner is at most the tolerance: for a turn angle phi that
+        arc has radius r = P / (1 / cos(phi / 2) - 1) and meets the lines t = r tan(phi / 2) from the corner
+        (the arc blend of LinuxCNC's trajectory planner); t is capped at half of each line, which only lowers
+        the deviation. 0: every corner is kept exact (the feed planner stops there, as G61).
+        """
+        self = cls.__new__(cls)
+        d = program.dimension
+        self.dimension = d
+        items = []                     # (segment, length, kind, feed, line)
+        for block in program.blocks:
+            start, end = block.start[:d], block.end[:d]
+            if block.kind in ("line", "rapid"):
+                length = float(np.linalg.norm(end - start))
+                items.append([("line", start, (end - start) / length, 0.0, 0.0, 0.0), length, block.kind,
+                              block.feed, block.line])
+                continue
+            first, second, normal = block.plane
+            centre = block.centre
+            a = np.array([block.start[first] - centre[first], block.start[second] - centre[second]])
+            b = np.array([block.end[first] - centre[first], block.end[second] - centre[second]])
+            radius = float(np.linalg.norm(a))
+            turn = -1.0 if block.clockwise else 1.0
+            a0, a1 = math.atan2(a[1], a[0]), math.atan2(b[1], b[0])
+            sweep = (turn * (a1 - a0)) % (2 * np.pi) or 2 * np.pi
+            e1, e2, w = np.zeros(3), np.zeros(3), np.zeros(3)
+            e1[first], e1[second] = 1.0, 0.0
+            e2[first], e2[second] = 0.0, 1.0
+            rise = float(block.end[normal] - block.start[normal])
+            rho = math.hypot(radius, rise / sweep)
+            length = rho * sweep
+            w[normal] = rise / length
+            base = centre.copy()
+            base[normal] = block.start[normal]
+            items.append([("helix", base[:d], (e1[:d], e2[:d], w[:d], rho), radius, a0, turn), length, "arc",
+                          block.feed, block.line])
+        if blend_tolerance > 0.0:
+            items = _blend(items, blend_tolerance)
+        total = sum(item[1] for item in items)
+        if total > MAX_PATH_LENGTH:
+            raise ValueError(f"the path is {total:.4g} m long (at most {MAX_PATH_LENGTH:g} m): check the units "
+                             "(G1 X50 is 50 mm under G21, the default, and 50 inch = 1.27 m under G20)")
+        self.segments = [item[0] for item in items]
+        self._finish([item[1] for item in items], [(item[2], item[3], item[4]) for item in items])
+        return self
+
+    def _finish(self, lengths, kinds):
         self._starts = np.concatenate([[0.0], np.cumsum(lengths)])
+        self._start_list = [float(v) for v in self._starts]
+        plain = []                   # each segment's vectors as tuples of floats (the scalar path)
+        for kind, origin, direction, *_ in self.segments:
+            if kind == "line":
+                plain.append((_floats(origin), _floats(direction)))
+            elif kind == "helix":
+                plain.append((_floats(origin), *(_floats(v) for v in direction[:3]), float(direction[3])))
+            else:
+                plain.append(None)
+        self._plain = plain
         self.domain = (0.0, float(self._starts[-1]))
         self.closed = False
+        blocks = []
+        for i, (kind, feed, line) in enumerate(kinds):
+            begin, end = self._segment(i, 0.0), self._segment(i, float(lengths[i]))
+            d1, d2 = np.array(begin[1]), np.array(begin[2])
+            curvature = float(np.linalg.norm(d2)) if kind != "line" and kind != "rapid" else 0.0
+            blocks.append(PathBlock(kind, float(self._starts[i]), float(lengths[i]), feed, line,
+                                    d1 / np.linalg.norm(d1), np.array(end[1]) / np.linalg.norm(end[1]), curvature))
+        self.blocks = blocks
 
-    def _one(self, s: float) -> list:
-        i = min(max(int(np.searchsorted(self._starts, s, side="right")) - 1, 0), len(self.segments) - 1)
+    def _segment(self, i: int, u: float) -> list:
+        """[R, dR, d2R, d3R] at distance u into segment i, as tuples of floats (the estimators' scalar path)."""
         kind, origin, direction, radius, a0, turn = self.segments[i]
-        u = s - self._starts[i]
+        n = self.dimension
         if kind == "line":
-            return [tuple(origin + u * direction), tuple(direction), (0.0, 0.0), (0.0, 0.0)]
+            o, d = self._plain[i]
+            zero = (0.0,) * n
+            return [tuple(o[k] + u * d[k] for k in range(n)), d, zero, zero]
+        if kind == "helix":
+            o, e1, e2, w, rho = self._plain[i]
+            a = a0 + turn * u / rho
+            c, si = math.cos(a), math.sin(a)
+            k1, k2, k3 = radius * turn / rho, radius / rho**2, radius * turn / rho**3
+            return [tuple(o[k] + radius * (c * e1[k] + si * e2[k]) + w[k] * u for k in range(n)),
+                    tuple(k1 * (c * e2[k] - si * e1[k]) + w[k] for k in range(n)),
+                    tuple(-k2 * (c * e1[k] + si * e2[k]) for k in range(n)),
+                    tuple(k3 * (si * e1[k] - c * e2[k]) for k in range(n))]
         a = a0 + turn * u / radius
         c, si = np.cos(a), np.sin(a)
         return [(origin[0] + radius * c, origin[1] + radius * si), (-turn * si, turn * c),
                 (-c / radius, -si / radius), (turn * si / radius**2, -turn * c / radius**2)]
 
+    def _one(self, s: float) -> list:
+        i = min(max(bisect.bisect_right(self._start_list, s) - 1, 0), len(self.segments) - 1)
+        return self._segment(i, s - self._start_list[i])
+
     def columns(self, t) -> list:
         if np.ndim(t) == 0:
             return [tuple(float(v) for v in row) for row in self._one(float(t))]
-        rows = [self._one(float(s)) for s in np.ravel(t)]
-        shape = np.shape(t)
-        return [tuple(np.array([r[j][i] for r in rows]).reshape(shape) for i in range(2)) for j in range(4)]
+        shape, flat = np.shape(t), np.ravel(np.asarray(t, dtype=float))
+        index = np.clip(np.searchsorted(self._starts, flat, side="right") - 1, 0, len(self.segments) - 1)
+        out = [np.empty((flat.size, self.dimension)) for _ in range(4)]
+        for i in np.unique(index):       # each segment's points at once
+            inside = index == i
+            for j, rows in enumerate(self._segment_array(int(i), flat[inside] - self._starts[i])):
+                out[j][inside] = rows
+        return [tuple(out[j][:, c].reshape(shape) for c in range(self.dimension)) for j in range(4)]
+
+    def _segment_array(self, i: int, u: np.ndarray) -> list:
+        """:meth:`_segment` for an array of distances ``u`` into segment i: 4 arrays of shape (len(u), dim)."""
+        kind, origin, direction, radius, a0, turn = self.segments[i]
+        u = u[:, None]
+        if kind == "line":
+            zero = np.zeros((u.shape[0], self.dimension))
+            return [origin + u * direction, np.broadcast_to(direction, zero.shape), zero, zero]
+        if kind == "helix":
+            e1, e2, w, rho = direction
+            a = a0 + turn * u / rho
+            c, si = np.cos(a), np.sin(a)
+            k1, k2, k3 = radius * turn / rho, radius / rho**2, radius * turn / rho**3
+            return [origin + radius * (c * e1 + si * e2) + w * u, k1 * (c * e2 - si * e1) + w,
+                    -k2 * (c * e1 + si * e2), k3 * (si * e1 - c * e2)]
+        a = a0 + turn * u[:, 0] / radius
+        c, si = np.cos(a), np.sin(a)
+        return [np.column_stack([origin[0] + radius * c, origin[1] + radius * si]),
+                np.column_stack([-turn * si, turn * c]), np.column_stack([-c / radius, -si / radius]),
+                np.column_stack([turn * si / radius**2, -turn * c / radius**2])]
+
+
+def _floats(vector) -> tuple:
+    return tuple(float(x) for x in vector)
+
+
+def _blend(items, tolerance: float) -> list:
+    """Insert a tangent arc at each corner between two G1 lines (see :meth:`ToolPath.from_program`)."""
+    items = [list(item) + [item[1]] for item in items]
+    out = [items[0]]
+    for item in items[1:]:
+        previous = out[-1]
+        (_, _, u1, *_), length0 = previous[0], previous[1]
+        (_, p1, u2, *_), length1 = item[0], item[1]
+        if previous[2] == "line" and item[2] == "line":
+            cosine = float(np.clip(np.dot(u1, u2), -1.0, 1.0))
+            phi = math.acos(cosine)
+            if 1e-9 < phi < math.pi - 1e-6:
+                half = phi / 2.0
+                radius = tolerance / (1.0 / math.cos(half) - 1.0)
+                cut = radius * math.tan(half)
+                limit = 0.45 * min(previous[5], item[5])     # of the lines' programmed lengths
+                if cut > limit:
+                    cut, radius = limit, limit / math.tan(half)
+                corner = p1
+                centre_side = (u2 - u1) / np.linalg.norm(u2 - u1)
+                centre = corner + centre_side * radius / math.cos(half)
+                begin = corner - u1 * cut
+                e1 = (begin - centre) / radius
+                previous[1] = length0 - cut
+                feeds = [f for f in (previous[3], item[3]) if f is not None]
+                arc = ("helix", centre, (e1, u1.copy(), np.zeros_like(u1), radius), radius, 0.0, 1.0)
+                out.append([arc, radius * phi, "blend", min(feeds) if feeds else None, item[4], radius * phi])
+                item[0] = ("line", corner + u2 * cut, u2, 0.0, 0.0, 0.0)
+                item[1] = length1 - cut
+        out.append(item)
+    return out

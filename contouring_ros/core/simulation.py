@@ -132,8 +132,8 @@ def _cut(result: SimulationResult, k: int) -> SimulationResult:
     return SimulationResult(**{name: value[:k] for name, value in vars(result).items()})
 
 
-def simulate(loop: ControlLoop, stop_on_divergence: bool = True) -> SimulationResult:
-    """Run ``loop`` for its n_steps and return every signal.
+def simulate(loop: ControlLoop, stop_on_divergence: bool = True, progress: bool = False) -> SimulationResult:
+    """Run ``loop`` for its n_steps and return every signal (``progress``: a progress bar on stderr).
 
     Raises
     ------
@@ -150,7 +150,11 @@ def simulate(loop: ControlLoop, stop_on_divergence: bool = True) -> SimulationRe
         np.empty((m, n)) for _ in range(8))
     curve, schedule, estimator, controller = loop.curve, loop.schedule, loop.estimator, loop.controller
     axes = list(zip(range(n), loop.plants, loop.servos))
-    for k in range(m):
+    steps = range(m)
+    if progress:
+        from tqdm import tqdm
+        steps = tqdm(steps, unit="step", unit_scale=True, mininterval=0.5, leave=False)
+    for k in steps:
         t = step_time(k, loop.sample_time)
         for i, plant, _ in axes:
             positions[k, i], velocities[k, i] = plant.measure()

@@ -15,13 +15,13 @@ whose bag would be polluted never exits 0; with ``hold`` it is left out of the b
 from __future__ import annotations
 
 import time
-from pathlib import Path
 
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.serialization import deserialize_message
 
 from .. import __version__, cdr, graph
 from ..bag import EXPERIMENT_METADATA, RUN_METADATA, BagWriter
+from ..config import recorded_text
 from ..errors import ConfigError
 from .lockstep import DIAGNOSTICS_QOS, GRAPH_QOS, LockstepNode, run_node
 
@@ -37,7 +37,7 @@ class RecorderNode(LockstepNode):
         options = self.experiment.info["node"]
         if not options["bag"]:
             raise ConfigError(f"{self.name}: parameter 'bag' (the .mcap file to write) is required")
-        text = Path(options["experiment_file"]).read_text() if options["experiment_file"] else ""
+        text = recorded_text(options["experiment_file"]) if options["experiment_file"] else ""
         self.topic_list = graph.recorded_topics(self.axes, self.experiment.ccc_takes_state)
         for topic in self.topic_list:
             self.add_input(topic.name, GRAPH_QOS if topic.name != graph.DIAGNOSTICS else DIAGNOSTICS_QOS)

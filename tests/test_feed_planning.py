@@ -1,0 +1,376 @@
+"""Feed planning along part programs (core/feed_planning.py): analytic S-curve durations, the bounds held,
+corners, blending, F as each block's bound, the contour-tolerance planner, and the experiment-file side."""
+import math
+
+import numpy as np
+import pytest
+
+from contouring_ros.config import build_loop, load_experiment
+from contouring_ros.core.curves import ToolPath
+from contouring_ros.core.feed_planning import FeedPlan, scurve_time, tolerance_feed
+from contouring_ros.core.gcode import parse_program
+from contouring_ros.core.geometry import ExactContourError
+from contouring_ros.core.simulation import simulate
+from contouring_ros.errors import ConfigError
+from contouring_ros.paper import CONFIG_DIR
+from contouring_ros.scoring import score_run, tolerance_line
+
+DT = 1e-4
+
+
+def plan(text, blend=0.0, **kwargs):
+    path = ToolPath.from_program(parse_program(text), blend_tolerance=blend)
+    return path, FeedPlan(path, **kwargs)
+
+
+def sampled(schedule):
+    t = np.arange(0.0, schedule.duration + DT, DT)
+    return t, *schedule(t)
+
+
+def rest_to_rest_time(length, v, a, j):
+    """Closed-form duration of a rest-to-rest jerk-limited move (Biagiotti and Melchiorri 2008, sec. 3.4)."""
+    ramp = v / a + a / j if v * j >= a * a else 2.0 * math.sqrt(v / j)
+    if length >= v * ramp:                                   # cruises at v
+        return length / v + ramp
+    if length >= 2.0 * a**3 / j**2:                          # reaches a, not v
+        peak = a * (-a / j + math.sqrt((a / j) ** 2 + 4.0 * length / a)) / 2.0
+        return 2.0 * (peak / a + a / j)
+    return 4.0 * (length / (2.0 * j)) ** (1.0 / 3.0)         # reaches neither
+
+
+@pytest.mark.parametrize("length_mm, feed, a, j", [
+    (20.0, 0.02, 1.0, 20.0),        # cruise, acceleration limit reached
+    (20.0, 0.02, 0.8, 20.0),        # cruise, the acceleration never reaches its bound (v j < a^2)
+    (0.5, 0.05, 0.5, 20.0),         # no cruise, reaches a
+    (0.05, 0.05, 1.0, 20.0),        # reaches neither v nor a
+    (30.0, 0.04, 2.0, 5.0),         # cruise, jerk-dominated ramp
+])
+def test_rest_to_rest_duration_is_the_closed_form(length_mm, feed, a, j):
+    _, schedule = plan(f"G1 X{length_mm} F{feed * 60000}", acceleration=a, jerk=j)
+    assert schedule.duration == pytest.approx(rest_to_rest_time(length_mm * 1e-3, feed, a, j), rel=1e-9)
+
+
+def test_scurve_time_both_regimes():
+    assert scurve_time(0.02, 1.0, 100.0) == pytest.approx(0.02 / 1.0 + 1.0 / 100.0)     # reaches a: A^2 / J <= dv
+    assert scurve_time(0.02, 1.0, 20.0) == pytest.approx(2 * math.sqrt(0.02 / 20.0))     # does not
+    assert scurve_time(-0.02, 1.0, 20.0) == scurve_time(0.02, 1.0, 20.0)
+
+
+PROGRAM = """G21 G17
+G1 X10 F1200
+G1 X20 Y5 F900
+G3 X30 Y15 I0 J10
+G1 Y25 F600
+G2 X20 Y35 I-10 J0 Z-3
+G0 X0 Y0 Z0
+"""
+
+
+@pytest.mark.parametrize("blend", [0.0, 5e-5])
+def test_acceleration_and_jerk_bounds_hold_along_the_path(blend):
+    a, j = 0.8, 15.0
+    _, schedule = plan(PROGRAM, blend, acceleration=a, jerk=j, rapid_feedrate=0.05)
+    t, s, v, acc = sampled(schedule)
+    assert np.all(np.diff(s) >= -1e-15)                       # never backwards
+    assert np.abs(acc).max() <= a * (1 + 1e-9)
+    assert np.abs(acc).max() >= 0.5 * a                       # and they are used
+    jerk = np.diff(acc) / DT
+    assert np.abs(jerk).max() <= j * (1 + 1e-6)
+    velocity = np.gradient(s, DT)
+    assert np.allclose(velocity[1:-1], v[1:-1], atol=a * DT)   # theta_dot is the derivative of theta
+    assert s[-1] == pytest.approx(schedule.theta_end)
+
+
+def test_per_axis_bounds_on_a_diagonal_line():
+    # along (3, 4)/5: x may accelerate at 0.3 -> 0.5 along the path; y at 1.0 -> 1.25; the path bound is 2
+    path, schedule = plan("G1 X30 Y40 F6000", acceleration=2.0, jerk=40.0, axis_acceleration=[0.3, 1.0])
+    _, _, v, acc = sampled(schedule)
+    assert np.abs(acc).max() == pytest.approx(0.5, rel=1e-6)
+    assert np.abs(acc * 0.6).max() <= 0.3 * (1 + 1e-9)
+    _, limited = plan("G1 X30 Y40 F6000", acceleration=2.0, jerk=40.0, axis_feedrate=[0.03, 1.0])
+    assert sampled(limited)[2].max() == pytest.approx(0.05, rel=1e-9)     # x at 0.03 m/s: 0.05 along the path
+
+
+def test_exact_stop_at_every_corner_and_none_where_blocks_meet_tangentially():
+    path, schedule = plan("G1 X10 F1200\nX20\nY10\nG3 X10 Y20 I-10 J0\nG1 X0", acceleration=1.0, jerk=20.0)
+    # X10 -> X20 collinear: passes through at F; X20 -> Y10 a corner: stops; Y10 -> arc tangent; arc -> X0 tangent
+    assert schedule.junctions[1] == pytest.approx(0.02)
+    assert schedule.junctions[2] == 0.0
+    assert schedule.junctions[3] > 0.0 and schedule.junctions[4] > 0.0
+    corner = path.blocks[2].start
+    _, v, _ = schedule(schedule.block_times[2])
+    assert v == 0.0
+    near = schedule(np.linspace(schedule.block_times[2] - 0.02, schedule.block_times[2] + 0.02, 401))
+    assert near[0].min() <= corner <= near[0].max() and np.abs(near[1]).min() < 1e-9
+
+
+def test_exact_stop_dwell_holds_at_the_corner():
+    _, schedule = plan("G1 X10 F1200\nY10", acceleration=1.0, jerk=20.0, dwell=0.25)
+    _, plain = plan("G1 X10 F1200\nY10", acceleration=1.0, jerk=20.0)
+    assert schedule.duration == pytest.approx(plain.duration + 0.25)
+    start = schedule.block_times[1]
+    for t in (start, start + 0.1, start + 0.25):
+        assert schedule(t) == (pytest.approx(0.01), 0.0, 0.0)
+
+
+def test_blending_keeps_the_feed_through_corners_within_its_bounds():
+    square = "G1 X10 F1200\nY10\nX0\nY0"
+    path, blended = plan(square, 1e-4, acceleration=1.0, jerk=20.0)
+    _, exact = plan(square, acceleration=1.0, jerk=20.0)
+    assert blended.duration < exact.duration
+    arcs = [i for i, b in enumerate(path.blocks) if b.kind == "blend"]
+    assert len(arcs) == 3
+    for i in arcs:
+        kappa = path.blocks[i].curvature
+        bound = min(0.02, math.sqrt(1.0 / kappa), (20.0 / kappa**2) ** (1 / 3))
+        assert blended.junctions[i] == pytest.approx(bound)      # enters the blend at its limit, not 0
+        t = np.linspace(blended.block_times[i], blended.block_times[i + 1], 50)
+        assert blended(t)[1].max() <= bound * (1 + 1e-9)
+        assert blended(t)[1].max() ** 2 * kappa <= 1.0 * (1 + 1e-9)   # centripetal acceleration bound
+
+
+def test_feed_never_exceeds_each_blocks_f_and_reaches_it():
+    path, schedule = plan("G1 X20 F1800\nG1 X40 F600\nG1 X60 F1200\nG0 X0 Y5", acceleration=1.0, jerk=30.0,
+                          rapid_feedrate=0.08)
+    t, s, v, _ = sampled(schedule)
+    limits = schedule.feed_limit_at(s)
+    assert np.all(v <= limits * (1 + 1e-9))
+    for block, expected in zip(path.blocks, (0.03, 0.01, 0.02, 0.08)):
+        inside = (s > block.start) & (s < block.start + block.length)
+        assert v[inside].max() == pytest.approx(expected, rel=1e-6)
+    # look-ahead: the fast block brakes before the slow one instead of entering it too fast
+    assert schedule.junctions[1] == pytest.approx(0.01)
+
+
+def test_feed_from_the_schedule_without_f_words_and_refusals():
+    path = ToolPath.from_program(parse_program("G1 X10\nG0 X0"))
+    schedule = FeedPlan(path, 1.0, 20.0, feedrate=0.015, rapid_feedrate=0.05)
+    assert sampled(schedule)[2].max() == pytest.approx(0.05)
+    with pytest.raises(ValueError, match="line 2: a rapid move"):
+        FeedPlan(path, 1.0, 20.0, feedrate=0.015)
+    with pytest.raises(ValueError, match="line 1: no feed rate"):
+        FeedPlan(path, 1.0, 20.0, rapid_feedrate=0.05)
+
+
+def test_tolerance_feed_is_the_first_order_lag_model():
+    # a circle of radius 5 mm, lag 50 ms, tolerance 50 um: v^2 tau^2 kappa / 2 = T
+    v = tolerance_feed(50e-6, [0.05, 0.05], [1.0, 0.0], 200.0)
+    assert v**2 * 0.05**2 * 200.0 / 2 == pytest.approx(50e-6)
+    # a line at 45 degrees with lags 40 and 50 ms: normal lag v |tau_x - tau_y| / 2 = T
+    u = np.array([1.0, 1.0]) / math.sqrt(2)
+    assert tolerance_feed(10e-6, [0.04, 0.05], u, 0.0) * 0.01 / 2 == pytest.approx(10e-6)
+    assert tolerance_feed(10e-6, [0.05, 0.05], u, 0.0) == math.inf          # equal lags: no error on lines
+
+
+CIRCLE = """/**:
+  ros__parameters:
+    sample_time: 0.001
+    axes: ["x", "y"]
+    curve: {{type: gcode, file: circle.ngc}}
+    schedule: {{type: feedrate, acceleration: 2.0, jerk: 50.0{extra}}}
+/x/plant:
+  ros__parameters: {{model: first_order_velocity, gain: 10.0, time_constant: 0.005}}
+/y/plant:
+  ros__parameters: {{model: first_order_velocity, gain: 10.0, time_constant: 0.005}}
+/x/servo:
+  ros__parameters: {{law: pid, kp: 2.0}}
+/y/servo:
+  ros__parameters: {{law: pid, kp: 2.0}}
+/contour_estimator:
+  ros__parameters: {{type: tangent_line}}
+/ccc:
+  ros__parameters: {{type: none}}
+"""
+
+
+def test_contour_tolerance_held_in_simulation_where_the_unplanned_run_exceeds_it(tmp_path):
+    # P position loops (kp 2) around velocity drives (gain 10): a first-order lag of 1 / (10 * 2) = 50 ms
+    (tmp_path / "circle.ngc").write_text("G21 G17 (a full circle, radius 5 mm, 50 mm/s)\nG3 X0 Y0 I5 J0 F3000\nM2\n")
+    tolerance = 50e-6
+    runs = {}
+    for name, extra in (("free", ""), ("planned", f", contour_tolerance: {tolerance}, tracking_lag: [0.05]")):
+        path = tmp_path / f"{name}.yaml"
+        path.write_text(CIRCLE.format(extra=extra))
+        experiment = load_experiment(path)
+        loop = build_loop(experiment)
+        runs[name] = (experiment, score_run(loop.curve, simulate(loop)).mce)
+    free, planned = runs["free"][1], runs["planned"][1]
+    assert free > 4 * tolerance                  # unplanned: the lag's radial error
+    assert planned <= tolerance                  # planned: within the bound
+    assert planned >= 0.5 * tolerance            # and not by crawling
+    assert tolerance_line(runs["planned"][0].schedule, planned).startswith("contour tolerance 50 um: held")
+    assert "exceeded by" in tolerance_line(runs["planned"][0].schedule, free)
+    assert tolerance_line(runs["free"][0].schedule, free) is None
+
+
+EXPERIMENT = """/**:
+  ros__parameters:
+    sample_time: 0.001
+    axes: ["x", "y"]
+    curve: {{type: gcode, file: {file}}}
+    schedule: {schedule}
+/x/plant:
+  ros__parameters: {{model: first_order_velocity, gain: 10.0, time_constant: 0.005}}
+/y/plant:
+  ros__parameters: {{model: first_order_velocity, gain: 10.0, time_constant: 0.005}}
+/x/servo:
+  ros__parameters: {{law: pid, kp: 20.0}}
+/y/servo:
+  ros__parameters: {{law: pid, kp: 20.0}}
+/contour_estimator:
+  ros__parameters: {{type: tangent_line}}
+/ccc:
+  ros__parameters: {{type: none}}
+"""
+SCHEDULE = "{type: feedrate, acceleration: 1.0, jerk: 20.0}"
+
+
+def write(tmp_path, program, schedule=SCHEDULE, file="part.ngc"):
+    (tmp_path / "parts").mkdir(exist_ok=True)
+    (tmp_path / "parts" / "part.ngc").write_text(program)
+    path = tmp_path / "experiment.yaml"
+    path.write_text(EXPERIMENT.format(file=f"parts/{file}", schedule=schedule))
+    return path
+
+
+def test_experiment_reads_the_program_relative_to_its_file(tmp_path):
+    experiment = load_experiment(write(tmp_path, "G1 X5 F600\nY5\n"))
+    resolved = str((tmp_path / "parts" / "part.ngc").resolve())
+    assert experiment.curve["file"] == resolved
+    # the text bags and sweeps keep names the program by its absolute path, so it reads from anywhere
+    assert f'file: "{resolved}"' in experiment.text and "file: parts/part.ngc" not in experiment.text
+    from contouring_ros.config import parse_experiment
+    assert parse_experiment(experiment.text, "a bag's copy").curve["file"] == resolved
+    loop = build_loop(experiment)
+    assert loop.curve.domain[1] == pytest.approx(0.01)
+    assert experiment.duration == pytest.approx(loop.schedule.duration)
+
+
+@pytest.mark.parametrize("program, schedule, fragment", [
+    ("G1 X5 F600\nG41 X6", SCHEDULE, "part.ngc: line 2: unsupported word G41"),
+    ("G1 X5 F600", "{type: feedrate, acceleration: 1.0}", "schedule.jerk: missing required key"),
+    ("G1 X5 F600", "{type: feedrate, acceleration: 1.0, jerk: 20.0, feedrate: 0.01}",
+     "schedule.feedrate: the part program sets its feeds with F words"),
+    ("G1 X5", SCHEDULE, "line 1: no feed rate"),
+    ("G1 X5 F600\nG0 X0", SCHEDULE, "line 2: a rapid move (G0) needs the schedule's rapid_feedrate"),
+    ("G1 X5 F600", "{type: feedrate, acceleration: 1.0, jerk: 20.0, contour_tolerance: 1.0e-5}",
+     "schedule.tracking_lag: missing required key"),
+    ("G1 X5 F600", "{type: feedrate, acceleration: 1.0, jerk: 20.0, axis_jerk: [1.0, 2.0, 3.0]}",
+     "schedule.axis_jerk: expected 1 value or one per axis (2)"),
+    ("G20 G1 X500 F600", SCHEDULE, "check the units"),
+    ("G1 X5000 Y5000 F1", SCHEDULE, "check the part program's units (G20 inch, G21 mm) and feeds"),
+])
+def test_experiment_refusals_are_one_line_naming_key_file_and_line(tmp_path, program, schedule, fragment):
+    with pytest.raises(ConfigError) as error:
+        load_experiment(write(tmp_path, program, schedule))
+    assert fragment in str(error.value) and "\n" not in str(error.value)
+
+
+def test_start_takes_two_or_three_coordinates(tmp_path):
+    path = write(tmp_path, "G1 X5 F600")
+    path.write_text(path.read_text().replace("file: parts/part.ngc", "file: parts/part.ngc, start: [0.0, 0.0, 0.0, 1.0]"))
+    with pytest.raises(ConfigError, match="curve: start: expected 2 or 3 coordinates"):
+        load_experiment(path)
+
+
+def test_missing_program_file_is_named(tmp_path):
+    with pytest.raises(ConfigError, match="cannot find the part program 'parts/other.ngc'"):
+        load_experiment(write(tmp_path, "G1 X5 F600", file="other.ngc"))
+
+
+def test_jerk_only_for_tool_paths_and_plan_keys_only_with_jerk(tmp_path):
+    text = EXPERIMENT.replace("{{type: gcode, file: {file}}}", "{{type: circle, radius: 0.01}}")
+    path = tmp_path / "circle.yaml"
+    path.write_text(text.format(file="", schedule="{type: feedrate, feedrate: 0.01, acceleration: 1.0, jerk: 5.0}"))
+    with pytest.raises(ConfigError, match="schedule.jerk: the jerk-limited feed plan runs along a tool path"):
+        load_experiment(path)
+    path.write_text(text.format(file="", schedule="{type: feedrate, feedrate: 0.01, acceleration: 1.0, "
+                                                  "rapid_feedrate: 0.1}"))
+    with pytest.raises(ConfigError, match="schedule.rapid_feedrate: applies to the jerk-limited feed plan"):
+        load_experiment(path)
+
+
+@pytest.mark.slow
+def test_example_part_square_corners_under_20_um_and_feeds_within_f():
+    experiment = load_experiment(CONFIG_DIR / "gcode_example_part.yaml")
+    loop = build_loop(experiment)
+    result = simulate(loop)
+    error = ExactContourError(loop.curve)(result.position, near=result.theta).distance
+    path, schedule = loop.curve, loop.schedule
+    starts = np.array([b.start for b in path.blocks])
+    block = np.clip(np.searchsorted(starts, result.theta, side="right") - 1, 0, len(starts) - 1)
+    square = [i for i, b in enumerate(path.blocks) if b.kind == "line"][:4]
+    assert [path.blocks[i].line for i in square] == [5, 6, 7, 8]
+    assert error[np.isin(block, square)].max() < 20e-6
+    feed = np.linalg.norm(result.reference_velocity, axis=1)
+    limit = np.array([b.feed if b.feed is not None else schedule.limits[i].feed for i, b in enumerate(path.blocks)])
+    assert np.all(feed <= limit[block] * (1 + 1e-9))
+    assert feed[np.isin(block, square)].max() == pytest.approx(0.02)          # F1200: 20 mm/s, reached
+
+
+def test_tool_path_runs_get_the_feed_and_per_block_figure(tmp_path):
+    from contouring_ros.analysis import figures
+    from contouring_ros.bag import read_run, write_simulation
+    path = write(tmp_path, "G1 X3 F600 (a corner)\nY3\nG2 X6 Y3 R1.5\n", SCHEDULE)
+    experiment = load_experiment(path)
+    loop = build_loop(experiment)
+    bag = write_simulation(tmp_path / "run.mcap", experiment, simulate(loop))
+    drawn = figures([("run", read_run(bag))])
+    assert "feed" in drawn
+    top, bottom = drawn["feed"].axes[:2]
+    assert [tick.get_text() for tick in bottom.get_xticklabels()] == ["line 1\nG1", "line 2\nG1", "line 3\nG2/G3"]
+    heights = [patch.get_height() for patch in bottom.patches]
+    assert len(heights) == 3 and all(h > 0 for h in heights)
+    feed = top.lines[0].get_ydata()
+    assert max(feed) == pytest.approx(10.0)                        # mm/s: F600
+    circle = CONFIG_DIR / "paper003_ellipse_first_order_fn60.yaml"
+    from conftest import shortened
+    other = tmp_path / "ellipse.yaml"
+    other.write_text(shortened(circle, 0.05))
+    experiment = load_experiment(other)
+    bag = write_simulation(tmp_path / "ellipse.mcap", experiment, simulate(build_loop(experiment)))
+    assert "feed" not in figures([("ellipse", read_run(bag))])
+
+
+def test_long_simulations_show_progress(tmp_path, capsys):
+    loop = build_loop(load_experiment(write(tmp_path, "G1 X2 F600\n")))
+    simulate(loop, progress=True)
+    assert "step" in capsys.readouterr().err
+    simulate(loop)
+    assert capsys.readouterr().err == ""
+
+
+def test_inline_tool_paths_take_the_jerk_limited_plan_with_the_schedule_feedrate(tmp_path):
+    text = EXPERIMENT.replace("{{type: gcode, file: {file}}}",
+                              '{{type: toolpath, start: [0.0, 0.0], moves: ["G1 X0.01 Y0", "G1 X0.02 Y0", '
+                              '"G3 X0.03 Y0.01 I0 J0.01"]}}')
+    path = tmp_path / "inline.yaml"
+    path.write_text(text.format(file="", schedule="{type: feedrate, feedrate: 0.02, acceleration: 1.0, jerk: 20.0}"))
+    schedule = build_loop(load_experiment(path)).schedule
+    assert isinstance(schedule, FeedPlan)
+    assert schedule.junctions[1] == pytest.approx(0.02)           # collinear: no stop
+    assert schedule.junctions[2] == pytest.approx(0.02)           # line into a tangent arc: no stop
+    assert sampled(schedule)[2].max() == pytest.approx(0.02)
+
+
+@pytest.mark.slow
+def test_a_fifty_millimetre_square_at_fifty_mm_per_second_keeps_its_corners(tmp_path):
+    # the example's axes on another program: a 50 mm square at F3000, arcs, a helix, a rapid
+    program = ("(50 mm square at 50 mm/s)\nG21 G90 G17\nN1 G1 X50 F3000\nN2 Y50\nN3 X0\nN4 Y0\n"
+               "N5 G3 X40 Y0 R20 F2000 ; half circle\nN6 G2 X0 Y0 I-20 J0\n"
+               "N7 G91 G3 X0 Y0 Z-2 I10 J0 F1500 (helix)\nN8 G90 G0 Z5\nM30\n")
+    (tmp_path / "square.ngc").write_text(program)
+    text = (CONFIG_DIR / "gcode_example_part.yaml").read_text()
+    (tmp_path / "square.yaml").write_text(text.replace("file: parts/example_part.ngc", "file: square.ngc"))
+    experiment = load_experiment(tmp_path / "square.yaml")
+    loop = build_loop(experiment)
+    result = simulate(loop)
+    error = ExactContourError(loop.curve)(result.position, near=result.theta).distance
+    starts = np.array([b.start for b in loop.curve.blocks])
+    block = np.searchsorted(starts, result.theta, side="right") - 1
+    assert [b.line for b in loop.curve.blocks[:4]] == [3, 4, 5, 6]
+    assert error[block <= 3].max() < 20e-6
+    feed = np.linalg.norm(result.reference_velocity, axis=1)
+    assert feed[block <= 3].max() == pytest.approx(0.05)
+    assert np.all(feed <= np.array([limit.feed for limit in loop.schedule.limits])[np.clip(block, 0, None)] * (1 + 1e-9))

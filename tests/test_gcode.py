@@ -1,0 +1,182 @@
+"""The part program reader (core/gcode.py) and the tool path it builds (ToolPath.from_program)."""
+import math
+
+import numpy as np
+import pytest
+
+from contouring_ros.core.curves import ToolPath
+from contouring_ros.core.gcode import ProgramError, parse_program
+
+
+def blocks(text, start=(0.0, 0.0, 0.0)):
+    return parse_program(text, start).blocks
+
+
+def test_units_millimetres_by_default_inches_with_g20():
+    (mm,) = blocks("G1 X50 F600")
+    assert mm.end == pytest.approx([0.05, 0.0, 0.0])
+    assert mm.feed == pytest.approx(0.01)                      # 600 mm/min = 10 mm/s
+    (inch,) = blocks("G20 G1 X2 F60")
+    assert inch.end == pytest.approx([0.0508, 0.0, 0.0])
+    assert inch.feed == pytest.approx(60 * 0.0254 / 60)
+    (metric,) = blocks("G20\nG21 G1 Y3 F60")
+    assert metric.end == pytest.approx([0.0, 0.003, 0.0])
+
+
+def test_incremental_and_absolute_and_modal_motion_and_feed():
+    program = blocks("G91 G1 X10 F600\nX10\nY5\nG90 X0\nG0 Y0")
+    ends = [b.end * 1e3 for b in program]
+    assert np.allclose(ends, [[10, 0, 0], [20, 0, 0], [20, 5, 0], [0, 5, 0], [0, 0, 0]])
+    assert [b.kind for b in program] == ["line", "line", "line", "line", "rapid"]
+    assert [b.feed for b in program[:4]] == [pytest.approx(0.01)] * 4
+    assert program[4].feed is None                                  # rapids take the schedule's rapid rate
+
+
+def test_comments_line_numbers_percent_and_program_end():
+    program = parse_program("%\n(a comment G2 X99)\nN10 G1 X1 F60 (inline) ; rest X99\n; a line comment\n"
+                            "N20 M30\n%\n")
+    assert len(program.blocks) == 1 and program.blocks[0].end[0] == pytest.approx(0.001)
+    assert program.blocks[0].line == 3
+
+
+def test_arc_centre_form_and_direction():
+    (ccw,) = blocks("G17 G3 X10 Y10 I0 J10 F600")
+    assert ccw.centre * 1e3 == pytest.approx([0, 10, 0]) and not ccw.clockwise
+    (cw,) = blocks("G2 X10 Y10 I10 J0 F600")
+    assert cw.centre * 1e3 == pytest.approx([10, 0, 0]) and cw.clockwise
+
+
+def test_arc_radius_form_negative_r_takes_the_long_way():
+    # chord (0,0)->(10,10) of a radius-10 circle: centre (0,10) (a quarter turn counter-clockwise) or (10,0)
+    (short,) = blocks("G3 X10 Y10 R10 F600")
+    (long,) = blocks("G3 X10 Y10 R-10 F600")
+    (clockwise,) = blocks("G2 X10 Y10 R10 F600")
+    assert short.centre[:2] * 1e3 == pytest.approx([0, 10], abs=1e-9)
+    assert long.centre[:2] * 1e3 == pytest.approx([10, 0], abs=1e-9)
+    assert clockwise.centre[:2] * 1e3 == pytest.approx([10, 0], abs=1e-9)
+    lengths = [ToolPath.from_program(parse_program(f"G3 X10 Y10 R{r} F600")).domain[1] for r in (10, -10)]
+    assert lengths[0] == pytest.approx(0.01 * math.pi / 2)
+    assert lengths[1] == pytest.approx(0.01 * 3 * math.pi / 2)
+
+
+def test_helical_arc_and_full_circle():
+    program = parse_program("G3 X0 Y0 Z-2 I5 J0 F600")
+    assert program.dimension == 3
+    path = ToolPath.from_program(program)
+    assert path.domain[1] == pytest.approx(math.hypot(2 * math.pi * 0.005, 0.002))
+    assert path.point(path.domain[1]) == pytest.approx([0.0, 0.0, -0.002], abs=1e-12)
+    mid = path.point(path.domain[1] / 2)
+    assert mid == pytest.approx([0.010, 0.0, -0.001], abs=1e-12)          # half a turn: opposite the start
+    speed = np.linalg.norm(path.derivatives(np.linspace(0, path.domain[1], 50), 1)[1], axis=-1)
+    assert speed == pytest.approx(1.0)                                      # parametrised by arc length
+    assert path.blocks[0].curvature == pytest.approx(0.005 / (0.005**2 + (0.002 / (2 * math.pi))**2))
+
+
+@pytest.mark.parametrize("words, tangent", [
+    ("G17 G2 X10 Y0 I5 J0", [0, 1, 0]),       # about +Z from (-5, 0) off the centre: clockwise goes +Y
+    ("G17 G3 X10 Y0 I5 J0", [0, -1, 0]),
+    ("G18 G2 X10 Z0 I5 K0", [0, 0, -1]),      # ZX plane, seen from +Y: clockwise goes -Z
+    ("G18 G3 X10 Z0 I5 K0", [0, 0, 1]),
+    ("G19 G2 Y10 Z0 J5 K0", [0, 0, 1]),       # YZ plane, seen from +X: clockwise goes +Z
+    ("G19 G3 Y10 Z0 J5 K0", [0, 0, -1]),
+])
+def test_planes_clockwise_as_seen_from_the_positive_normal_axis(words, tangent):
+    path = ToolPath.from_program(parse_program(f"{words} F600"))
+    assert path.blocks[0].tangent_in[:path.dimension] == pytest.approx(tangent[:path.dimension], abs=1e-12)
+    assert path.domain[1] == pytest.approx(math.pi * 0.005)
+    end = path.point(path.domain[1])
+    assert np.linalg.norm(end - np.array(parse_program(words + " F600").blocks[0].end[:path.dimension])) < 1e-15
+
+
+def test_derivatives_are_those_of_the_points():
+    path = ToolPath.from_program(parse_program("G1 X5 F600\nG3 X10 Y5 Z1 I0 J5\nG18 G2 X15 Z1 I2.5 K0"))
+    s = np.linspace(0.0005, path.domain[1] - 0.0005, 400)
+    inside = np.all(np.abs(s[:, None] - np.array([b.start for b in path.blocks])[None, :]) > 2e-6, axis=1)
+    s, h = s[inside], 1e-7
+    d = path.derivatives(s, 3)
+    for order in (1, 2, 3):
+        numeric = (path.derivatives(s + h, order - 1)[order - 1] - path.derivatives(s - h, order - 1)[order - 1]) / (2 * h)
+        assert np.allclose(numeric, d[order], rtol=1e-4, atol=1e-3 * np.abs(d[order]).max())
+
+
+@pytest.mark.parametrize("text, line, word", [
+    ("G1 X1 F60\nG41 X2", 2, "G41"),
+    ("G1 X1 F60\n\nT1 M6", 3, "T1"),
+    ("G1 X1 F60 S1000", 1, "S1000"),
+    ("G1 X1 F60\nM3", 2, "M3"),
+    ("G1 X1 F60\nG1 A10", 2, "A10"),
+    ("G1 X1 F60\nG64 P0.01", 2, "G64"),
+])
+def test_unsupported_words_are_refused_naming_line_and_word(text, line, word):
+    with pytest.raises(ProgramError) as error:
+        parse_program(text)
+    message = str(error.value)
+    assert f"line {line}:" in message and word in message and "\n" not in message
+
+
+@pytest.mark.parametrize("text, fragment", [
+    ("G1 X1 F60\nG1 X2 X3", "line 2: X given twice"),
+    ("G1 X1\nG1 X2 F60", None),                        # no F yet on line 1 but F later: refused on line 1
+    ("G2 X10 Y0 I3 J0 F60", "line 1: G2: the end point is"),
+    ("G2 X10 Y0 R2 F60", "line 1: G2: R2 is shorter than half the chord"),
+    ("G1 X1 F60 (open", "line 1: comment not closed"),
+    ("G1 X1 F60\nM2\nG1 X2", "line 3: after the program end"),
+    ("X1", "line 1: coordinates without a motion mode"),
+    ("G1 X1 F-5", "line 1: F-5: the feed rate must be positive"),
+    ("G1 X1 F60 R2", "line 1: R on a G1 line"),
+    ("G17 G2 X1 Y1 K1 F60", "line 1: K is not a centre offset in the XY plane"),
+    ("G1 X1 F60 $", "line 1: cannot read '$'"),
+    ("G1 X1 F60\n/G1 X2", "line 2: block delete"),
+])
+def test_malformed_programs_are_refused_in_one_line(text, fragment):
+    with pytest.raises(ProgramError) as error:
+        parse_program(text)
+    message = str(error.value)
+    assert "\n" not in message
+    assert (fragment or "line 1: G1 before any feed rate (F)") in message
+
+
+def test_a_program_without_f_words_leaves_the_feed_to_the_schedule():
+    program = parse_program("G1 X1\nG2 X3 Y0 I1 J0")
+    assert not program.has_feed_words and [b.feed for b in program.blocks] == [None, None]
+
+
+def test_blend_stays_within_the_tolerance_and_is_tangent():
+    square = "G1 X10 F600\nY10\nX0\nY0"
+    tolerance = 1e-4
+    path = ToolPath.from_program(parse_program(square), blend_tolerance=tolerance)
+    assert [b.kind for b in path.blocks] == ["line", "blend", "line", "blend", "line", "blend", "line"]
+    corners = np.array([[0.01, 0.0], [0.01, 0.01], [0.0, 0.01]])
+    s = np.linspace(0.0, path.domain[1], 20001)
+    points = path.point(s)
+    for corner in corners:
+        nearest = np.min(np.linalg.norm(points - corner, axis=1))
+        assert nearest == pytest.approx(tolerance, rel=1e-3)       # the deviation is the tolerance itself
+    for before, after in zip(path.blocks[:-1], path.blocks[1:]):
+        assert np.dot(before.tangent_out, after.tangent_in) == pytest.approx(1.0)
+    exact = ToolPath.from_program(parse_program(square))
+    assert [b.kind for b in exact.blocks] == ["line"] * 4
+
+
+def test_guard_refuses_a_path_longer_than_ten_metres_with_a_units_hint():
+    with pytest.raises(ValueError, match=r"m long .*units.*G21"):
+        ToolPath.from_program(parse_program("G20 G1 X500 F60"))
+    with pytest.raises(ValueError, match=r"G1 X50 is 50 m"):
+        ToolPath([0.0, 0.0], ["G1 X50 Y0"])
+
+
+def test_dimension_two_for_planar_programs_three_where_z_is_used():
+    assert parse_program("G1 X1 Y1 F60").dimension == 2
+    assert parse_program("G1 X1 Z0 F60").dimension == 2                   # Z named but not moved
+    assert parse_program("G1 X1 Z1 F60").dimension == 3
+    assert parse_program("G18 G2 X2 Z0 I1 K0 F60").dimension == 3        # an arc in ZX moves Z
+    assert parse_program("G1 X1 F60", start=(0.0, 0.0, 0.01)).dimension == 3
+    path = ToolPath.from_program(parse_program("G1 X1 F60", start=(0.0, 0.0, 0.01)))
+    assert path.point(0.0) == pytest.approx([0.0, 0.0, 0.01])
+
+
+@pytest.mark.parametrize("move, word", [("G1 X0.05 F100", "F100"), ("G1 X0.05 Z0.01", "Z0.01"),
+                                        ("G2 X0.06 Y0 I0.03 J0 K0", "K0"), ("G3 X0.06 Y0 R0.03", "R0.03")])
+def test_inline_moves_refuse_words_they_do_not_read(move, word):
+    with pytest.raises(ValueError, match=f"move 1 .*: {word} is not read in inline moves"):
+        ToolPath([0.0, 0.0], [move])
