@@ -292,9 +292,10 @@ def _probe(family: Family, sections: dict) -> str:
 
 def plan(family: Family, catalogue: dict | None = None) -> tuple:
     """(combinations, excluded) of a scenario: every estimator x controller x servo set (see the module
-    docstring), the ones that cannot be paired with the reason."""
+    docstring), the ones that cannot be paired with the reason. ``catalogue``: estimator type -> the section
+    an estimator the scenario does not use starts from (default: the first of each type in config/)."""
     from .config import CONTROLLERS, ESTIMATORS, SERVOS
-    catalogue = catalogue if catalogue is not None else _catalogue_estimators([family])
+    catalogue = catalogue if catalogue is not None else _catalogue_estimators(scenario_families())
     servo_sets = _servo_sets(family)
     direct = {label: all(SERVOS.entry(s["law"]).direct for s in servos.values())
               for label, servos in servo_sets.items()}

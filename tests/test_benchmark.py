@@ -72,6 +72,8 @@ def test_pairings_that_cannot_be_made_are_listed_with_a_reason():
     reasons = {(e.estimator, e.controller): e.reason for e in excluded}
     assert "planar contour (2 axes)" in reasons[("osculating_circle", "variable_gain")]
     assert "needs 'direct' servos" in reasons[("newton", "tvt")]
+    # an estimator the scenario does not use starts from its section in another paper's files
+    assert {"newton", "foot_point_search", "natural_local"} <= {c.estimator for c in combos}
     assert all(e.reason for e in excluded)
     assert not {(c.estimator, c.controller) for c in combos} & set(reasons)
     combos, excluded = plan(families["paper003_ellipse"])
