@@ -17,6 +17,7 @@ setup(
         (f"share/{package_name}/config", glob("config/*.yaml")),
         (f"share/{package_name}/config/claims", glob("config/claims/*.yaml")),
         (f"share/{package_name}/config/parts", glob("config/parts/*.ngc")),
+        (f"share/{package_name}/config/benchmark", glob("config/benchmark/*.yaml")),
         (f"share/{package_name}/launch", glob("launch/*.launch.py")),
     ],
     install_requires=["setuptools", "numpy", "scipy", "PyYAML", "mcap", "mcap-ros2-support", "tqdm", "ruckig", "matplotlib"],

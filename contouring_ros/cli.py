@@ -1,5 +1,6 @@
 """The contouring-ros command line: run an experiment through the node graph or simulate it in-process;
-score, compare, export, plot and replay its bags; sweep its keys; measure the papers' claims."""
+score, compare, export, plot and replay its bags; sweep its keys; measure the papers' claims; benchmark
+every estimator and controller on every paper scenario."""
 from __future__ import annotations
 
 import argparse
@@ -278,6 +279,18 @@ def _paper(args):
         print(f"wrote {write_claims_report(report, args.out, name)}", file=sys.stderr)
 
 
+def _benchmark(args):
+    from .benchmark import main_benchmark
+    if args.budget < 1:
+        raise ConfigError(f"--budget {args.budget}: expected a positive number of gain points")
+    command = "contouring-ros benchmark" + (f" --scenarios {' '.join(args.scenarios)}" if args.scenarios else "") \
+        + (f" --budget {args.budget}" if args.budget != args.default_budget else "")
+    say = lambda m: print(m, file=sys.stderr, flush=True)  # noqa: E731
+    md, table, png, seconds = main_benchmark(args.scenarios, args.budget, args.out, args.workers,
+                                             progress=sys.stderr.isatty(), say=say, command=command)
+    print(f"wrote {md}, {table} and {png} in {seconds / 60:.1f} min")
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(prog="contouring-ros", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -359,6 +372,16 @@ def main(argv=None):
     p.add_argument("--no-maps", action="store_true", help="write the claims report without computing the regime maps")
     p.add_argument("--workers", type=int, help="processes for the claims and maps (default: one per core)")
     p.set_defaults(func=_paper)
+    from .benchmark import DEFAULT_BUDGET
+    p = sub.add_parser("benchmark", help="every estimator x controller (x servo) on every paper scenario, tuned "
+                                         "alike, against each paper's proposed method")
+    p.add_argument("--scenarios", nargs="+", metavar="NAME",
+                   help="scenarios (or scenario files) by name or glob, e.g. 'paper000_*' (default: all)")
+    p.add_argument("--budget", type=int, default=DEFAULT_BUDGET,
+                   help=f"gain points per combination on the log grid (default {DEFAULT_BUDGET})")
+    p.add_argument("--out", default="reports", help="folder for benchmark.md, .csv and the heatmap (default: reports/)")
+    p.add_argument("--workers", type=int, help="processes (default: one per core)")
+    p.set_defaults(func=_benchmark, default_budget=DEFAULT_BUDGET)
     args = parser.parse_args(argv)
     try:
         args.func(args)

@@ -28,7 +28,7 @@ from .errors import ConfigError, Diverged, ScoreError
 from .scoring import score_run
 
 __all__ = ["parse_grid", "apply_settings", "experiments_for", "combinations", "SweepRow", "score_experiments",
-           "run_sweep", "format_sweep", "write_sweep_csv"]
+           "simulate_experiments", "run_sweep", "format_sweep", "write_sweep_csv"]
 
 
 def parse_grid(specs: list) -> dict:
@@ -146,12 +146,26 @@ def _score_chunk(experiments: list, from_time: float = 0.0) -> tuple:
 
 
 def _score_loops(experiments: list, from_time: float) -> tuple:
+    loops, results, alone, failures = simulate_experiments(experiments)
+    scores = [None] * len(loops)
+    for i, (loop, result) in enumerate(zip(loops, results)):
+        if result is not None:
+            scores[i], failures[i] = _score_one(loop, result, from_time)
+    return scores, alone, failures
+
+
+def simulate_experiments(experiments: list) -> tuple:
+    """(loops, results, why each ran alone, why each has no result) for ``experiments``: the loops of one
+    structure advance as one vectorised batch where every class has a batch path, the others one by one;
+    a result is None where the run diverged (and the failure says how)."""
     loops = [build_loop(e) for e in experiments]
     results, alone, groups = [None] * len(loops), [""] * len(loops), {}
     failures = [""] * len(loops)
     for i, loop in enumerate(loops):
         groups.setdefault(structure(loop), []).append(i)
-    for group in groups.values():
+    pending = list(groups.values())
+    while pending:
+        group = pending.pop()
         members = [loops[i] for i in group]
         why = batch_problem(members if len(members) > 1 else members * 2) \
             or ("" if len(members) > 1 else "too few combinations of one structure to batch")
@@ -159,22 +173,18 @@ def _score_loops(experiments: list, from_time: float) -> tuple:
         if not why:
             try:
                 batch = simulate_batch(members)
-            except RUN_FAILURES:        # one member diverged: run each alone to tell which
+            except RUN_FAILURES:        # a member diverged: batch each half again, down to runs alone
+                if len(group) >= 4:
+                    pending += [group[:len(group) // 2], group[len(group) // 2:]]
+                    continue
                 why = "a member of its batch diverged"
-                members = [build_loop(experiments[i]) for i in group]
-                for j, i in enumerate(group):
-                    loops[i] = members[j]
         for j, i in enumerate(group):
             if batch:
                 results[i] = batch[j]
             else:
                 results[i], failures[i] = _simulate_alone(loops[i])
                 alone[i] = why
-    scores = [None] * len(loops)
-    for i, (loop, result) in enumerate(zip(loops, results)):
-        if result is not None:
-            scores[i], failures[i] = _score_one(loop, result, from_time)
-    return scores, alone, failures
+    return loops, results, alone, failures
 
 
 def _shape(section):
