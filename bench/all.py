@@ -1,4 +1,4 @@
-"""One command for the speed figures of issue "Speed": everything measured in one run, with the ratios.
+"""One command for the speed figures of the README's Speed section: everything measured in one run, with the ratios.
 
 Prints, on this machine, now:
 - the rclpy ping-pong floor: time per message hop between two processes on the graph's lean loop, and the

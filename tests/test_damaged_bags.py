@@ -1,4 +1,4 @@
-"""Damaged bags (issue 13, item 5): chunks are read with their CRCs checked; a damaged chunk gives a warning
+"""Damaged bags: chunks are read with their CRCs checked; a damaged chunk gives a warning
 naming the steps lost, and every intact chunk after it is still read, with the summary's chunk index or,
 without a summary, by scanning for the next chunk record."""
 from __future__ import annotations

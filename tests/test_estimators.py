@@ -158,7 +158,7 @@ def test_natural_local_at_least_as_accurate_as_tangent_and_circle_at_curvature_p
     assert worst["natural"] <= worst["circle"] < worst["tangent"]
 
 
-# --- Newton: iterated to a stated tolerance each step (issue 11) ---------------------------------------------
+# --- Newton: iterated to a stated tolerance each step -------------------------------------------------------
 
 def _newton(curve, theta0, **options):
     return NewtonEstimator(curve, k_prime=500.0, c_prime=500.0, theta0=theta0, inner_step=0.001, **options)

@@ -1,4 +1,4 @@
-"""Hostile and malformed experiment files (issue 13, item 4): each is refused before any node starts, in
+"""Hostile and malformed experiment files: each is refused before any node starts, in
 well under a second, with one line naming the file and the key; numbers have bounds; the file itself must
 be a small regular UTF-8 file; values the ROS 2 parameter parser would read differently are refused; bag
 names stay inside the bag folder."""
