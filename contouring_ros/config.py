@@ -201,11 +201,34 @@ def _ismc(s, c):
                                           ts, observer, s["output_limit"])
 
 
+#: the Newton estimate's branch check on a tool path: a sample every 50 um of path (at most 200 000), to
+#: within 1 um. At an exact-stop corner the distance to the path is stationary at the kink, and Newton's
+#: iteration stays there while the axes move on along the next block (the estimate then lags by the axes'
+#: following error, 0.2 mm on the example part); 256 samples of a 0.2 m path are 0.8 mm apart, too sparse
+#: to find the next block
+TOOL_PATH_CHECK_SPACING, TOOL_PATH_CHECK_TOLERANCE = 5e-5, 1e-6
+DEFAULT_CHECK_SAMPLES, DEFAULT_CHECK_TOLERANCE = 256, 1e-4
+
+
+def branch_check_settings(section: dict, curve) -> tuple:
+    """(samples, tolerance) of the Newton estimate's branch check: the section's, where it gives them, else
+    256 points to 100 um, or on a tool path a point every TOOL_PATH_CHECK_SPACING to 1 um."""
+    tool_path = isinstance(curve, curves.ToolPath)
+    samples, tolerance = section["branch_check_samples"], section["branch_check_tolerance"]
+    if samples is None:
+        length = curve.domain[1] - curve.domain[0]
+        samples = int(min(max(math.ceil(length / TOOL_PATH_CHECK_SPACING), DEFAULT_CHECK_SAMPLES), 200_000)) \
+            if tool_path else DEFAULT_CHECK_SAMPLES
+    if tolerance is None:
+        tolerance = TOOL_PATH_CHECK_TOLERANCE if tool_path else DEFAULT_CHECK_TOLERANCE
+    return samples, tolerance
+
+
 def _newton(s, c):
     theta0 = s["theta0"] if s["theta0"] is not None else c.schedule.theta_start
     inner = s["inner_step"] or c.sample_time
-    check = estimators.BranchCheck(c.curve, s["branch_check_samples"], s["branch_check_tolerance"]) \
-        if s["branch_check_samples"] else None
+    samples, tolerance = branch_check_settings(s, c.curve)
+    check = estimators.BranchCheck(c.curve, samples, tolerance) if samples else None
     return estimators.NewtonEstimator(c.curve, s["k_prime"], s["c_prime"], theta0, inner, s["tolerance"],
                                       s["max_iterations"], check)
 
@@ -378,8 +401,9 @@ _register(ESTIMATORS, {
                "max_iterations": Param("int", 200, "positive"),         # inner iterations per step at most
                "inner_step": Param("float", 0.0, "nonnegative"),
                "theta0": Param("float", None),
-               "branch_check_samples": Param("int", 256, "nonnegative"),      # 0: no global check
-               "branch_check_tolerance": Param("float", 1e-4, "positive")},   # m
+               # None: 256 points, and on a tool path one every TOOL_PATH_CHECK_SPACING (its corners); 0: no check
+               "branch_check_samples": Param("int", None, "nonnegative"),
+               "branch_check_tolerance": Param("float", None, "positive")},   # m; None: 1e-4, 1e-6 on a tool path
 }, {
     "tangent_line": lambda s, c: estimators.TangentLineEstimator(c.curve),
     "natural_local": lambda s, c: estimators.NaturalLocalEstimator(c.curve),

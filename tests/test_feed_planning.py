@@ -1,5 +1,6 @@
 """Feed planning along part programs (core/feed_planning.py): analytic S-curve durations, the bounds held,
 corners, blending, F as each block's bound, the contour-tolerance planner, and the experiment-file side."""
+import dataclasses
 import math
 
 import numpy as np
@@ -374,3 +375,34 @@ def test_a_fifty_millimetre_square_at_fifty_mm_per_second_keeps_its_corners(tmp_
     feed = np.linalg.norm(result.reference_velocity, axis=1)
     assert feed[block <= 3].max() == pytest.approx(0.05)
     assert np.all(feed <= np.array([limit.feed for limit in loop.schedule.limits])[np.clip(block, 0, None)] * (1 + 1e-9))
+
+
+def test_the_newton_branch_check_is_dense_on_a_tool_path_and_unchanged_elsewhere():
+    from contouring_ros.config import branch_check_settings, build_curve
+    from contouring_ros.core.curves import Parabola
+    part = build_curve(load_experiment(CONFIG_DIR / "gcode_example_part.yaml"))
+    length = part.domain[1] - part.domain[0]
+    samples, tolerance = branch_check_settings({"branch_check_samples": None, "branch_check_tolerance": None}, part)
+    assert samples >= length / 5e-5 and tolerance == 1e-6
+    assert branch_check_settings({"branch_check_samples": None, "branch_check_tolerance": None},
+                                 Parabola(0.02, 50.0)) == (256, 1e-4)
+    assert branch_check_settings({"branch_check_samples": 0, "branch_check_tolerance": 2e-4}, part) == (0, 2e-4)
+
+
+@pytest.mark.slow
+def test_the_newton_estimate_follows_the_path_round_exact_stop_corners():
+    """At an exact-stop corner the distance to the path is stationary at the kink: without a dense branch
+    check Newton's estimate stayed there while the axes moved on (0.2 mm off the exact error, example part).
+    With the tool path's default check it stays within a few micrometres, and with the check off it does
+    not (so the test can fail)."""
+    experiment = load_experiment(CONFIG_DIR / "gcode_example_part.yaml")
+
+    def deviation(experiment):
+        loop = build_loop(experiment)
+        result = simulate(loop)
+        exact = ExactContourError(loop.curve)(result.position, near=result.theta).distance
+        return np.max(np.abs(np.abs(result.estimate_signed) - exact))
+
+    assert deviation(experiment) < 20e-6
+    estimator = dict(experiment.estimator, branch_check_samples=0)
+    assert deviation(dataclasses.replace(experiment, estimator=estimator)) > 100e-6
