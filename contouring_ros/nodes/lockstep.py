@@ -80,6 +80,7 @@ class LockstepNode:
         callbacks of whatever executor spins ``self.node`` (for embedding and the composed layout)
         instead of the node's own wait-set loop (:meth:`spin`)."""
         self.callbacks = callbacks
+        self._next_service_turn = 0.0   # monotonic time of the next turn answering service requests
         self.node = rclpy.create_node(name or self.default_name, namespace=namespace,
                                       parameter_overrides=parameter_overrides or [],
                                       automatically_declare_parameters_from_overrides=True)
@@ -122,7 +123,7 @@ class LockstepNode:
         list|describe|get|set`), at most every SERVICE_PERIOD seconds. The lean loops wait on the inputs
         alone (no executor takes the node's messages away from them), so they call this between steps."""
         now = time.monotonic() if now is None else now
-        if now < getattr(self, "_next_service_turn", 0.0):
+        if now < self._next_service_turn:
             return
         self._next_service_turn = now + SERVICE_PERIOD
         for service in self.node.services:
