@@ -164,20 +164,21 @@ def test_tolerance_feed_is_the_first_order_lag_model():
     assert tolerance_feed(10e-6, [0.05, 0.05], u, 0.0) == math.inf          # equal lags: no error on lines
 
 
-CIRCLE = """/**:
+# position loops of gain kp [1/s] (P) around velocity drives of gain 10: a first-order lag of 1 / (10 kp)
+EXPERIMENT = """/**:
   ros__parameters:
     sample_time: 0.001
     axes: ["x", "y"]
-    curve: {{type: gcode, file: circle.ngc}}
-    schedule: {{type: feedrate, acceleration: 2.0, jerk: 50.0{extra}}}
+    curve: {{type: gcode, file: {file}}}
+    schedule: {schedule}
 /x/plant:
   ros__parameters: {{model: first_order_velocity, gain: 10.0, time_constant: 0.005}}
 /y/plant:
   ros__parameters: {{model: first_order_velocity, gain: 10.0, time_constant: 0.005}}
 /x/servo:
-  ros__parameters: {{law: pid, kp: 2.0}}
+  ros__parameters: {{law: pid, kp: {kp}}}
 /y/servo:
-  ros__parameters: {{law: pid, kp: 2.0}}
+  ros__parameters: {{law: pid, kp: {kp}}}
 /contour_estimator:
   ros__parameters: {{type: tangent_line}}
 /ccc:
@@ -192,7 +193,8 @@ def test_contour_tolerance_held_in_simulation_where_the_unplanned_run_exceeds_it
     runs = {}
     for name, extra in (("free", ""), ("planned", f", contour_tolerance: {tolerance}, tracking_lag: [0.05]")):
         path = tmp_path / f"{name}.yaml"
-        path.write_text(CIRCLE.format(extra=extra))
+        path.write_text(EXPERIMENT.format(file="circle.ngc", kp=2.0,
+                                          schedule=f"{{type: feedrate, acceleration: 2.0, jerk: 50.0{extra}}}"))
         experiment = load_experiment(path)
         loop = build_loop(experiment)
         runs[name] = (experiment, score_run(loop.curve, simulate(loop)).mce)
@@ -205,25 +207,6 @@ def test_contour_tolerance_held_in_simulation_where_the_unplanned_run_exceeds_it
     assert tolerance_line(runs["free"][0].schedule, free) is None
 
 
-EXPERIMENT = """/**:
-  ros__parameters:
-    sample_time: 0.001
-    axes: ["x", "y"]
-    curve: {{type: gcode, file: {file}}}
-    schedule: {schedule}
-/x/plant:
-  ros__parameters: {{model: first_order_velocity, gain: 10.0, time_constant: 0.005}}
-/y/plant:
-  ros__parameters: {{model: first_order_velocity, gain: 10.0, time_constant: 0.005}}
-/x/servo:
-  ros__parameters: {{law: pid, kp: 20.0}}
-/y/servo:
-  ros__parameters: {{law: pid, kp: 20.0}}
-/contour_estimator:
-  ros__parameters: {{type: tangent_line}}
-/ccc:
-  ros__parameters: {{type: none}}
-"""
 SCHEDULE = "{type: feedrate, acceleration: 1.0, jerk: 20.0}"
 
 
@@ -231,7 +214,7 @@ def write(tmp_path, program, schedule=SCHEDULE, file="part.ngc"):
     (tmp_path / "parts").mkdir(exist_ok=True)
     (tmp_path / "parts" / "part.ngc").write_text(program)
     path = tmp_path / "experiment.yaml"
-    path.write_text(EXPERIMENT.format(file=f"parts/{file}", schedule=schedule))
+    path.write_text(EXPERIMENT.format(file=f"parts/{file}", schedule=schedule, kp=20.0))
     return path
 
 
@@ -283,10 +266,10 @@ def test_missing_program_file_is_named(tmp_path):
 def test_jerk_only_for_tool_paths_and_plan_keys_only_with_jerk(tmp_path):
     text = EXPERIMENT.replace("{{type: gcode, file: {file}}}", "{{type: circle, radius: 0.01}}")
     path = tmp_path / "circle.yaml"
-    path.write_text(text.format(file="", schedule="{type: feedrate, feedrate: 0.01, acceleration: 1.0, jerk: 5.0}"))
+    path.write_text(text.format(file="", kp=20.0, schedule="{type: feedrate, feedrate: 0.01, acceleration: 1.0, jerk: 5.0}"))
     with pytest.raises(ConfigError, match="schedule.jerk: the jerk-limited feed plan runs along a tool path"):
         load_experiment(path)
-    path.write_text(text.format(file="", schedule="{type: feedrate, feedrate: 0.01, acceleration: 1.0, "
+    path.write_text(text.format(file="", kp=20.0, schedule="{type: feedrate, feedrate: 0.01, acceleration: 1.0, "
                                                   "rapid_feedrate: 0.1}"))
     with pytest.raises(ConfigError, match="schedule.rapid_feedrate: applies to the jerk-limited feed plan"):
         load_experiment(path)
@@ -347,7 +330,7 @@ def test_inline_tool_paths_take_the_jerk_limited_plan_with_the_schedule_feedrate
                               '{{type: toolpath, start: [0.0, 0.0], moves: ["G1 X0.01 Y0", "G1 X0.02 Y0", '
                               '"G3 X0.03 Y0.01 I0 J0.01"]}}')
     path = tmp_path / "inline.yaml"
-    path.write_text(text.format(file="", schedule="{type: feedrate, feedrate: 0.02, acceleration: 1.0, jerk: 20.0}"))
+    path.write_text(text.format(file="", kp=20.0, schedule="{type: feedrate, feedrate: 0.02, acceleration: 1.0, jerk: 20.0}"))
     schedule = build_loop(load_experiment(path)).schedule
     assert isinstance(schedule, FeedPlan)
     assert schedule.junctions[1] == pytest.approx(0.02)           # collinear: no stop
