@@ -49,6 +49,11 @@ _MIN_STAMPED = 12        # bytes of the smallest stamped message: encapsulation,
 ACK_TIMEOUT = 5.0        # s to wait for the last messages to be acknowledged
 SLOW_TICK_ENV = "CONTOURING_ROS_SLOW_TICK"   # overrun rehearsal: see slow_tick_seconds
 COMPOSED_LOOP = "the composed loop"          # how the overrun error names the composed layout's one loop
+#: the last message of each topic decoded in this process, by name on the wire and graph.Topic: (its bytes,
+#: the decoded message, what is wrong with it or None). In the composed and grouped layouts several nodes of one process
+#: take the same message (/reference reaches the estimator and every servo): it is decoded and checked once.
+#: Decoded messages are read, never changed, by the nodes. One entry a topic.
+_DECODED: dict = {}
 
 
 def message_class(type_name: str):
@@ -95,6 +100,7 @@ class LockstepNode:
         self.axes = list(self.experiment.axes)
         self._topics = {t.name: t for t in graph.recorded_topics(self.axes, self.experiment.ccc_takes_state)}
         self._inputs = []          # (topic name, subscription, msg class, decoder)
+        self._decoded_keys = {}    # input topic -> its key in _DECODED
         self._outputs = {}         # topic name -> publisher
         self._pending = {}         # step -> {topic: msg}
         self.rejected = {}         # topic -> count of rejected messages
@@ -147,6 +153,7 @@ class LockstepNode:
         callback = (lambda data, topic=topic: self.on_message(topic, data)) if self.callbacks else (lambda _: None)
         sub = self.node.create_subscription(cls, self.wire_name(topic), callback, qos, raw=True)
         self._inputs.append((topic, sub, cls, _DECODERS.get(type_name) if used else None))
+        self._decoded_keys[topic] = self.decoded_key(topic)
         if self._topics[topic].every_step:
             # one publisher per graph topic, matched before it publishes (wait_for_graph), reliable and
             # keep-all: its messages reach us numbered 1, 2, 3 ... Any other number is another writer's.
@@ -161,6 +168,11 @@ class LockstepNode:
     def wire_name(self, topic: str) -> str:
         """The name on the wire of the graph's ``topic`` (/x/state is /m1/x/state under /m1)."""
         return graph.resolve(self.graph_namespace, topic)
+
+    def decoded_key(self, topic: str) -> str:
+        """The key of ``topic``'s messages among those decoded in this process (:data:`_DECODED`): its name on
+        the wire and what its messages must hold (one string, so that its hash is computed once)."""
+        return f"{self.wire_name(topic)} {self._topics[topic]!r}"
 
     def own_axis(self) -> str:
         """The axis a per-axis node serves: the last part of its namespace (/x/plant and /m1/x/plant serve x)."""
@@ -328,19 +340,28 @@ class LockstepNode:
 
         A malformed or non-finite message stops the run (``on_invalid_input: stop``, the default) or is
         replaced by the last valid message of its topic (``hold``, zero-order hold); either way it is
-        reported on /diagnostics and counted.
+        reported on /diagnostics and counted. The nodes of one process share the work: a message another
+        node of this process decoded already (the same bytes on the same topic) is not decoded again
+        (:data:`_DECODED`).
         """
         inputs = {}
         for topic, _, _, decode in self._inputs:
+            data = ready[topic]
             if decode is None:
-                inputs[topic] = ready[topic]
+                inputs[topic] = data
                 continue
-            try:
-                msg = decode(ready[topic])
-            except Exception as error:  # any malformed payload: struct, index, unicode, memory errors
-                msg, problem = None, f"cannot be decoded ({type(error).__name__}: {error})"
+            key = self._decoded_keys[topic]
+            last = _DECODED.get(key)
+            if last is not None and last[0] == data:
+                msg, problem = last[1], last[2]
             else:
-                problem = graph.message_problem(self._topics[topic], msg)
+                try:
+                    msg = decode(data)
+                except Exception as error:  # any malformed payload: struct, index, unicode, memory errors
+                    msg, problem = None, f"cannot be decoded ({type(error).__name__}: {error})"
+                else:
+                    problem = graph.message_problem(self._topics[topic], msg)
+                _DECODED[key] = (data, msg, problem)
             if problem is not None:
                 self.refuse(topic, problem, k)
                 msg = self._last_valid[topic]
