@@ -76,9 +76,10 @@ def with_globals(path: Path, **keys) -> str:
     return path.read_text().replace("    sample_time: 0.001", "    sample_time: 0.001" + extra, 1)
 
 
-def floor_hop_us(rounds: int, executor: str = "lean") -> tuple[float, float]:
+def floor_hop_us(rounds: int, executor: str = "lean", timeout: float = 300.0) -> tuple[float, float]:
     """The ping-pong between two processes on ``executor`` (lean: the graph's own loop; events: rclpy's
-    EventsExecutor; single: its SingleThreadedExecutor): (wall us per hop, ping's CPU us per round)."""
+    EventsExecutor; single: its SingleThreadedExecutor): (wall us per hop, ping's CPU us per round).
+    Raises subprocess.TimeoutExpired after ``timeout`` seconds."""
     with DomainLease() as lease:
         env = private_environment(lease.domain_id)
         script = str(ROOT / "bench" / "pingpong.py")
@@ -86,9 +87,13 @@ def floor_hop_us(rounds: int, executor: str = "lean") -> tuple[float, float]:
                                 stdout=subprocess.DEVNULL)
         try:
             out = subprocess.run([sys.executable, script, "ping", str(rounds), executor], env=env,
-                                 capture_output=True, text=True, timeout=300)
+                                 capture_output=True, text=True, timeout=timeout)
         finally:
-            pong.wait(timeout=30)
+            try:
+                pong.wait(timeout=30)
+            except subprocess.TimeoutExpired:
+                pong.kill()
+                pong.wait()
     figures = dict(line.split() for line in out.stdout.splitlines() if line.startswith(("hop_us", "cpu_us")))
     if "hop_us" not in figures:
         raise SystemExit(f"ping-pong failed: {out.stderr.strip().splitlines()[-1:]}")
