@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
 
@@ -158,11 +159,18 @@ def _run_realtime(nodes, label: str):
 
     switch_interval = sys.getswitchinterval()
     sys.setswitchinterval(REALTIME_SWITCH_INTERVAL)
+    # the bag writer's thread writes while the loop waits for its next tick, never while it ticks
+    idle = threading.Event() if recorder is not None else None
+    if recorder is not None:
+        recorder.writer.write_only_while(idle)
     try:
         if lockstep_nodes:
-            realtime_loop(lockstep_nodes, label, wait_set, handles, take, spin=REALTIME_SPIN, after_tick=record)
+            realtime_loop(lockstep_nodes, label, wait_set, handles, take, spin=REALTIME_SPIN, after_tick=record,
+                          idle=idle)
     finally:
         sys.setswitchinterval(switch_interval)
+        if recorder is not None:
+            recorder.writer.write_only_while(None)
     if recorder is None:
         return
     experiment = recorder.experiment

@@ -561,11 +561,12 @@ def slow_tick_seconds(name: str) -> float:
     return 0.0
 
 
-def realtime_loop(nodes, label: str, wait_set, handles, take, spin: float = 0.0, after_tick=None):
+def realtime_loop(nodes, label: str, wait_set, handles, take, spin: float = 0.0, after_tick=None, idle=None):
     """Tick ``nodes`` on the wall clock, in order, every Ts from the experiment's ``start_time``: one node in
     its own process (:meth:`LockstepNode.spin_realtime`) or a group sharing one thread
     (:mod:`contouring_ros.composed`). Between ticks wait on ``handles`` and ``take()`` what arrives; after
-    each tick call ``after_tick()``. ``label`` names the loop in the overrun error.
+    each tick call ``after_tick()``. ``label`` names the loop in the overrun error. ``idle``, a threading.Event,
+    is set while the loop waits for its next tick and cleared while it ticks (:func:`wait_until`).
 
     Overrun policy: the loop knows its lag, how late a tick starts. Past ``max_lag`` (a shared key) it
     either stops the run with one line naming the loop, its lag and the step (``on_overrun: stop``, the
@@ -582,7 +583,7 @@ def realtime_loop(nodes, label: str, wait_set, handles, take, spin: float = 0.0,
     first = tick = min(node._first_tick for node in nodes)
     while tick < experiment.n_steps:
         due = nodes[0].tick_time(tick)
-        wait_until(due, wait_set, handles, take, context, spin=spin)
+        wait_until(due, wait_set, handles, take, context, spin=spin, idle=idle)
         lag = time.time() - due
         if lag > experiment.max_lag:
             if experiment.on_overrun == "stop":
@@ -615,11 +616,13 @@ def overrun_message(nodes, label: str, tick: int, lag: float, start: bool = Fals
             f"{experiment.max_lag * 1e3:g} ms{busiest}): the machine cannot keep up; try {remedy}")
 
 
-def wait_until(deadline: float, wait_set, handles, take, context, spin: float = 0.0):
+def wait_until(deadline: float, wait_set, handles, take, context, spin: float = 0.0, idle=None):
     """Until the wall clock reaches ``deadline``, wait on the subscriptions and ``take()`` what arrives.
 
     With ``spin`` > 0 the last ``spin`` seconds are busy-waited (taking what arrives), so the return is not
     late by a timed wait's wake-up latency (about 0.1 ms here) at the cost of that much CPU per call.
+    ``idle`` (a threading.Event) is set while the thread blocks in the wait, for work that should run only
+    then (the composed layout's bag writer thread).
     """
     while True:
         remaining = deadline - time.time()
@@ -629,7 +632,11 @@ def wait_until(deadline: float, wait_set, handles, take, context, spin: float = 
             if handles:
                 take()
         elif handles:
+            if idle is not None:
+                idle.set()
             wait_on(wait_set, handles, int((remaining - spin) * 1e9))
+            if idle is not None:
+                idle.clear()
             take()
         else:
             time.sleep(remaining - spin)
