@@ -34,7 +34,6 @@ from graph_speed import lockstep_run  # noqa: E402
 
 PUBLICATION_MODE = "RMW_FASTRTPS_PUBLICATION_MODE"
 PROFILES_TAG = '<profiles xmlns="http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles">'
-PINGPONG_TIMEOUT = 60.0   # s for one ping-pong run (a few seconds when it works)
 SHM_TRANSPORT = "        <transport_id>contouring_ros_shm</transport_id>\n"
 
 
@@ -80,7 +79,7 @@ def main():
             for name in names:
                 use_option(*profiles[name])
                 try:
-                    hop = floor_hop_us(args.rounds, timeout=PINGPONG_TIMEOUT)[0]
+                    hop = floor_hop_us(args.rounds)[0]
                 except (subprocess.TimeoutExpired, SystemExit) as error:
                     print(f"{name}: a ping-pong run failed ({error}); left out of the median", flush=True)
                     hop = math.nan
