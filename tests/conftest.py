@@ -1,6 +1,7 @@
 """Shared fixtures: experiment texts and paths."""
 from __future__ import annotations
 
+import signal
 from pathlib import Path
 
 import pytest
@@ -14,6 +15,13 @@ def shortened(path: Path, duration: float) -> str:
     """The experiment at ``path`` cut to ``duration`` seconds of its schedule."""
     text = path.read_text()
     return text.replace("    sample_time: 0.001\n", f"    sample_time: 0.001\n    duration: {duration}\n", 1)
+
+
+def sigint_as_from_a_terminal():
+    """``preexec_fn`` for a runner a test interrupts with SIGINT: SIGINT's default disposition, as a runner in a
+    terminal's foreground has it, also when the test session itself runs in the background (where a
+    non-interactive shell hands SIGINT on ignored, and a background runner rightly keeps ignoring it)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 @pytest.fixture

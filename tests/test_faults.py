@@ -18,7 +18,7 @@ from contouring_ros.core.simulation import simulate
 from contouring_ros.errors import RunError
 from contouring_ros.runner import DomainLease, run_graph
 from contouring_ros.scoring import score_bag, score_run
-from conftest import DEFAULT, ROOT, shortened
+from conftest import DEFAULT, ROOT, shortened, sigint_as_from_a_terminal
 
 graph = pytest.mark.graph
 
@@ -97,7 +97,8 @@ def test_signal_to_the_runner_stops_every_node_and_closes_the_bag(tmp_path, writ
     path = write_experiment(DEFAULT.read_text(), f"signal_{name}.yaml")
     bag = tmp_path / "signal.mcap"
     runner = subprocess.Popen([sys.executable, "-m", "contouring_ros.cli", "run", str(path), "--bag", str(bag)],
-                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT,
+                              preexec_fn=sigint_as_from_a_terminal)
     deadline = time.monotonic() + 30
     while (not bag.exists() or bag.stat().st_size < 2000) and time.monotonic() < deadline:
         time.sleep(0.05)

@@ -19,7 +19,7 @@ from contouring_ros.config import build_loop, load_experiment
 from contouring_ros.core.simulation import simulate
 from contouring_ros.errors import RunError
 from contouring_ros.runner import DomainLease, private_environment, run_graph
-from conftest import DEFAULT, ROOT, shortened
+from conftest import DEFAULT, ROOT, shortened, sigint_as_from_a_terminal
 
 graph = pytest.mark.graph
 
@@ -166,7 +166,8 @@ def _node_processes(marker: str) -> list:
 
 def _start_runner(path, bag):
     runner = subprocess.Popen([sys.executable, "-m", "contouring_ros.cli", "run", str(path), "--bag", str(bag)],
-                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT,
+                              preexec_fn=sigint_as_from_a_terminal)
     deadline = time.monotonic() + 60
     while (not bag.exists() or bag.stat().st_size < 2000) and time.monotonic() < deadline:
         time.sleep(0.05)
