@@ -61,10 +61,11 @@ def _run(args):
     from .scoring import format_scores, score_bag
     config = _experiment_path(args.config)
     try:
-        if args.composed and args.group:
-            raise ConfigError("--composed and --group are two layouts: give one")
+        if sum(map(bool, (args.composed, args.group, args.process))) > 1:
+            raise ConfigError("--process, --composed and --group are three layouts: give one")
+        layout = "composed" if args.composed else "process" if args.process or args.group else None
         bag = run_graph(config, args.bag, progress=lambda m: print(m, flush=True),
-                        layout="composed" if args.composed else "process", groups=args.group,
+                        layout=layout, groups=args.group,
                         namespace=args.namespace, domain_id=args.domain, shared_domain=args.domain is not None)
     except RunError as error:
         print(f"error: {error}", file=sys.stderr)
@@ -297,7 +298,10 @@ def main(argv=None):
     p = sub.add_parser("run", help="run an experiment through the node graph, record a bag, print its scores")
     p.add_argument("config", nargs="?", default=DEFAULT_EXPERIMENT, help=f"experiment YAML (default {DEFAULT_EXPERIMENT})")
     p.add_argument("--bag", help="bag to write (default bags/<experiment>_<time>.mcap)")
-    p.add_argument("--composed", action="store_true", help="run every node in one process under one executor")
+    p.add_argument("--composed", action="store_true", help="run every node in one process under one executor "
+                   "(default: the experiment's layout key, else a process per node)")
+    p.add_argument("--process", action="store_true", help="run every node in its own process, whatever the "
+                   "experiment's layout key says")
     p.add_argument("--group", action="append", metavar="NODE,NODE,...",
                    help="grouped layout: run these nodes (e.g. x/plant,x/servo) in one process on the composed "
                         "loop; repeat for more groups; every node in no group runs in its own process")

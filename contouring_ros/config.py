@@ -69,6 +69,7 @@ def _gains(**defaults):
 TIMINGS = ("lockstep", "realtime")
 INVALID_INPUT_POLICIES = ("stop", "hold")
 OVERRUN_POLICIES = ("stop", "skip")
+LAYOUTS = ("process", "composed", "grouped")    # where `contouring-ros run` puts the nodes (README, "Commands")
 INITIAL_STATES = ("on_reference", "at_rest")
 DISTURBANCE_UNITS = ("command", "acceleration")
 # task-frame controllers: the local approximation they act on -> the estimator that reports its errors
@@ -468,6 +469,10 @@ GLOBALS = {
     # realtime, past max_lag: stop the run with one line (like a drive's following-error trip), or skip to
     # the tick now due and count the skipped ones
     "on_overrun": Param("str", "stop", choices=OVERRUN_POLICIES),
+    # where `contouring-ros run` puts the nodes: a process each, all in one, or the processes of `groups`
+    # ("x/plant,x/servo; y/plant,y/servo"; a node in no group runs alone); --composed/--group/--process win
+    "layout": Param("str", "process", choices=LAYOUTS),
+    "groups": Param("str", ""),
     # whether the CCC subscribes to /reference and the states: contouring-ros run sets false where the
     # controller does not use them (3 fewer deliveries a step with 2 axes); true is always safe
     "ccc_takes_state": Param("bool", True),
@@ -590,6 +595,8 @@ class Experiment:
     start_time: float = 0.0
     max_lag: float = 0.02
     on_overrun: str = "stop"
+    layout: str = "process"
+    groups: str = ""
     ccc_takes_state: bool = True
     plants: dict = field(default_factory=dict)     # axis -> plant section
     servos: dict = field(default_factory=dict)     # axis -> servo section
@@ -1022,6 +1029,26 @@ def node_sections(axes) -> dict:
     return sections
 
 
+def split_groups(text: str) -> list:
+    """The groups of the ``groups`` key: "x/plant,x/servo; y/plant,y/servo" -> ["x/plant,x/servo", ...]."""
+    return [group.strip() for group in text.split(";") if group.strip()]
+
+
+def _validate_layout(where, out: dict):
+    """``layout`` and ``groups`` agree, and every group names nodes of the graph, each once."""
+    from .runner import parse_groups
+    if out["layout"] == "grouped":
+        if not split_groups(out["groups"]):
+            _fail(where, "groups", "layout grouped needs its groups, e.g. 'x/plant,x/servo; y/plant,y/servo'")
+        try:
+            parse_groups(split_groups(out["groups"]), out["axes"], source="groups")
+        except ConfigError as error:
+            raise ConfigError(f"{_printable(where)}: {error}") from None
+    elif out["groups"].strip():
+        _fail(where, "groups", f"groups are the grouped layout's: give them with layout: grouped (layout is "
+                               f"{out['layout']})")
+
+
 def _validate_globals(where, given: dict) -> dict:
     out = _mapping(where, "", GLOBALS, given)
     axes = out["axes"]
@@ -1032,6 +1059,7 @@ def _validate_globals(where, given: dict) -> dict:
                                  f"{', '.join(sorted(RESERVED_AXIS_NAMES))}")
     if len(set(axes)) != len(axes):
         _fail(where, "axes", f"axis names must be unique, got {_show(axes)}")
+    _validate_layout(where, out)
     name = out["experiment"].get("name")
     if name is not None and (not isinstance(name, str) or not _EXPERIMENT_NAME.match(name) or ".." in name):
         _fail(where, "experiment.name", f"expected 1 to 100 ASCII letters, digits, '_', '-' and '.' (no '/' "
@@ -1199,7 +1227,7 @@ def experiment_from_data(data, where: str = "<experiment>", text: str = "") -> E
         stall_timeout=globals_["stall_timeout"], on_invalid_input=globals_["on_invalid_input"],
         graph_timeout=globals_["graph_timeout"], timing=globals_["timing"], start_time=globals_["start_time"],
         max_lag=globals_["max_lag"], on_overrun=globals_["on_overrun"],
-        divergence_factor=globals_["divergence_factor"],
+        layout=globals_["layout"], groups=globals_["groups"], divergence_factor=globals_["divergence_factor"],
         ccc_takes_state=globals_["ccc_takes_state"],
         plants={a: parsed[f"/{a}/plant"] for a in axes}, servos={a: parsed[f"/{a}/servo"] for a in axes},
         estimator=parsed["/contour_estimator"], controller=parsed["/ccc"],
@@ -1230,6 +1258,7 @@ def experiment_for_node(parameters: dict, node: str, role: str, where: str | Non
         timing=globals_["timing"],
         start_time=globals_["start_time"], max_lag=globals_["max_lag"],
         on_overrun=globals_["on_overrun"], ccc_takes_state=globals_["ccc_takes_state"],
+        layout=globals_["layout"], groups=globals_["groups"],
         plants={axis: section} if role == "plant" else {}, servos={axis: section} if role == "servo" else {},
         estimator=section if role == "contour_estimator" else {}, controller=section if role == "ccc" else {},
         info={"experiment": globals_["experiment"], "paper": globals_["paper"], "node": section})

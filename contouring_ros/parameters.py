@@ -30,7 +30,9 @@ DESCRIPTIONS = {
         "on_invalid_input": "what a node does with a non-finite or malformed input",
         "timing": "lockstep (as fast as the graph goes) or realtime (one step a period of wall time)",
         "start_time": "realtime: Unix time of tick 0 [s since 1970]",
-        "ccc_takes_state": "the CCC node subscribes to the reference and the axis states"},
+        "ccc_takes_state": "the CCC node subscribes to the reference and the axis states",
+        "layout": "where contouring-ros run puts the nodes: a process each, all in one, or the processes of groups",
+        "groups": "grouped layout: the nodes of each process, e.g. 'x/plant,x/servo; y/plant,y/servo'"},
     "CURVES": {
         "type": "curve type", "a": f"size a {_M}", "b": f"size b {_M}", "radius": f"radius {_M}", "scale": f"scale {_M}",
         "h": "shape parameter h", "c": f"pitch term c {_M}", "omega": "angular rate [rad per unit of parameter]",

@@ -20,7 +20,7 @@ from datetime import datetime
 from pathlib import Path
 
 from . import graph
-from .config import Experiment, controller_uses_state, load_experiment, namespaced_parameter_file
+from .config import Experiment, controller_uses_state, load_experiment, namespaced_parameter_file, split_groups
 from .errors import RunError
 
 __all__ = ["NodeProcess", "DomainLease", "graph_commands", "grouped_commands", "parse_groups", "write_parameter_file",
@@ -313,24 +313,24 @@ def composed_command(experiment_path, bag: Path, start_time: float = 0.0, namesp
                         + (["--namespace", namespace] if namespace not in ("", "/") else []))]
 
 
-def parse_groups(groups, axes) -> list:
+def parse_groups(groups, axes, source: str = "--group") -> list:
     """The grouped layout's groups: each a list of full node names (``x/plant`` or ``/x/plant``) in graph
     order. Every name must be a node of the graph for ``axes`` and in one group at most; a ConfigError in
-    one line otherwise."""
+    one line otherwise, naming ``source`` (the option or the experiment key the groups came from)."""
     from .errors import ConfigError
     every = graph.node_names(axes)
     seen, out = set(), []
     for group in groups:
         names = [n.strip() for n in (group.split(",") if isinstance(group, str) else group) if n.strip()]
         if not names:
-            raise ConfigError("--group: an empty group (expected NODE,NODE,... e.g. x/plant,x/servo)")
+            raise ConfigError(f"{source}: an empty group (expected NODE,NODE,... e.g. x/plant,x/servo)")
         full = []
         for name in names:
             name = "/" + name.strip("/")
             if name not in every:
-                raise ConfigError(f"--group: {name} is not a node of this graph (its nodes: {', '.join(every)})")
+                raise ConfigError(f"{source}: {name} is not a node of this graph (its nodes: {', '.join(every)})")
             if name in seen:
-                raise ConfigError(f"--group: {name} is in two groups (a node runs in one process)")
+                raise ConfigError(f"{source}: {name} is in two groups (a node runs in one process)")
             seen.add(name)
             full.append(name)
         out.append([n for n in every if n in full])
@@ -361,7 +361,7 @@ def grouped_commands(experiment_path, experiment: Experiment, bag: Path, groups,
 
 
 def run_graph(experiment_path, bag=None, *, timeout: float | None = None, domain_id: int | None = None,
-              progress=None, on_started=None, layout: str = "process", groups=None, namespace: str = "/",
+              progress=None, on_started=None, layout: str | None = None, groups=None, namespace: str = "/",
               shared_domain: bool = False) -> Path:
     """Run the experiment through the process graph and return the bag's path.
 
@@ -385,10 +385,11 @@ def run_graph(experiment_path, bag=None, *, timeout: float | None = None, domain
         Receives one-line status messages.
     on_started : callable(list of NodeProcess), optional
         Called once every node process has been started.
-    layout : str
-        ``process`` (every node its own process) or ``composed`` (all nodes in one process).
+    layout : str, optional
+        ``process`` (every node its own process) or ``composed`` (all nodes in one process); default (with no
+        ``groups``): the experiment's ``layout`` and ``groups`` keys.
     groups : list, optional
-        The grouped layout (with ``layout`` ``process``): each group, a list of node names or a string
+        The grouped layout (with ``layout`` ``process`` or None): each group, a list of node names or a string
         ``x/plant,x/servo``, runs in one process on the composed loop; every other node in its own process.
     namespace : str
         Graph namespace: every node and topic under it (``m1``: /m1/x/plant publishes /m1/x/state).
@@ -400,6 +401,10 @@ def run_graph(experiment_path, bag=None, *, timeout: float | None = None, domain
     if bag.exists():
         bag.unlink()
     timeout = timeout if timeout is not None else 60.0 + experiment.n_steps / 50.0
+    if layout is None and not groups:        # the experiment file's layout
+        groups = split_groups(experiment.groups) if experiment.layout == "grouped" else None
+        layout = "composed" if experiment.layout == "composed" else "process"
+    layout = layout or "process"
     if layout not in ("process", "composed"):
         raise RunError(f"unknown layout {layout!r} (expected process or composed)")
     if groups and layout != "process":

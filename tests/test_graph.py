@@ -141,6 +141,36 @@ def test_groups_are_checked_before_any_node_starts(tmp_path):
             parse_groups(groups, axes)
 
 
+@pytest.mark.parametrize("keys,arguments,processes", [
+    ("layout: composed", {}, 1),
+    ('layout: grouped\n    groups: "x/plant,x/servo; y/plant,y/servo"', {}, 6),
+    ("layout: composed", {"layout": "process"}, 8),                       # contouring-ros run --process
+    ("layout: composed", {"groups": ["x/plant,x/servo"]}, 7)])            # --group
+def test_the_experiment_file_chooses_the_layout(keys, arguments, processes, tmp_path, write_experiment):
+    """The file's layout and groups keys decide the processes (the run gives the same scores); what the
+    caller gives (the command line's --process, --composed, --group) wins."""
+    path = write_experiment(shortened(DEFAULT, 0.1).replace("    sample_time: 0.001\n",
+                                                            f"    sample_time: 0.001\n    {keys}\n", 1))
+    started = []
+    bag = run_graph(path, tmp_path / "layout.mcap", on_started=lambda nodes: started.append(len(nodes)), **arguments)
+    assert started == [processes]
+    _assert_identical(path, bag)
+
+
+def test_layout_keys_are_checked_with_the_file():
+    from contouring_ros.config import parse_experiment
+    from contouring_ros.errors import ConfigError
+    text = DEFAULT.read_text()
+    for keys, expected in (("layout: grouped", "groups: layout grouped needs its groups"),
+                           ('layout: grouped\n    groups: "x/plant; q/servo"', "groups: /q/servo is not a node"),
+                           ('layout: grouped\n    groups: "x/plant; x/plant,ccc"', "groups: /x/plant is in two groups"),
+                           ('groups: "x/plant,x/servo"', "groups: groups are the grouped layout's"),
+                           ("layout: lumped", "layout: expected one of process, composed, grouped")):
+        with pytest.raises(ConfigError, match=expected):
+            parse_experiment(text.replace("    sample_time: 0.001\n", f"    sample_time: 0.001\n    {keys}\n", 1),
+                             "layout.yaml")
+
+
 def test_stock_executor_path_reproduces_simulation(tmp_path):
     """The nodes' subscription callbacks under rclpy's SingleThreadedExecutor (how users embed them)."""
     import os
