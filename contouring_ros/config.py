@@ -1036,12 +1036,12 @@ def split_groups(text: str) -> list:
 
 def _validate_layout(where, out: dict):
     """``layout`` and ``groups`` agree, and every group names nodes of the graph, each once."""
-    from .runner import parse_groups
+    from . import graph
     if out["layout"] == "grouped":
         if not split_groups(out["groups"]):
             _fail(where, "groups", "layout grouped needs its groups, e.g. 'x/plant,x/servo; y/plant,y/servo'")
         try:
-            parse_groups(split_groups(out["groups"]), out["axes"], source="groups")
+            graph.parse_groups(split_groups(out["groups"]), out["axes"], source="groups")
         except ConfigError as error:
             raise ConfigError(f"{_printable(where)}: {error}") from None
     elif out["groups"].strip():

@@ -24,6 +24,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .errors import ConfigError
+
 __all__ = ["Topic", "topics", "node_names", "NodeSpec", "node_specs", "CONTOUR_ERROR_NAME", "FOOT_POINT_NAME", "THETA_NAME",
            "LOOKAHEAD", "step_to_stamp", "reference_from_msg",
            "estimate_from_msg", "estimate_names", "estimate_values", "state_topic", "command_topic",
@@ -226,3 +228,26 @@ def estimate_names(axes) -> list:
 def estimate_values(estimate) -> list:
     """JointState positions of a /contour_error message."""
     return [float(v) for v in estimate.vector] + [float(estimate.signed), float(estimate.theta)]
+
+
+def parse_groups(groups, axes, source: str = "--group") -> list:
+    """The grouped layout's groups: each a list of full node names (``x/plant`` or ``/x/plant``) in graph
+    order. Every name must be a node of the graph for ``axes`` and in one group at most; a ConfigError in
+    one line otherwise, naming ``source`` (the option or the experiment key the groups came from)."""
+    every = node_names(axes)
+    seen, out = set(), []
+    for group in groups:
+        names = [n.strip() for n in (group.split(",") if isinstance(group, str) else group) if n.strip()]
+        if not names:
+            raise ConfigError(f"{source}: an empty group (expected NODE,NODE,... e.g. x/plant,x/servo)")
+        full = []
+        for name in names:
+            name = "/" + name.strip("/")
+            if name not in every:
+                raise ConfigError(f"{source}: {name} is not a node of this graph (its nodes: {', '.join(every)})")
+            if name in seen:
+                raise ConfigError(f"{source}: {name} is in two groups (a node runs in one process)")
+            seen.add(name)
+            full.append(name)
+        out.append([n for n in every if n in full])
+    return out

@@ -20,6 +20,7 @@ from datetime import datetime
 from pathlib import Path
 
 from . import graph
+from .graph import parse_groups
 from .config import Experiment, controller_uses_state, load_experiment, namespaced_parameter_file, split_groups
 from .errors import RunError
 
@@ -311,30 +312,6 @@ def composed_command(experiment_path, bag: Path, start_time: float = 0.0, namesp
     return [NodeProcess("/composed", [sys.executable, "-m", "contouring_ros.composed", str(experiment_path),
                                       str(bag)] + (["--start-time", repr(start_time)] if start_time else [])
                         + (["--namespace", namespace] if namespace not in ("", "/") else []))]
-
-
-def parse_groups(groups, axes, source: str = "--group") -> list:
-    """The grouped layout's groups: each a list of full node names (``x/plant`` or ``/x/plant``) in graph
-    order. Every name must be a node of the graph for ``axes`` and in one group at most; a ConfigError in
-    one line otherwise, naming ``source`` (the option or the experiment key the groups came from)."""
-    from .errors import ConfigError
-    every = graph.node_names(axes)
-    seen, out = set(), []
-    for group in groups:
-        names = [n.strip() for n in (group.split(",") if isinstance(group, str) else group) if n.strip()]
-        if not names:
-            raise ConfigError(f"{source}: an empty group (expected NODE,NODE,... e.g. x/plant,x/servo)")
-        full = []
-        for name in names:
-            name = "/" + name.strip("/")
-            if name not in every:
-                raise ConfigError(f"{source}: {name} is not a node of this graph (its nodes: {', '.join(every)})")
-            if name in seen:
-                raise ConfigError(f"{source}: {name} is in two groups (a node runs in one process)")
-            seen.add(name)
-            full.append(name)
-        out.append([n for n in every if n in full])
-    return out
 
 
 def group_label(names) -> str:
