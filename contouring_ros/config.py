@@ -19,7 +19,7 @@ import os
 import re
 import stat
 import sys
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 
 import numpy as np
@@ -1221,20 +1221,21 @@ def experiment_from_data(data, where: str = "<experiment>", text: str = "") -> E
     _validate_combination(where, parsed["/contour_estimator"], parsed["/ccc"],
                           {a: parsed[f"/{a}/servo"] for a in axes})
     experiment = Experiment(
-        path=where, text=text, sample_time=globals_["sample_time"], duration=globals_["duration"],
-        axes=tuple(axes), curve=globals_["curve"], schedule=globals_["schedule"],
-        initial_state=globals_["initial_state"], network=globals_["network"],
-        stall_timeout=globals_["stall_timeout"], on_invalid_input=globals_["on_invalid_input"],
-        graph_timeout=globals_["graph_timeout"], timing=globals_["timing"], start_time=globals_["start_time"],
-        max_lag=globals_["max_lag"], on_overrun=globals_["on_overrun"],
-        layout=globals_["layout"], groups=globals_["groups"], divergence_factor=globals_["divergence_factor"],
-        ccc_takes_state=globals_["ccc_takes_state"],
+        path=where, text=text, **_shared_fields(globals_),
         plants={a: parsed[f"/{a}/plant"] for a in axes}, servos={a: parsed[f"/{a}/servo"] for a in axes},
         estimator=parsed["/contour_estimator"], controller=parsed["/ccc"],
         info={"experiment": globals_["experiment"], "paper": globals_["paper"]})
     if not experiment.ccc_takes_state:
         check_ccc_takes_state(where, experiment, controller_uses_state(experiment))
     return experiment
+
+
+def _shared_fields(globals_: dict) -> dict:
+    """The Experiment fields the shared keys (/**) give, by name: every field of Experiment named in GLOBALS
+    (axes as a tuple), so that a new shared key reaches the Experiment of a file and of a node alike."""
+    out = {f.name: globals_[f.name] for f in fields(Experiment) if f.name in GLOBALS}
+    out["axes"] = tuple(out["axes"])
+    return out
 
 
 def experiment_for_node(parameters: dict, node: str, role: str, where: str | None = None) -> Experiment:
@@ -1246,19 +1247,10 @@ def experiment_for_node(parameters: dict, node: str, role: str, where: str | Non
     nested = section_from_parameters({k: v for k, v in parameters.items() if k not in ROS_BUILTIN_PARAMETERS})
     globals_ = _validate_globals(where, {k: v for k, v in nested.items() if k in GLOBALS})
     section = _validate_role(where, node, role, {k: v for k, v in nested.items() if k not in GLOBALS}, globals_)
-    axes = tuple(globals_["axes"])
     parts = node.strip("/").split("/")
     axis = parts[-2] if len(parts) > 1 else ""       # a per-axis node's namespace ends in its axis
     return Experiment(
-        path=where, text="", sample_time=globals_["sample_time"], duration=globals_["duration"], axes=axes,
-        curve=globals_["curve"], schedule=globals_["schedule"], initial_state=globals_["initial_state"],
-        network=globals_["network"], stall_timeout=globals_["stall_timeout"],
-        graph_timeout=globals_["graph_timeout"], on_invalid_input=globals_["on_invalid_input"],
-        divergence_factor=globals_["divergence_factor"],
-        timing=globals_["timing"],
-        start_time=globals_["start_time"], max_lag=globals_["max_lag"],
-        on_overrun=globals_["on_overrun"], ccc_takes_state=globals_["ccc_takes_state"],
-        layout=globals_["layout"], groups=globals_["groups"],
+        path=where, text="", **_shared_fields(globals_),
         plants={axis: section} if role == "plant" else {}, servos={axis: section} if role == "servo" else {},
         estimator=section if role == "contour_estimator" else {}, controller=section if role == "ccc" else {},
         info={"experiment": globals_["experiment"], "paper": globals_["paper"], "node": section})
