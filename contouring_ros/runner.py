@@ -307,11 +307,18 @@ def _raise_terminated(signum, frame):
     raise _Terminated()
 
 
+def _composed_process(label: str, experiment_path, bag: Path, start_time: float, namespace: str,
+                      nodes=None) -> NodeProcess:
+    """A process of :mod:`contouring_ros.composed`: every node of the graph, or the ``nodes`` of one group."""
+    return NodeProcess(label, [sys.executable, "-m", "contouring_ros.composed", str(experiment_path), str(bag)]
+                       + (["--nodes", ",".join(nodes)] if nodes else [])
+                       + (["--start-time", repr(start_time)] if start_time else [])
+                       + (["--namespace", namespace] if namespace not in ("", "/") else []))
+
+
 def composed_command(experiment_path, bag: Path, start_time: float = 0.0, namespace: str = "/") -> list:
     """The composed layout: one process running every node under one executor."""
-    return [NodeProcess("/composed", [sys.executable, "-m", "contouring_ros.composed", str(experiment_path),
-                                      str(bag)] + (["--start-time", repr(start_time)] if start_time else [])
-                        + (["--namespace", namespace] if namespace not in ("", "/") else []))]
+    return [_composed_process("/composed", experiment_path, bag, start_time, namespace)]
 
 
 def group_label(names) -> str:
@@ -329,11 +336,8 @@ def grouped_commands(experiment_path, experiment: Experiment, bag: Path, groups,
     grouped = {graph.resolve(namespace, name) for group in shared for name in group}
     out = [node for node in graph_commands(experiment_path, experiment, bag, start_time, namespace, parameter_file)
            if node.name not in grouped]
-    for group in shared:
-        out.append(NodeProcess(group_label(group), [sys.executable, "-m", "contouring_ros.composed", str(experiment_path),
-                                                    str(bag), "--nodes", ",".join(group)]
-                               + (["--start-time", repr(start_time)] if start_time else [])
-                               + (["--namespace", namespace] if namespace not in ("", "/") else [])))
+    out += [_composed_process(group_label(group), experiment_path, bag, start_time, namespace, group)
+            for group in shared]
     return out
 
 
