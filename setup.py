@@ -20,7 +20,7 @@ setup(
         (f"share/{package_name}/config/benchmark", glob("config/benchmark/*.yaml")),
         (f"share/{package_name}/launch", glob("launch/*.launch.py")),
     ],
-    install_requires=["setuptools", "numpy", "scipy", "PyYAML", "mcap", "mcap-ros2-support", "tqdm", "ruckig", "matplotlib"],
+    install_requires=["setuptools", "numpy", "scipy", "PyYAML", "mcap", "mcap-ros2-support", "tqdm", "ruckig", "matplotlib", "cma", "control"],
     extras_require={"test": ["pytest"]},
     zip_safe=True,
     maintainer="contouring_ros maintainers",
