@@ -339,26 +339,38 @@ _register(SCHEDULES, {
     "uniform": lambda s, c: UniformSchedule(**_kwargs(s)),
     "feedrate": _feedrate_schedule,
 })
+# the imperfections of a real feed drive, every plant type (core/plants.py, Axis): all off by default
+_MACHINE = {"encoder_resolution": Param("float", 0.0, "nonnegative"),
+            "measurement_noise": Param("float", 0.0, "nonnegative"),
+            "noise_seed": Param("int", 0, "nonnegative"),
+            "command_delay": Param("int", 0, "nonnegative"),
+            "velocity_measurement": Param("str", "model", choices=plants.VELOCITY_MEASUREMENTS)}
+
+
+def _machine(s) -> dict:
+    return {key: s[key] for key in _MACHINE}
+
+
 _register(PLANTS, {
     "first_order_velocity": {"gain": Param("float", check="positive"),
                              "time_constant": Param("float", check="positive"),
                              "disturbance": Param("dict", {"type": "none"}, choices=DISTURBANCES),
-                             "saturation": LIMIT, "encoder_resolution": Param("float", 0.0, "nonnegative")},
+                             "saturation": LIMIT, **_MACHINE},
     "mass_damper": {"mass": Param("float", check="positive"), "damping": Param("float", check="nonnegative"),
                     "gain": Param("float", check="positive"),
                     "coulomb_positive": Param("float", 0.0, "nonnegative"),
                     "coulomb_negative": Param("float", 0.0, "nonnegative"),
                     "disturbance": Param("dict", {"type": "none"}, choices=DISTURBANCES),
                     "disturbance_unit": Param("str", "command", choices=DISTURBANCE_UNITS),
-                    "saturation": LIMIT, "encoder_resolution": Param("float", 0.0, "nonnegative")},
+                    "saturation": LIMIT, **_MACHINE},
 }, {
     "first_order_velocity": lambda s, c: plants.FirstOrderVelocityAxis(
         s["gain"], s["time_constant"], c.sample_time, build_disturbance(s["disturbance"]), c.position, c.velocity,
-        s["saturation"], s["encoder_resolution"]),
+        s["saturation"], **_machine(s)),
     "mass_damper": lambda s, c: plants.MassDamperAxis(
         s["mass"], s["damping"], s["gain"], c.sample_time, build_disturbance(s["disturbance"]), c.position,
         c.velocity, s["saturation"], s["coulomb_positive"], s["coulomb_negative"], s["disturbance_unit"],
-        s["encoder_resolution"]),
+        **_machine(s)),
 })
 _register(SERVOS, {
     "pid_feedforward": {**_gains(), "gain": Param("float", check="positive"),
@@ -515,7 +527,8 @@ BOUNDS = {
                      "frequency": (1e-6, 1e5), "phase": (-1e3, 1e3), "std": (0.0, 1e9), "seed": (0, 2 ** 32 - 1)},
     "PLANTS": {"gain": _AXIS_GAIN, "time_constant": _TIME_CONSTANT, "mass": _MASS, "damping": _DAMPING,
                "coulomb_positive": _FORCE, "coulomb_negative": _FORCE, "saturation": _LIMIT,
-               "encoder_resolution": (0.0, 1.0)},
+               "encoder_resolution": (0.0, 1.0), "measurement_noise": (0.0, 1.0), "noise_seed": (0, 2 ** 32 - 1),
+               "command_delay": (0, plants.MAX_COMMAND_DELAY)},
     "SERVOS": {"kp": _GAIN, "ki": _GAIN, "kd": _GAIN, "kp_position": _GAIN, "kp_velocity": _GAIN,
                "ki_velocity": _GAIN, "output_limit": _LIMIT, "gain": _AXIS_GAIN, "time_constant": _TIME_CONSTANT,
                "pid_feedforward.time_constant": (0.0, 1e3), "a": _POSITIVE, "b": _POSITIVE, "mu": _POSITIVE,

@@ -64,7 +64,11 @@ DESCRIPTIONS = {
         "time_constant": f"velocity loop time constant {_S}", "mass": "moving mass [kg]", "damping": "viscous damping [N s/m]",
         "coulomb_positive": "Coulomb friction moving forward [N]", "coulomb_negative": "Coulomb friction moving back [N]",
         "disturbance_unit": "what the disturbance is given in", "saturation": "command limit, 0: none [command units]",
-        "encoder_resolution": f"position quantisation, 0: none {_M}", "disturbance": "load disturbance"},
+        "encoder_resolution": f"position quantisation, 0: none {_M}", "disturbance": "load disturbance",
+        "measurement_noise": f"standard deviation of the white Gaussian noise on the position reading, 0: none {_M}",
+        "noise_seed": "seed of the measurement noise (same seed, same noise)",
+        "command_delay": "computation delay: a command acts this many periods after it is computed [samples]",
+        "velocity_measurement": "the velocity reading: the drive's own (model) or the differentiated encoder"},
     "SERVOS": {
         "law": "servo law", "kp": "proportional gain [command units/m]", "ki": "integral gain [command units/(m s)]",
         "kd": "derivative gain [command units s/m]", "kp_position": "position loop gain [1/s]",

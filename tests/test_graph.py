@@ -53,6 +53,22 @@ def test_each_papers_graph_reproduces_simulation_exactly(scenario, tmp_path):
     _assert_identical(path, run_graph(path, tmp_path / f"{scenario}.mcap"))
 
 
+def test_an_imperfect_machine_through_the_graph_equals_the_simulation(tmp_path):
+    """Measurement noise, a 0.1 um encoder, one sample of computation delay and velocity from the
+    differentiated encoder on every plant: the plant nodes read and step the same plant objects, and the
+    graph still equals the in-process simulation bit for bit."""
+    machine = ("    measurement_noise: 1.0e-7\n    noise_seed: 3\n    encoder_resolution: 1.0e-7\n"
+               "    command_delay: 1\n    velocity_measurement: encoder\n")
+    text = shortened(DEFAULT, 0.3).replace("    model: first_order_velocity\n",
+                                           "    model: first_order_velocity\n" + machine)
+    assert text.count(machine) == 2
+    path = tmp_path / "imperfect.yaml"
+    path.write_text(text)
+    plants = build_loop(load_experiment(path)).plants
+    assert all(p.command_delay == 1 and p.velocity_measurement == "encoder" and p._noise is not None for p in plants)
+    _assert_identical(path, run_graph(path, tmp_path / "imperfect.mcap"))
+
+
 def test_run_longer_than_the_stall_timeout_completes(tmp_path):
     """The stall timer measures time without progress, not time since the start: a run whose lockstep
     lasts several stall timeouts completes, identical to the simulation."""

@@ -1,7 +1,9 @@
 """Axis dynamics, discretised exactly under a zero-order-hold input.
 
 Each plant holds its state (position, velocity), applies a command over one sample period
-[t_k, t_k+1) and returns the state at k+1.
+[t_k, t_k+1) and returns the state at k+1. Between the controller and the dynamics sit the imperfections of
+a real feed drive (:class:`Axis`): encoder resolution, measurement noise, velocity from the differentiated
+encoder, computation delay and the actuator limit; all off by default.
 """
 from __future__ import annotations
 
@@ -11,7 +13,8 @@ import numpy as np
 
 from .disturbances import NoDisturbance
 
-__all__ = ["FirstOrderVelocityAxis", "MassDamperAxis", "coulomb_friction", "quantize", "has_limit", "symmetric_clip"]
+__all__ = ["Axis", "FirstOrderVelocityAxis", "MassDamperAxis", "NOISE_TABLE_LENGTH", "VELOCITY_MEASUREMENTS",
+           "MAX_COMMAND_DELAY", "coulomb_friction", "quantize", "has_limit", "symmetric_clip"]
 
 
 def quantize(value: float, resolution: float) -> float:
@@ -23,17 +26,111 @@ def quantize(value: float, resolution: float) -> float:
     return round(value / resolution) * resolution
 
 
+#: samples of the measurement-noise table a plant draws at construction and reads cyclically (8.192 s at 1 kHz)
+NOISE_TABLE_LENGTH = 8192
+#: what the velocity reading is: the drive's own (exact) velocity, or the differentiated encoder
+VELOCITY_MEASUREMENTS = ("model", "encoder")
+#: the longest computation delay a plant holds commands for [samples]
+MAX_COMMAND_DELAY = 10
+
+
 class Axis:
-    """What every axis model shares: its measurement. ``measure()`` gives the (position, velocity) the
-    drive reports: the position read by an encoder of ``encoder_resolution`` [m] (0: exact), the velocity
-    as the drive's own estimate (taken exact)."""
+    """What every axis model shares: the imperfections of a real feed drive between the controller and the
+    dynamics (Altintas, Manufacturing Automation, 2nd ed., 2012, ch. 5-6).
+
+    Measurement. ``measure()`` gives the (position, velocity) the drive reports at the current step:
+
+    - the position read by a linear or rotary encoder of ``encoder_resolution`` [m] (0: exact): the reading
+      is rounded to a multiple of it (Altintas: encoders of 0.1-1 um on machine-tool axes);
+    - with ``measurement_noise`` [m] > 0, white Gaussian noise of that standard deviation added to the
+      position before the rounding (electrical noise and interpolation error of the encoder signal). It is
+      drawn at construction from ``numpy.random.default_rng(noise_seed)`` into a table of
+      :data:`NOISE_TABLE_LENGTH` samples read cyclically, one per step: the same seed gives the same noise,
+      run after run, in-process, batched and through the node graph alike. Give each axis its own seed for
+      noise independent between axes;
+    - the velocity: with ``velocity_measurement`` "model" the drive's own velocity, exact; with "encoder" the
+      backward difference of successive position readings divided by the sample time, as a servo loop
+      sampled at 1 kHz forms it from the encoder, noise and quantisation included (at step
+      0, with no earlier reading, the initial velocity).
+
+    ``measure()`` is pure: it may be called any number of times between steps and gives the same reading.
+
+    Command. ``step(command, t)`` applies the command with ``command_delay`` samples of computation delay
+    (the command computed at step k acts over [t_{k+d}, t_{k+d+1}); no command before: the delay of a
+    controller that computes during one sample period and writes its output at the next sampling instant is
+    d = 1), clipped to +-``saturation`` (the amplifier's or DAC's limit, 0: none) as it reaches the drive.
+    """
 
     encoder_resolution = 0.0
+    measurement_noise = 0.0
+    noise_seed = 0
+    command_delay = 0
+    velocity_measurement = "model"
+    saturation = 0.0
     position = 0.0
     velocity = 0.0
+    _noise = None              # the noise table (B, L for a stacked batch), None without noise
+    _held = ()                 # the commands on their way to the drive, oldest first
+    _steps = 0                 # steps taken: the index of the current reading's noise sample
+    _previous = None           # the position reading one step back ("encoder" velocity), None at step 0
+
+    def _set_measurement(self, encoder_resolution=0.0, measurement_noise=0.0, noise_seed=0, command_delay=0,
+                         velocity_measurement="model"):
+        """Set the imperfections (called by each model's constructor after its state)."""
+        if not encoder_resolution >= 0.0 or not measurement_noise >= 0.0:
+            raise ValueError("encoder resolution and measurement noise must be non-negative")
+        if int(noise_seed) != noise_seed or noise_seed < 0:
+            raise ValueError(f"noise_seed must be a non-negative integer, got {noise_seed!r}")
+        if int(command_delay) != command_delay or not 0 <= command_delay <= MAX_COMMAND_DELAY:
+            raise ValueError(f"command_delay must be an integer from 0 to {MAX_COMMAND_DELAY}, got {command_delay!r}")
+        if velocity_measurement not in VELOCITY_MEASUREMENTS:
+            raise ValueError(f"velocity_measurement must be one of {', '.join(VELOCITY_MEASUREMENTS)}, "
+                             f"got {velocity_measurement!r}")
+        self.encoder_resolution = float(encoder_resolution)
+        self.measurement_noise = float(measurement_noise)
+        self.noise_seed = int(noise_seed)
+        self.command_delay = int(command_delay)
+        self.velocity_measurement = velocity_measurement
+        # instance attributes, all of them, so that a batch (core/batch.py) stacks them or refuses to
+        self._noise = None if self.measurement_noise == 0.0 else \
+            self.measurement_noise * np.random.default_rng(self.noise_seed).standard_normal(NOISE_TABLE_LENGTH)
+        self._held = (0.0,) * self.command_delay
+        self._steps = 0
+        self._previous = None
+
+    def _position_reading(self):
+        """The encoder's reading of the current position: noise added, then quantised."""
+        position, table = self.position, self._noise
+        if table is not None:
+            i = self._steps % NOISE_TABLE_LENGTH
+            position = position + (table[:, i:i + 1] if table.ndim == 2 else float(table[i]))
+        return quantize(position, self.encoder_resolution)
 
     def measure(self) -> tuple[float, float]:
-        return quantize(self.position, self.encoder_resolution), self.velocity
+        """The (position, velocity) the drive reports now (pure: the same until the next ``step``)."""
+        position = self._position_reading()
+        if self.velocity_measurement == "model" or self._previous is None:
+            return position, self.velocity
+        return position, (position - self._previous) / self.sample_time
+
+    def step(self, command: float, t: float) -> tuple[float, float]:
+        """Take ``command`` (computed at t), apply the one due after the delay, clipped to the saturation,
+        over [t, t + Ts), and return the (position, velocity) at t + Ts."""
+        if self._held:
+            if isinstance(command, np.ndarray):
+                command = command.copy()          # a batch's column may be a view of the caller's array
+            command, self._held = self._held[0], self._held[1:] + (command,)
+        if has_limit(self.saturation):
+            command = symmetric_clip(command, self.saturation)
+        if self.velocity_measurement == "encoder":
+            self._previous = self._position_reading()
+        self._advance(command, t)
+        self._steps += 1
+        return self.position, self.velocity
+
+    def _advance(self, command, t: float):
+        """The dynamics: apply ``command`` (delayed and clipped) over [t, t + Ts)."""
+        raise NotImplementedError
 
 
 class FirstOrderVelocityAxis(Axis):
@@ -60,7 +157,19 @@ class FirstOrderVelocityAxis(Axis):
     position, velocity : float
         Initial state [m], [m/s].
     saturation : float
-        Actuator limit: the command is clipped to +-saturation before the disturbance adds (0: none).
+        Actuator limit: the command is clipped to +-saturation before the disturbance adds (0: none).    encoder_resolution : float
+        Encoder resolution [m] the position reading is rounded to (0: exact).
+    measurement_noise : float
+        Standard deviation [m] of the white Gaussian noise added to the position reading before the
+        rounding (0: none).
+    noise_seed : int
+        Seed of that noise (same seed, same noise sequence).
+    command_delay : int
+        Computation delay [samples], 0 to :data:`MAX_COMMAND_DELAY`.
+    velocity_measurement : str
+        "model" (the exact velocity) or "encoder" (the backward difference of the position readings).
+
+    See :class:`Axis` for what each imperfection models.
     """
 
     #: steps elementwise on arrays with a leading batch axis (:mod:`contouring_ros.core.batch`)
@@ -68,7 +177,8 @@ class FirstOrderVelocityAxis(Axis):
 
     def __init__(self, gain: float, time_constant: float, sample_time: float, disturbance=None,
                  position: float = 0.0, velocity: float = 0.0, saturation: float = 0.0,
-                 encoder_resolution: float = 0.0):
+                 encoder_resolution: float = 0.0, measurement_noise: float = 0.0, noise_seed: int = 0,
+                 command_delay: int = 0, velocity_measurement: str = "model"):
         if gain <= 0.0 or time_constant <= 0.0 or sample_time <= 0.0:
             raise ValueError("gain, time constant and sample time must be positive")
         self.gain = float(gain)
@@ -83,17 +193,13 @@ class FirstOrderVelocityAxis(Axis):
         self.position = float(position)
         self.velocity = float(velocity)
         self.saturation = float(saturation)
-        self.encoder_resolution = float(encoder_resolution)
+        self._set_measurement(encoder_resolution, measurement_noise, noise_seed, command_delay, velocity_measurement)
 
-    def step(self, command: float, t: float) -> tuple[float, float]:
-        """Apply ``command`` over [t, t + Ts) and return the (position, velocity) at t + Ts."""
-        if has_limit(self.saturation):
-            command = symmetric_clip(command, self.saturation)
+    def _advance(self, command, t: float):
         u = command + self.disturbance(t)
         p, v = self.position, self.velocity
         self.position = p + self._pv * v + self._pu * u
         self.velocity = self._alpha * v + self._vu * u
-        return self.position, self.velocity
 
 
 def has_limit(limit) -> bool:
@@ -143,6 +249,36 @@ class MassDamperAxis(Axis):
     The Coulomb friction is sampled with the velocity at the start of each step and held over it: exact
     while the axis does not reverse within a step, accurate to one sample at reversals (stick-slip is not
     modelled).
+
+    Parameters
+    ----------
+    mass, damping, gain : float
+        M [kg], B [N s/m], K [N per command unit].
+    sample_time : float
+        Ts [s].
+    disturbance : callable t -> float, optional
+        D(t) in command units (or m/s^2, see ``disturbance_unit``).
+    position, velocity : float
+        Initial state [m], [m/s].
+    saturation : float
+        Actuator limit: the command is clipped to +-saturation (0: none).
+    coulomb_positive, coulomb_negative : float
+        Coulomb friction moving forward, backward [command units].
+    disturbance_unit : str
+        "command" or "acceleration".
+    encoder_resolution : float
+        Encoder resolution [m] the position reading is rounded to (0: exact).
+    measurement_noise : float
+        Standard deviation [m] of the white Gaussian noise added to the position reading before the
+        rounding (0: none).
+    noise_seed : int
+        Seed of that noise (same seed, same noise sequence).
+    command_delay : int
+        Computation delay [samples], 0 to :data:`MAX_COMMAND_DELAY`.
+    velocity_measurement : str
+        "model" (the exact velocity) or "encoder" (the backward difference of the position readings).
+
+    See :class:`Axis` for what each imperfection models.
     """
 
     #: steps elementwise on arrays with a leading batch axis (:mod:`contouring_ros.core.batch`)
@@ -151,7 +287,9 @@ class MassDamperAxis(Axis):
     def __init__(self, mass: float, damping: float, gain: float, sample_time: float, disturbance=None,
                  position: float = 0.0, velocity: float = 0.0, saturation: float = 0.0,
                  coulomb_positive: float = 0.0, coulomb_negative: float = 0.0,
-                 disturbance_unit: str = "command", encoder_resolution: float = 0.0):
+                 disturbance_unit: str = "command", encoder_resolution: float = 0.0,
+                 measurement_noise: float = 0.0, noise_seed: int = 0, command_delay: int = 0,
+                 velocity_measurement: str = "model"):
         if mass <= 0.0 or gain <= 0.0 or sample_time <= 0.0 or damping < 0.0:
             raise ValueError("mass, gain and sample time must be positive and damping non-negative")
         self.mass, self.damping, self.gain = float(mass), float(damping), float(gain)
@@ -170,17 +308,13 @@ class MassDamperAxis(Axis):
         if disturbance_unit not in ("command", "acceleration"):
             raise ValueError(f"disturbance_unit must be command or acceleration, got {disturbance_unit!r}")
         self._disturbance_scale = 1.0 if disturbance_unit == "command" else self.mass / self.gain
-        self.encoder_resolution = float(encoder_resolution)
         self.position = float(position)
         self.velocity = float(velocity)
+        self._set_measurement(encoder_resolution, measurement_noise, noise_seed, command_delay, velocity_measurement)
 
-    def step(self, command: float, t: float) -> tuple[float, float]:
-        """Apply ``command`` over [t, t + Ts) and return the (position, velocity) at t + Ts."""
-        if has_limit(self.saturation):
-            command = symmetric_clip(command, self.saturation)
+    def _advance(self, command, t: float):
         p, v = self.position, self.velocity
         w = self._input_scale * (command + self._disturbance_scale * self.disturbance(t)
                                  - coulomb_friction(v, self.coulomb_positive, self.coulomb_negative))
         self.position = p + self._pv * v + self._pw * w
         self.velocity = self._vv * v + self._vw * w
-        return self.position, self.velocity
