@@ -1,12 +1,15 @@
-"""The contouring benchmark: every estimator and controller of the registries on every paper scenario, tuned
-by one rule, scored alike, and the best per scenario against the paper's proposed method.
+"""The contouring benchmark: every estimator and controller of the registries on every paper scenario, each
+tuned gain by gain under the same constraints on a realistic machine, scored alike with intervals, and the
+best per scenario against the paper's proposed method.
 
 Scenarios. The scenario files of config/ (``paper<N>_*.yaml``) that share the shared section (curve,
 schedule, duration, initial state; the ``experiment`` and ``paper`` blocks aside) and every plant are one
 scenario: its files differ only in the method (estimator, controller, servo). The scenario's *proposed* file
 is the one a claim of config/claims/ names as proposed, else the file whose servo law, estimator and
 controller are those of a proposed file of the same paper, else its first file. Its steady state starts at
-the largest ``from_time`` of the claims on its files (else the paper's most common one).
+the largest ``from_time`` of the claims on its files (else the paper's most common one). By default the
+benchmark runs the scenarios of the papers' own experiments (:data:`DEFAULT_SCENARIOS`); the mechanism
+scenarios (``*_mech_*``) of the claims are there on request.
 
 Combinations. Every estimator x controller of the registries (plugins included) x every servo set the
 scenario's files define (the servos are tuned to the scenario's plants; none is invented), each from the
@@ -16,12 +19,8 @@ A combination that validation refuses, that has no gains to start from, or that 
 cannot be paired; the reason is kept. The controller ``none`` reads no estimate: it is paired with the
 scenario's own estimator only.
 
-Tuning rule (the same for every combination). The controller's gains (:data:`GAIN_KEYS`; every one scaled
-by one factor, so a PID keeps its zeros and a task-frame controller its damping ratios) take ``budget``
-factors on a log grid from 1/:data:`SPAN` to :data:`SPAN` (and 1, the file's own gains); the runs that did
-not diverge and whose RMS actuator effort is at most :data:`EFFORT_BOUND` times that of the proposed
-method with the file's gains are admissible, and the admissible run with the lowest steady-state TACE is
-the combination's result.
+Tuning: :mod:`contouring_ros.tuning` (every gain on its own, CMA-ES, equal budget, equal noise,
+saturation and robustness constraints, a realistic machine, intervals over seeds and model mismatch).
 """
 from __future__ import annotations
 
@@ -40,20 +39,14 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-__all__ = ["EFFORT_BOUND", "SPAN", "DEFAULT_BUDGET", "GAIN_KEYS", "Family", "Combination", "Excluded", "Point",
-           "Row", "scenario_families", "select_families", "factors", "plan", "select", "run_benchmark",
-           "write_csv", "draw_heatmap", "benchmark_report", "paper_best"]
+from .tuning import Protocol, gain_keys, interval, machine_settings, pareto_front, run_outcomes, tune
 
-EFFORT_BOUND = 1.1      # admissible: RMS effort <= this times the proposed method's (file gains)
-SPAN = 100.0            # gain factors from 1/SPAN to SPAN
-EQUAL_EFFORT = 1.01     # best versus proposed: RMS effort at most this times the proposed's ("equal or lower")
-DEFAULT_BUDGET = 5      # grid points per combination (odd: the file's own gains are one of them)
-GOAL = 0.5              # a combination beats the proposed method 2x when both ratios are at most this
-BATCH = 120             # runs per vectorised batch
-# the gains the tuning rule scales, per controller type; a controller not listed: its float parameters
-# whose names start with 'k' (kp, kc ...)
-GAIN_KEYS = {"variable_gain": ("kp", "ki", "kd"), "unit_vector": ("kp", "ki", "kd"), "tvt": ("kc",),
-             "task_frame_pd": ("f_t", "f_n", "f_b"), "adaptive_tnb": ("coupling",), "none": ()}
+__all__ = ["GOAL", "Family", "Combination", "Excluded", "Row", "Reference",
+           "scenario_families", "select_families", "plan", "run_benchmark", "write_csv", "draw_heatmap",
+           "draw_pareto", "benchmark_report", "paper_best", "verdict"]
+
+GOAL = 0.5              # a combination beats the proposed method 2x when both ratios' intervals are below this
+MECHANISM = "_mech_"    # scenarios of the claims' mechanism files: run on request (--scenarios)
 _META = ("experiment", "paper")
 
 
@@ -129,9 +122,10 @@ def scenario_families(config_dir=None, claims_dir=None) -> list:
 
 
 def select_families(families: list, patterns: list | None) -> list:
-    """The families whose name, or the name of one of whose files, matches one of ``patterns`` (globs)."""
+    """The families whose name, or the name of one of whose files, matches one of ``patterns`` (globs); no
+    patterns: the papers' own experiments (not the claims' mechanism scenarios)."""
     if not patterns:
-        return families
+        return [f for f in families if MECHANISM not in f.name]
     from .errors import ConfigError
     chosen = [f for f in families if any(fnmatch.fnmatch(n, p) for p in patterns for n in [f.name, *f.files])]
     if not chosen:
@@ -166,33 +160,6 @@ class Excluded:
     @property
     def label(self) -> str:
         return f"{self.estimator} + {self.controller} / {self.servo}"
-
-
-def factors(budget: int) -> list:
-    """``budget`` factors on a log grid from 1/SPAN to SPAN, with 1 (the file's gains) among them."""
-    budget = max(1, int(budget))
-    grid = [1.0] if budget == 1 else [float(SPAN ** (2 * i / (budget - 1) - 1)) for i in range(budget)]
-    if not any(math.isclose(f, 1.0) for f in grid):
-        grid.append(1.0)
-    return sorted(grid)
-
-
-def _gain_keys(controller: str, section: dict) -> tuple:
-    from .config import CONTROLLERS
-    if controller in GAIN_KEYS:
-        keys = GAIN_KEYS[controller]
-    else:
-        params = CONTROLLERS.entry(controller).params
-        keys = tuple(k for k, p in params.items() if p.kind in ("float", "floats") and k.startswith("k"))
-    return tuple(k for k in keys if section.get(k) is not None)
-
-
-def _scaled(section: dict, keys: tuple, factor: float) -> dict:
-    out = dict(section)
-    for key in keys:
-        value = out[key]
-        out[key] = [float(v) * factor for v in value] if isinstance(value, list) else float(value) * factor
-    return out
 
 
 def _params(data: dict, node: str) -> dict:
@@ -327,7 +294,7 @@ def plan(family: Family, catalogue: dict | None = None) -> tuple:
                     problems.append(_probe(family, sections))
                     if not problems[-1]:
                         combos.append(Combination(estimator, controller, label, sections,
-                                                  _gain_keys(controller, section)))
+                                                  gain_keys(controller, section)))
                         break
                 else:
                     excluded.append(Excluded(estimator, controller, label, problems[0]))
@@ -338,36 +305,14 @@ def plan(family: Family, catalogue: dict | None = None) -> tuple:
 
 
 @dataclass
-class Point:
-    """One run of the tuning grid."""
+class Reference:
+    """What every combination of a scenario is held to: the machine and the proposed method's noise
+    sensitivity with the paper's gains on it."""
 
-    factor: float
-    whole: object = None          # Scores of the whole run, None when it diverged
-    steady: object = None         # Scores from the scenario's from_time
-    failure: str = ""
-    vectorised: bool = False      # it ran in a vectorised batch
-
-    @property
-    def effort(self) -> float:
-        if self.whole is None:
-            return math.inf
-        return float(np.sqrt(np.mean(np.square(self.whole.effort_rms))))
-
-
-def select(points: list, effort_limit: float) -> tuple:
-    """(index of the admissible point with the lowest steady-state TACE, or None; why none when None).
-    Admissible: it did not diverge and its RMS effort is at most ``effort_limit``."""
-    scored = [i for i, p in enumerate(points) if p.steady is not None and p.whole is not None
-              and math.isfinite(p.steady.tace)]
-    if not scored:
-        failures = sorted({p.failure.split(":")[0] for p in points if p.failure})
-        return None, "diverged at every grid point" + (f" ({'; '.join(failures)})" if failures else "")
-    admissible = [i for i in scored if points[i].effort <= effort_limit * (1.0 + 1e-12)]
-    if not admissible:
-        least = min(points[i].effort for i in scored)
-        return None, (f"over the effort bound at every grid point that did not diverge (least effort "
-                      f"{least / effort_limit:.3g} x the bound)")
-    return min(admissible, key=lambda i: points[i].steady.tace), ""
+    machine: dict                 # grid settings of the scenario's realistic machine
+    published: object             # tuning.Outcome: the proposed file's gains on that machine
+    ideal_published: object       # ... on the ideal machine (the file as it is)
+    noise_limit: float            # the noise sensitivity every combination must stay under
 
 
 @dataclass
@@ -375,11 +320,10 @@ class Row:
     family: Family
     combination: Combination | None
     excluded: Excluded | None = None
-    points: list = field(default_factory=list)
-    best: int | None = None
+    tuned: object = None          # tuning.Tuned
     status: str = ""
     reference: "Row | None" = None         # the proposed combination's row of the scenario (tuned)
-    published: Point | None = None         # the proposed method with the file's gains
+    bound: Reference | None = None
 
     @property
     def label(self) -> str:
@@ -390,99 +334,103 @@ class Row:
         return self.reference is self
 
     @property
-    def point(self) -> Point | None:
-        return self.points[self.best] if self.best is not None else None
+    def ok(self) -> bool:
+        return self.tuned is not None and self.tuned.nominal is not None
 
     @property
     def gains(self) -> dict:
-        if self.point is None:
-            return {}
-        scaled = _scaled(self.combination.sections["/ccc"], self.combination.gain_keys, self.point.factor)
-        return {k: scaled[k] for k in self.combination.gain_keys}
+        return self.tuned.gains if self.ok else {}
 
-    def ratio(self, metric: str) -> float | None:
-        """This row's steady-state ``metric`` (mce, tace, effort) over the proposed combination's (tuned)."""
-        ref = self.reference.point if self.reference else None
-        if self.point is None or ref is None:
-            return None
-        if metric == "effort":
-            return self.point.effort / ref.effort if ref.effort > 0 else None
-        mine, theirs = getattr(self.point.steady, metric), getattr(ref.steady, metric)
-        return mine / theirs if theirs > 0 else None
+    def figure(self, metric: str) -> tuple:
+        """(median, 2.5%, 97.5%) of ``metric`` (tace, mce, rms) over the draws, in metres."""
+        if not self.ok:
+            return math.nan, math.nan, math.nan
+        return interval([getattr(d, metric) for d in self.tuned.draws])
 
+    def ratios(self, metric: str) -> list:
+        """This row's ``metric`` over the proposed combination's, draw by draw (the same draws)."""
+        if not self.ok or self.reference is None or not self.reference.ok:
+            return []
+        return [mine / theirs if mine == mine and theirs > 0 else math.inf
+                for mine, theirs in zip((getattr(d, metric) if d.ok else math.inf for d in self.tuned.draws),
+                                        (getattr(d, metric) if d.ok else math.nan for d in self.reference.tuned.draws))]
 
-def _bench_chunk(experiments: list, from_times: list) -> list:
-    from .sweep import _score_one, simulate_experiments
-    with np.errstate(all="ignore"):
-        loops, results, alone, failures = simulate_experiments(experiments)
-        out = []
-        for loop, result, why, failure, from_time in zip(loops, results, alone, failures, from_times):
-            if result is None:
-                out.append((None, None, failure, not why))
-                continue
-            whole, failure = _score_one(loop, result, 0.0)
-            steady = whole
-            if whole is not None and from_time > 0.0:
-                steady, failure = _score_one(loop, result, from_time)
-            out.append((whole, steady if whole is not None else None, failure, not why))
-        return out
+    def ratio(self, metric: str) -> tuple:
+        """(median, 2.5%, 97.5%) of :meth:`ratios`; a draw that diverged counts as infinitely worse."""
+        values = self.ratios(metric)
+        if not values:
+            return math.nan, math.nan, math.nan
+        values = np.asarray(values, dtype=float)
+        values = values[~np.isnan(values)]
+        if not values.size:
+            return math.nan, math.nan, math.nan
+        return (float(np.median(values)), float(np.percentile(values, 2.5)), float(np.percentile(values, 97.5)))
 
-
-def _score_all(experiments: list, from_times: list, workers: int, progress: bool) -> list:
-    from tqdm import tqdm
-    from .sweep import _chunks
-    chunks = _chunks(experiments, workers, BATCH)
-    out = [None] * len(experiments)
-    with ProcessPoolExecutor(max_workers=workers) as pool, \
-            tqdm(total=len(experiments), desc="benchmark", disable=not progress, leave=False) as bar:
-        jobs = pool.map(_bench_chunk, [[experiments[i] for i in c] for c in chunks],
-                        [[from_times[i] for i in c] for c in chunks])
-        for chunk, results in zip(chunks, jobs):
-            for i, result in zip(chunk, results):
-                out[i] = result
-            bar.update(len(chunk))
-    return out
+    @property
+    def noise_ratio(self) -> float:
+        """Noise sensitivity (tuned, nominal) over the proposed method's with the paper's gains."""
+        if not self.ok or self.bound is None or not self.bound.published.ok or self.bound.published.noise <= 0:
+            return math.nan
+        return self.tuned.nominal.noise / self.bound.published.noise
 
 
-def run_benchmark(families: list, budget: int = DEFAULT_BUDGET, workers: int | None = None,
+def verdict(low: float, high: float, threshold: float = 1.0) -> str:
+    """'lower' when the interval lies below ``threshold``, 'higher' above it, else 'undecided'."""
+    if not (math.isfinite(low) or math.isfinite(high)) or low != low or high != high:
+        return "undecided"
+    if high < threshold:
+        return "lower"
+    if low > threshold:
+        return "higher"
+    return "undecided"
+
+
+def _reference_job(data: dict, from_time: float, where: str) -> Reference:
+    ideal = run_outcomes(data, {}, [{}], from_time, where)[0]
+    machine = machine_settings(data, "realistic", ideal.peak_command if ideal.ok else ())
+    published = run_outcomes(data, {}, [machine], from_time, where)[0]
+    return Reference(machine, published, ideal, math.nan)
+
+
+def _tune_job(data, sections, keys, machine, noise_limit, from_time, protocol, where):
+    return tune(data, sections, keys, machine, noise_limit, from_time, protocol, where)
+
+
+def run_benchmark(families: list, protocol: Protocol | None = None, workers: int | None = None,
                   progress: bool = False, say=None) -> list:
     """Every row (one per scenario x combination, the excluded ones included) of ``families``."""
+    from tqdm import tqdm
+    protocol = protocol or Protocol()
     say = say or (lambda message: None)
     workers = workers or os.cpu_count() or 1
     catalogue = _catalogue_estimators(scenario_families() if families else [])
-    grid = factors(budget)
-    rows, experiments, from_times, owners = [], [], [], []
-    for family in families:
-        combos, excluded = plan(family, catalogue)
-        say(f"{family.name}: {len(combos)} combinations x {len(grid)} gains, {len(excluded)} cannot be paired")
-        family_rows = []
-        for combo in combos:
-            row = Row(family, combo)
-            points = grid if combo.gain_keys else [1.0]
-            for factor in points:
-                sections = dict(combo.sections, **{"/ccc": _scaled(combo.sections["/ccc"], combo.gain_keys, factor)})
-                experiments.append(_experiment(family, sections, f"{family.name} {combo.label} x{factor:g}"))
-                from_times.append(family.from_time)
-                owners.append(row)
-                row.points.append(Point(factor))
-            family_rows.append(row)
-        rows += family_rows + [Row(family, None, e, status=f"cannot be paired: {e.reason}") for e in excluded]
-    results = _score_all(experiments, from_times, workers, progress)
-    cursor = {}
-    for row, (whole, steady, failure, vectorised) in zip(owners, results):
-        j = cursor.get(id(row), 0)
-        cursor[id(row)] = j + 1
-        point = row.points[j]
-        point.whole, point.steady, point.failure, point.vectorised = whole, steady, failure, vectorised
+    rows = []
+    with ProcessPoolExecutor(max_workers=workers) as pool:
+        references = {f.name: pool.submit(_reference_job, f.data[f.proposed], f.from_time, f.name) for f in families}
+        jobs = []
+        for family in families:
+            combos, excluded = plan(family, catalogue)
+            say(f"{family.name}: {len(combos)} combinations, {len(excluded)} cannot be paired")
+            reference = references[family.name].result()
+            reference.noise_limit = protocol.noise_factor * reference.published.noise \
+                if reference.published.ok else math.inf
+            for combo in combos:
+                row = Row(family, combo, bound=reference)
+                rows.append(row)
+                jobs.append((row, pool.submit(_tune_job, family.data[family.proposed], combo.sections,
+                                              combo.gain_keys, reference.machine, reference.noise_limit,
+                                              family.from_time, protocol, f"{family.name} {combo.label}")))
+            rows += [Row(family, None, e, status=f"cannot be paired: {e.reason}") for e in excluded]
+        with tqdm(total=len(jobs), desc="benchmark", disable=not progress, leave=False) as bar:
+            for row, job in jobs:
+                row.tuned = job.result()
+                row.status = row.tuned.status
+                bar.update(1)
     for family in families:
         mine = [r for r in rows if r.family is family and r.combination]
         proposed = _proposed_row(family, mine)
-        published = next((p for p in proposed.points if math.isclose(p.factor, 1.0)), None) if proposed else None
-        limit = EFFORT_BOUND * published.effort if published and published.whole is not None else math.inf
         for row in mine:
-            row.best, why = select(row.points, limit)
-            row.status = why or "ok"
-            row.reference, row.published = proposed, published
+            row.reference = proposed
     return rows
 
 
@@ -500,7 +448,7 @@ def _proposed_row(family: Family, rows: list) -> Row | None:
 
 
 def _um(value) -> str:
-    return "" if value is None else f"{value * 1e6:.6g}"
+    return "" if value is None or not math.isfinite(value) else f"{value * 1e6:.6g}"
 
 
 def _num(value) -> str:
@@ -508,34 +456,37 @@ def _num(value) -> str:
 
 
 def write_csv(rows: list, path) -> Path:
-    """One row per scenario x combination (lengths in micrometres; ratios to the proposed combination,
-    tuned alike, from the scenario's steady state)."""
+    """One row per scenario x combination: tuned gains, what the search used, the nominal figures, and the
+    median and 95% interval over the draws (lengths in micrometres; ratios to the tuned proposed method,
+    draw by draw)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     head = ["paper", "scenario", "proposed_file", "estimator", "controller", "servo", "proposed", "status",
-            "from_s", "gain_factor", "gains", "admissible_points", "grid_points", "mce_um", "tace_um", "rms_um",
-            "mce_steady_um", "tace_steady_um", "rms_steady_um", "effort_rms", "mce_ratio", "tace_ratio",
-            "effort_ratio", "tace_ratio_to_published"]
+            "from_s", "gains", "file_gains", "at_bound", "evaluations", "robustness_runs", "robust_worst",
+            "tace_um", "mce_um", "noise", "noise_ratio", "saturated_share", "effort_rms",
+            "tace_median_um", "tace_lo_um", "tace_hi_um", "mce_median_um", "mce_lo_um", "mce_hi_um",
+            "tace_ratio", "tace_ratio_lo", "tace_ratio_hi", "mce_ratio", "mce_ratio_lo", "mce_ratio_hi",
+            "tace_verdict", "ideal_tace_um", "ideal_mce_um"]
     with open(path, "w", newline="") as stream:
         writer = csv.writer(stream)
         writer.writerow(head)
         for row in rows:
             c = row.combination or row.excluded
-            p = row.point
-            whole, steady = (p.whole, p.steady) if p else (None, None)
-            limit = EFFORT_BOUND * row.published.effort if row.published and row.published.whole else math.inf
-            admissible = sum(1 for q in row.points if q.steady is not None and q.effort <= limit * (1 + 1e-12))
-            published = row.published.steady.tace if row.published and row.published.steady else None
+            t = row.tuned
+            n = t.nominal if row.ok else None
+            tace, mce = row.figure("tace"), row.figure("mce")
+            tr, mr = row.ratio("tace"), row.ratio("mce")
             writer.writerow([
                 row.family.paper, row.family.name, row.family.proposed, c.estimator, c.controller, c.servo,
                 "yes" if row.is_proposed else "", row.status, f"{row.family.from_time:g}",
-                _num(p.factor) if p else "", json.dumps(row.gains) if p else "", admissible, len(row.points),
-                _um(whole.mce if whole else None), _um(whole.tace if whole else None),
-                _um(whole.rms if whole else None), _um(steady.mce if steady else None),
-                _um(steady.tace if steady else None), _um(steady.rms if steady else None),
-                _num(p.effort) if p else "", _num(row.ratio("mce")), _num(row.ratio("tace")),
-                _num(row.ratio("effort")),
-                _num(steady.tace / published) if steady and published else ""])
+                json.dumps(t.gains) if row.ok else "", json.dumps(t.file_gains) if t else "",
+                "; ".join(t.at_bound) if t else "", len(t.evaluations) if t else "",
+                t.robustness_runs if t else "", _num(t.robust_worst) if t else "",
+                _um(n.tace if n else None), _um(n.mce if n else None), _num(n.noise if n else None),
+                _num(row.noise_ratio), _num(n.saturated if n else None), _num(n.effort if n else None),
+                *(_um(v) for v in tace), *(_um(v) for v in mce), *(_num(v) for v in tr), *(_num(v) for v in mr),
+                "" if row.is_proposed or not row.ok else verdict(tr[1], tr[2]),
+                _um(t.ideal.tace if t and t.ideal else None), _um(t.ideal.mce if t and t.ideal else None)])
     return path
 
 
@@ -553,8 +504,9 @@ def _column_order(rows: list) -> list:
 
 
 def draw_heatmap(rows: list, path) -> Path:
-    """Scenario (and servo) x estimator + controller: colour = log10 of the steady-state TACE over the
-    proposed combination's (tuned alike); grey: cannot be paired; x: no admissible gain."""
+    """Scenario (and servo) x estimator + controller: colour = log10 of the median steady-state TACE over
+    the proposed combination's (both tuned alike, paired draws); '~' marks a ratio whose 95% interval
+    crosses 1; grey: cannot be paired; x: no admissible gain."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -569,10 +521,10 @@ def draw_heatmap(rows: list, path) -> Path:
     for i, (family, servo) in enumerate(keys):
         for j, (controller, estimator) in enumerate(columns):
             row = cells.get((family, servo, controller, estimator))
-            ratio = row.ratio("tace") if row else None
-            if ratio is not None and ratio > 0:
+            ratio = row.ratio("tace")[0] if row else math.nan
+            if math.isfinite(ratio) and ratio > 0:
                 values[i, j] = math.log10(ratio)
-    fig, ax = plt.subplots(figsize=(2.2 + 0.55 * len(columns), 1.6 + 0.32 * len(keys)))
+    fig, ax = plt.subplots(figsize=(2.2 + 0.6 * len(columns), 1.6 + 0.34 * len(keys)))
     ax.set_facecolor("#dddddd")
     image = ax.imshow(np.clip(values, -2, 2), cmap="RdBu_r", norm=TwoSlopeNorm(0.0, -2.0, 2.0), aspect="auto")
     for i, (family, servo) in enumerate(keys):
@@ -580,12 +532,13 @@ def draw_heatmap(rows: list, path) -> Path:
             row = cells.get((family, servo, controller, estimator))
             if row is None:
                 continue
-            if row.point is None:
+            if not row.ok:
                 ax.text(j, i, "x", ha="center", va="center", fontsize=8, color="black")
             else:
-                ratio = row.ratio("tace")
-                if ratio is not None:
-                    ax.text(j, i, f"{ratio:.2g}", ha="center", va="center", fontsize=6,
+                median, low, high = row.ratio("tace")
+                if math.isfinite(median):
+                    mark = "" if row.is_proposed or verdict(low, high) != "undecided" else "~"
+                    ax.text(j, i, f"{mark}{median:.2g}", ha="center", va="center", fontsize=6,
                             color="white" if abs(values[i, j]) > 1.2 else "black")
             if row.is_proposed:
                 ax.add_patch(plt.Rectangle((j - 0.5, i - 0.5), 1, 1, fill=False, lw=1.8, ec="black"))
@@ -601,9 +554,10 @@ def draw_heatmap(rows: list, path) -> Path:
         if keys[i][0][:8] != keys[i - 1][0][:8]:
             ax.axhline(i - 0.5, color="black", lw=1.2)
     bar = fig.colorbar(image, ax=ax, fraction=0.025, pad=0.01)
-    bar.set_label("log10 (TACE / proposed method's TACE), steady state, both tuned alike")
-    ax.set_title("Contouring benchmark: TACE relative to each scenario's proposed method (boxed); "
-                 "blue: lower. Grey: cannot be paired, x: no admissible gain", fontsize=9)
+    bar.set_label("log10 median (TACE / proposed method's TACE), paired draws")
+    ax.set_title("Contouring benchmark on the realistic machine, every gain tuned under equal constraints: TACE "
+                 "relative to the proposed method (boxed).\nBlue: lower; ~: the 95% interval crosses 1 "
+                 "(undecided); grey: cannot be paired; x: no admissible gain", fontsize=9)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110, bbox_inches="tight")
@@ -611,75 +565,153 @@ def draw_heatmap(rows: list, path) -> Path:
     return path
 
 
+def _pareto_rows(rows: list, family: Family, top: int = 4) -> list:
+    mine = [r for r in rows if r.family is family and r.ok]
+    ranked = sorted(mine, key=lambda r: r.figure("tace")[0])
+    shown = [r for r in ranked if not r.is_proposed][:top]
+    proposed = next((r for r in mine if r.is_proposed), None)
+    return ([proposed] if proposed else []) + shown
+
+
+def draw_pareto(rows: list, families: list, paper: str, path) -> Path:
+    """One panel per scenario of ``paper``: steady-state TACE against noise sensitivity (RMS of the
+    command's sample-to-sample change, relative to the proposed method with the paper's gains) of every
+    point each method's search evaluated that stayed stable, with each method's Pareto front, the noise
+    bound and the tuned points."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    mine = [f for f in families if f.paper == paper]
+    cols = min(3, len(mine))
+    lines = math.ceil(len(mine) / cols)
+    fig, axes = plt.subplots(lines, cols, figsize=(5.2 * cols, 4.0 * lines), squeeze=False)
+    for ax, family in zip(axes.flat, mine):
+        shown = _pareto_rows(rows, family)
+        bound = shown[0].bound if shown else None
+        scale = bound.published.noise if bound and bound.published.ok and bound.published.noise > 0 else 1.0
+        for k, row in enumerate(shown):
+            colour = "black" if row.is_proposed else f"C{k}"
+            points = [(e.outcome.noise / scale, e.outcome.tace * 1e6) for e in row.tuned.evaluations
+                      if e.outcome.ok and e.outcome.saturated <= 1.0]
+            if points:
+                xs, ys = zip(*points)
+                ax.scatter(xs, ys, s=6, color=colour, alpha=0.25)
+                front = pareto_front(points)
+                ax.plot([p[0] for p in front], [p[1] for p in front], "-", color=colour, lw=1.2,
+                        label=f"{row.label}{' (proposed)' if row.is_proposed else ''}")
+            n = row.tuned.nominal
+            ax.plot([n.noise / scale], [n.tace * 1e6], "*", color=colour, ms=11, mec="white")
+        if bound and math.isfinite(bound.noise_limit):
+            ax.axvline(bound.noise_limit / scale, color="grey", ls="--", lw=1)
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_title(family.name, fontsize=9)
+        ax.set_xlabel("noise sensitivity / proposed method's with the paper's gains")
+        ax.set_ylabel("steady-state TACE [um]")
+        ax.legend(fontsize=6, loc="upper right")
+        ax.grid(True, which="both", alpha=0.2)
+    for ax in list(axes.flat)[len(mine):]:
+        ax.set_visible(False)
+    fig.suptitle(f"Paper {paper}: TACE against noise sensitivity of every stable point each search evaluated "
+                 "(lines: Pareto fronts; stars: tuned; dashed: the noise bound)", fontsize=10)
+    fig.tight_layout()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
 def paper_best(rows: list, family: Family) -> tuple:
-    """(the proposed row, the best other row): the row with the lowest larger ratio of MCE and TACE to the
-    proposed combination among those whose RMS effort is at most EQUAL_EFFORT times the proposed's (equal
-    or lower effort; when there is none, among all with an admissible gain)."""
-    mine = [r for r in rows if r.family is family and r.combination and r.point is not None]
+    """(the proposed row, the best other row): the row with the lowest larger median ratio of MCE and TACE
+    to the tuned proposed combination; every row met the same noise, saturation and robustness
+    constraints."""
+    mine = [r for r in rows if r.family is family and r.ok]
     proposed = next((r for r in mine if r.is_proposed), None)
     if proposed is None:
         return None, None
-    others = [r for r in mine if not r.is_proposed and r.ratio("effort") is not None]
-    candidates = [r for r in others if r.ratio("effort") <= EQUAL_EFFORT] or others
-    best = min(candidates, key=lambda r: (max(r.ratio("mce"), r.ratio("tace")), r.ratio("tace")), default=None)
+    others = [r for r in mine if not r.is_proposed and r.status == "ok"
+              and math.isfinite(r.ratio("tace")[0]) and math.isfinite(r.ratio("mce")[0])]
+    best = min(others, key=lambda r: (max(r.ratio("mce")[0], r.ratio("tace")[0]), r.ratio("tace")[0]), default=None)
     return proposed, best
 
 
 def _f(value, digits=3) -> str:
-    return "-" if value is None else f"{value:.{digits}g}"
+    return "-" if value is None or value != value else f"{value:.{digits}g}"
+
+
+def _iv(triple, scale: float = 1.0, digits: int = 3) -> str:
+    median, low, high = (v * scale if v == v else v for v in triple)
+    if median != median:
+        return "-"
+    return f"{_f(median, digits)} [{_f(low, digits)}, {_f(high, digits)}]"
+
+
+def _goal(best: Row) -> str:
+    tace, mce = best.ratio("tace"), best.ratio("mce")
+    if tace[2] <= GOAL and mce[2] <= GOAL:
+        return "**yes**"
+    if tace[1] > GOAL or mce[1] > GOAL:
+        return "no"
+    return "undecided"
 
 
 def _best_table(rows: list, families: list) -> list:
-    lines = ["| scenario | proposed (tuned) | proposed TACE / MCE [um] | best at equal or lower effort | "
-             "TACE / MCE [um] | MCE ratio | TACE ratio | effort ratio | 2x in both |",
-             "|---|---|---:|---|---:|---:|---:|---:|---|"]
+    lines = ["| scenario | proposed (tuned) | proposed TACE / MCE [um] | best other | TACE / MCE [um] | "
+             "TACE ratio [95%] | MCE ratio [95%] | TACE verdict | 2x in both |",
+             "|---|---|---|---|---|---|---|---|---|"]
     for family in families:
         proposed, best = paper_best(rows, family)
         if proposed is None:
-            lines.append(f"| {family.name} | `{family.proposed}`: no result | | | | | | | |")
+            lines.append(f"| {family.name} | `{family.proposed}`: no admissible result | | | | | | | |")
             continue
-        ps = proposed.point.steady
-        here = f"| {family.name} | {proposed.label} | {_f(ps.tace * 1e6)} / {_f(ps.mce * 1e6)} "
+        here = (f"| {family.name} | {proposed.label} | {_f(proposed.figure('tace')[0] * 1e6)} / "
+                f"{_f(proposed.figure('mce')[0] * 1e6)} ")
         if best is None:
-            lines.append(here + "| no other combination | | | | | no |")
+            lines.append(here + "| no other combination | | | | | |")
             continue
-        bs = best.point.steady
-        equal = best.ratio("effort") <= EQUAL_EFFORT
-        met = best.ratio("mce") <= GOAL and best.ratio("tace") <= GOAL and equal
-        lines.append(here + f"| {best.label}{'' if equal else ' (more effort: none at equal effort)'} | "
-                     f"{_f(bs.tace * 1e6)} / {_f(bs.mce * 1e6)} | {_f(best.ratio('mce'))} | "
-                     f"{_f(best.ratio('tace'))} | {_f(best.ratio('effort'))} | {'**yes**' if met else 'no'} |")
+        tr = best.ratio("tace")
+        lines.append(here + f"| {best.label} | {_f(best.figure('tace')[0] * 1e6)} / {_f(best.figure('mce')[0] * 1e6)} "
+                     f"| {_iv(tr)} | {_iv(best.ratio('mce'))} | {verdict(tr[1], tr[2])} | {_goal(best)} |")
     return lines
 
 
-def _family_table(rows: list, family: Family, top: int = 6) -> list:
+def _gain_text(row: Row) -> str:
+    if not row.ok or not row.gains:
+        return "-"
+    text = ", ".join(f"{k} {_f(v)}" for k, v in row.gains.items())
+    return text + (f" ({'; '.join(row.tuned.at_bound)})" if row.tuned.at_bound else "")
+
+
+def _family_table(rows: list, family: Family) -> list:
     mine = [r for r in rows if r.family is family and r.combination]
-    ranked = sorted([r for r in mine if r.point], key=lambda r: r.point.steady.tace)
-    shown = ranked[:top]
-    for r in mine:
-        if (r.is_proposed or r.combination.controller == "none") and r not in shown:
-            shown.append(r)
-    lines = [f"Steady state from t = {family.from_time:g} s; proposed file `{family.proposed}` "
-             f"({len(mine)} combinations, {len(ranked)} with an admissible gain; the best {min(top, len(ranked))}, "
-             f"the proposed and the uncoupled ones):", "",
-             "| combination | gains (tuned) | TACE [um] | MCE [um] | RMS [um] | TACE ratio | MCE ratio | effort ratio |",
-             "|---|---|---:|---:|---:|---:|---:|---:|"]
-    for r in shown:
-        s = r.point.steady if r.point else None
+    ranked = sorted(mine, key=lambda r: (not r.ok, r.figure("tace")[0] if r.ok else 0.0))
+    ref = mine[0].bound if mine else None
+    published = ref.published if ref else None
+    head = [f"Steady state from t = {family.from_time:g} s; proposed file `{family.proposed}`, {len(mine)} "
+            "combinations. The proposed method with the paper's gains on this machine: "
+            + (f"TACE {_f(published.tace * 1e6)} um, MCE {_f(published.mce * 1e6)} um (ideal machine: "
+               f"{_f(ref.ideal_published.tace * 1e6)} / {_f(ref.ideal_published.mce * 1e6)} um)."
+               if published and published.ok else f"{published.failure if published else 'no run'}."), "",
+            "| combination | tuned gains | evals | TACE [um] median [95%] | MCE [um] median [95%] | TACE ratio [95%] "
+            "| verdict | noise / paper's | saturated | worst at +-20% | ideal machine TACE / MCE [um] |",
+            "|---|---|---:|---|---|---|---|---:|---:|---:|---|"]
+    for r in ranked:
         name = f"**{r.label}** (proposed)" if r.is_proposed else r.label
-        gains = ", ".join(f"{k} {_fmt(v)}" for k, v in r.gains.items()) or "-"
-        if s is None:
-            lines.append(f"| {name} | - | {r.status} | | | | | |")
-        else:
-            lines.append(f"| {name} | {gains} | {_f(s.tace * 1e6)} | {_f(s.mce * 1e6)} | {_f(s.rms * 1e6)} | "
-                         f"{_f(r.ratio('tace'))} | {_f(r.ratio('mce'))} | {_f(r.ratio('effort'))} |")
-    return lines
-
-
-def _fmt(value) -> str:
-    if isinstance(value, list):
-        return "[" + ", ".join(f"{v:.3g}" for v in value) + "]"
-    return f"{value:.3g}"
+        t = r.tuned
+        if not r.ok:
+            head.append(f"| {name} | - | {len(t.evaluations) if t else 0} | {r.status} | | | | | | | |")
+            continue
+        tr = r.ratio("tace")
+        status = "" if r.status == "ok" else " (not robust)"
+        ideal = t.ideal
+        head.append(f"| {name} | {_gain_text(r)} | {len(t.evaluations)} | {_iv(r.figure('tace'), 1e6)} | "
+                    f"{_iv(r.figure('mce'), 1e6)} | {'1' if r.is_proposed else _iv(tr)} | "
+                    f"{'' if r.is_proposed else verdict(tr[1], tr[2])}{status} | {_f(r.noise_ratio)} | "
+                    f"{_f(100 * t.nominal.saturated, 2)}% | {_f(t.robust_worst)}x | "
+                    f"{_f(ideal.tace * 1e6) if ideal and ideal.ok else 'diverged'} / "
+                    f"{_f(ideal.mce * 1e6) if ideal and ideal.ok else '-'} |")
+    return head
 
 
 def _excluded_table(rows: list) -> list:
@@ -700,58 +732,60 @@ def _excluded_table(rows: list) -> list:
     return lines
 
 
-def benchmark_report(rows: list, families: list, budget: int, seconds: float, command: str,
-                     heatmap: str = "benchmark_heatmap.png", notes: dict | None = None, cpu: float = 0.0) -> str:
-    """reports/benchmark.md: header, fairness rules, per paper the best combination against the proposed
-    method, per scenario the leading combinations, the pairs that cannot be paired."""
-    notes = notes or {}
+def benchmark_report(rows: list, families: list, protocol: Protocol, seconds: float, command: str,
+                     heatmap: str = "benchmark_heatmap.png", notes: dict | None = None, cpu: float = 0.0,
+                     pareto: dict | None = None) -> str:
+    """reports/benchmark.md: header, the protocol, per paper the best combination against the proposed
+    method with intervals and the findings, per scenario every combination, the pairs that cannot be made."""
+    from .tuning import REALISTIC, SATURATION_MARGIN
+    notes, pareto = notes or {}, pareto or {}
     compatible = [r for r in rows if r.combination]
-    runs = sum(len(r.points) for r in compatible)
-    vectorised = sum(p.vectorised for r in compatible for p in r.points)
-    top = max(factors(budget))
-    tuned = [r for r in compatible if r.point is not None and r.combination.gain_keys]
-    at_top = sum(math.isclose(r.point.factor, top) for r in tuned)
+    runs = sum(len(r.tuned.evaluations) + r.tuned.robustness_runs + len(r.tuned.draws) + 1
+               for r in compatible if r.tuned)
+    tuned = [r for r in compatible if r.ok and r.combination.gain_keys]
+    at_bound = [r for r in tuned if r.tuned.at_bound]
+    upper = [r for r in tuned if any("upper" in b for b in r.tuned.at_bound)]
+    not_robust = [r for r in compatible if r.tuned and r.status.startswith("not robust")]
+    none = [r for r in compatible if not r.ok]
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
-    grid = ", ".join(f"{f:.3g}" for f in factors(budget))
+    machine = ", ".join(f"{k} {v}" for k, v in REALISTIC.items())
     lines = [
-        "# Contouring benchmark: every estimator and controller on every scenario, tuned alike", "",
-        f"Generated by `{command}` in {seconds / 60:.1f} min on {os.cpu_count()} cores (load average "
-        f"{load:.1f} at the end; {cpu / 60:.1f} min of CPU time, so about {cpu / 60 / (os.cpu_count() or 1):.0f} "
-        f"min on an idle machine of these cores; in-process simulation, vectorised batches): {len(families)} scenarios of "
-        f"{len({f.paper for f in families})} papers, {len(compatible)} combinations ({runs} runs), "
-        f"{len(rows) - len(compatible)} pairings that cannot be made. Budget {budget}: gain factors {grid}. "
-        "Every figure in micrometres is the exact contour error (distance to the whole curve) from the scenario's "
-        "steady-state start; ratios are to the scenario's proposed method tuned by the same rule (lower: better). "
-        "All rows, with the tuned gains and whole-run scores: [benchmark.csv](benchmark.csv).", "",
-        f"{vectorised} of the {runs} runs advanced in vectorised batches, the others one by one (classes without "
-        f"a batch path, or a batch with a member that overflowed). {at_top} of the {len(tuned)} tuned combinations "
-        f"chose the grid's largest factor ({top:g}): their best gains may lie beyond it (a larger budget or span "
-        "refines them; the effort bound and divergence are what stop the others).", "",
-        "## Fairness rules", "",
-        "- **Scenarios**: the paper files that share the curve, schedule, timing and plants are one scenario; the "
-        "benchmark runs the scenario's proposed file with the method swapped. The proposed method is the file a "
-        "claim of `config/claims/` proposes, else the file with a proposed file's servo, estimator and controller. "
-        "The steady state starts at the claims' `from_time` (the largest on the scenario's files).",
-        "- **Combinations**: every estimator x controller of the registries (entry-point plugins included) x every "
-        "servo set the scenario's files define (servos are the scenario's own, tuned to its plants; none is "
-        "invented). Each estimator and controller starts from the scenario's own section of its type; an "
-        "estimator the scenario does not use takes its first section in any scenario file; a controller it does "
-        "not use takes the gains of a scenario controller with the same parameters (same units), else it cannot "
-        "be paired. The uncoupled controller `none` reads no estimate and is run with the scenario's estimator.",
-        f"- **Tuning rule, the same for all**: the controller's gains ({_gain_list()}) "
-        f"are scaled together by one factor on a log grid of {budget} points from 1/{SPAN:g} to {SPAN:g} around "
-        "the file's own gains (1 always included); estimators and servos keep their sections. Scaling every gain "
-        "together keeps a PID's zeros and the task-frame PD's damping ratios (its bandwidths are scaled).",
-        f"- **Effort bound**: a run is admissible if it did not diverge and its RMS actuator effort (RMS over the "
-        f"axes of each axis' RMS command) is at most {EFFORT_BOUND:g} x that of the scenario's proposed method "
-        "with the file's gains. The admissible run with the lowest steady-state TACE is the combination's "
-        "result; diverged runs never win.",
-        "- **Best versus proposed**: per scenario, among the combinations whose tuned RMS effort is at most "
-        f"{EQUAL_EFFORT:g} x the tuned proposed method's (equal, within {100 * (EQUAL_EFFORT - 1):.0f}%, or lower "
-        "effort), the one with the lowest larger ratio of MCE and TACE (steady state); the goal (beat the proposed "
-        f"method 2x) needs both ratios <= {GOAL:g} at equal or lower effort.",
-        "- **Pairings that cannot be made** are listed at the end with the reason (validation's, the scenario's, "
-        "or the first steps' error).", "",
+        "# Contouring benchmark: every estimator and controller on every scenario, each gain tuned under equal "
+        "constraints on a realistic machine", "",
+        f"Generated by `{command}` in {seconds / 60:.1f} min of wall time on {os.cpu_count()} cores ({cpu / 60:.1f} "
+        f"min of CPU time; load average {load:.1f} at the end; in-process simulation): {len(families)} scenarios "
+        f"of {len({f.paper for f in families})} papers, {len(compatible)} combinations ({runs} runs), "
+        f"{len(rows) - len(compatible)} pairings that cannot be made. Every figure in micrometres is the exact "
+        "contour error (distance to the whole curve) in the scenario's steady state; ratios are to the scenario's "
+        "proposed method tuned the same way, draw by draw. All rows: [benchmark.csv](benchmark.csv).", "",
+        "## Protocol", "",
+        f"- **Machine** (every run unless marked ideal): the scenario's plants with {machine} (Altintas, "
+        "Manufacturing Automation, 2012, ch. 5-6: 0.1-1 um encoders, 1 kHz loops, velocity from the encoder), "
+        "and an actuator limit: the paper's where its file states one, else "
+        f"{SATURATION_MARGIN:g} x the largest command the proposed method needs with the paper's gains. A key a "
+        "scenario file sets itself is kept. The last column of each scenario table runs the same tuned gains "
+        "on the ideal machine (the file as it is: no noise, quantisation, delay or added limit).",
+        f"- **Tuning, the same for every method**: {protocol.describe()}. The gains tuned: every gain of the "
+        "controller (variable_gain and unit_vector: kp, ki, kd; tvt: kc; task_frame_pd: f_t, f_n, f_b; "
+        "adaptive_tnb: coupling, alpha, gamma_mass, gamma_damping), each its own variable; a gain that is 0 in "
+        "the file starts from an anchor (ki: 30 kp, kd: 1e-3 kp) and may stay off. The file's gains are the "
+        "first evaluation. Estimators and servos keep the scenario's sections (the servos are the drives' "
+        "own loops, shared by every contour method).",
+        "- **Constraints**: noise sensitivity = RMS of the command's sample-to-sample change in the steady state; "
+        "saturation = share of steady-state steps with a command at its limit; robustness = stable with TACE "
+        "within the stated factor of nominal at each plant parameter (gain, time constant, mass, damping) "
+        f"+-{100 * protocol.perturbation:g}% on every axis, checked on the best admissible points in turn. "
+        "A row marked *not robust* had no robust point among those checked: its best admissible point is "
+        "shown, and it cannot be the best of its scenario.",
+        f"- **Intervals**: each tuned method runs {protocol.draws} draws (noise seed, model mismatch within "
+        f"+-{100 * protocol.mismatch:g}% of every plant parameter), the same draws for every method of a "
+        "scenario; figures are the median [2.5%, 97.5%] over the draws, ratios are taken draw by draw. A "
+        "verdict is *lower* or *higher* only where the whole interval is on one side of 1, else *undecided*; "
+        f"the 2x goal needs both ratios' intervals at or below {GOAL:g}.",
+        f"- **Where the search ended**: {len(at_bound)} of {len(tuned)} tuned combinations have a gain at an "
+        f"end of its span ({len(upper)} at an upper bound, where a larger gain might do better; the others "
+        f"with a gain switched off, an optimum). {len(not_robust)} not robust; {len(none)} without an admissible "
+        "point.", "",
         f"![TACE relative to the proposed method]({heatmap})", "",
         "## Per paper: the best combination against the proposed method", ""]
     for paper in sorted({f.paper for f in families}):
@@ -759,15 +793,13 @@ def benchmark_report(rows: list, families: list, budget: int, seconds: float, co
         lines += [f"### Paper {paper}", ""] + _best_table(rows, mine) + [""]
         if paper in notes:
             lines += [notes[paper].strip(), ""]
+        if paper in pareto:
+            lines += [f"![Paper {paper}: TACE against noise sensitivity]({pareto[paper]})", ""]
     lines += ["## Per scenario", ""]
     for family in families:
         lines += [f"### {family.name}", ""] + _family_table(rows, family) + [""]
     lines += ["## Pairings that cannot be made", ""] + _excluded_table(rows) + [""]
     return "\n".join(lines)
-
-
-def _gain_list() -> str:
-    return "; ".join(f"{name}: {', '.join(keys)}" for name, keys in GAIN_KEYS.items() if keys)
 
 
 def read_notes(path) -> dict:
@@ -779,22 +811,26 @@ def read_notes(path) -> dict:
     return {str(k): str(v) for k, v in data.items()}
 
 
-def main_benchmark(patterns=None, budget: int = DEFAULT_BUDGET, out="reports", workers=None, progress=False,
+def main_benchmark(patterns=None, protocol: Protocol | None = None, out="reports", workers=None, progress=False,
                    say=None, command: str = "contouring-ros benchmark") -> tuple:
-    """Run the benchmark and write benchmark.md, benchmark.csv and benchmark_heatmap.png into ``out``."""
+    """Run the benchmark and write benchmark.md, benchmark.csv, benchmark_heatmap.png and one
+    benchmark_pareto_paper<N>.png per paper into ``out``."""
     from .paper import CONFIG_DIR
     import resource
+    protocol = protocol or Protocol()
     start = time.perf_counter()
     families = select_families(scenario_families(), patterns)
-    rows = run_benchmark(families, budget, workers, progress, say)
+    rows = run_benchmark(families, protocol, workers, progress, say)
     out = Path(out)
     csv_path = write_csv(rows, out / "benchmark.csv")
     png = draw_heatmap(rows, out / "benchmark_heatmap.png")
+    pareto = {paper: draw_pareto(rows, families, paper, out / f"benchmark_pareto_paper{paper}.png").name
+              for paper in sorted({f.paper for f in families})}
     seconds = time.perf_counter() - start
     cpu = sum(resource.getrusage(who).ru_utime + resource.getrusage(who).ru_stime
               for who in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN))
-    text = benchmark_report(rows, families, budget, seconds, command, png.name,
-                            read_notes(CONFIG_DIR / "benchmark" / "notes.yaml"), cpu)
+    text = benchmark_report(rows, families, protocol, seconds, command, png.name,
+                            read_notes(CONFIG_DIR / "benchmark" / "notes.yaml"), cpu, pareto)
     md = out / "benchmark.md"
     md.write_text(text + "\n")
     return md, csv_path, png, seconds

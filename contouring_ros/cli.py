@@ -282,12 +282,17 @@ def _paper(args):
 
 def _benchmark(args):
     from .benchmark import main_benchmark
-    if args.budget < 1:
-        raise ConfigError(f"--budget {args.budget}: expected a positive number of gain points")
+    from .tuning import Protocol
+    if args.budget < 2:
+        raise ConfigError(f"--budget {args.budget}: expected at least 2 evaluations per combination")
+    if args.draws < 1:
+        raise ConfigError(f"--draws {args.draws}: expected at least 1 draw per combination")
+    protocol = Protocol(evaluations=args.budget, draws=args.draws)
     command = "contouring-ros benchmark" + (f" --scenarios {' '.join(args.scenarios)}" if args.scenarios else "") \
-        + (f" --budget {args.budget}" if args.budget != args.default_budget else "")
+        + (f" --budget {args.budget}" if args.budget != Protocol.evaluations else "") \
+        + (f" --draws {args.draws}" if args.draws != Protocol.draws else "")
     say = lambda m: print(m, file=sys.stderr, flush=True)  # noqa: E731
-    md, table, png, seconds = main_benchmark(args.scenarios, args.budget, args.out, args.workers,
+    md, table, png, seconds = main_benchmark(args.scenarios, protocol, args.out, args.workers,
                                              progress=sys.stderr.isatty(), say=say, command=command)
     print(f"wrote {md}, {table} and {png} in {seconds / 60:.1f} min")
 
@@ -376,16 +381,19 @@ def main(argv=None):
     p.add_argument("--no-maps", action="store_true", help="write the claims report without computing the regime maps")
     p.add_argument("--workers", type=int, help="processes for the claims and maps (default: one per core)")
     p.set_defaults(func=_paper)
-    from .benchmark import DEFAULT_BUDGET
-    p = sub.add_parser("benchmark", help="every estimator x controller (x servo) on every paper scenario, tuned "
-                                         "alike, against each paper's proposed method")
+    from .tuning import Protocol
+    p = sub.add_parser("benchmark", help="every estimator x controller (x servo) on every paper scenario, each gain "
+                                         "tuned under equal constraints on a realistic machine, with intervals")
     p.add_argument("--scenarios", nargs="+", metavar="NAME",
-                   help="scenarios (or scenario files) by name or glob, e.g. 'paper000_*' (default: all)")
-    p.add_argument("--budget", type=int, default=DEFAULT_BUDGET,
-                   help=f"gain points per combination on the log grid (default {DEFAULT_BUDGET})")
-    p.add_argument("--out", default="reports", help="folder for benchmark.md, .csv and the heatmap (default: reports/)")
+                   help="scenarios (or scenario files) by name or glob, e.g. 'paper000_*' (default: the papers' own "
+                        "experiments; the claims' mechanism scenarios with e.g. '*_mech_*')")
+    p.add_argument("--budget", type=int, default=Protocol.evaluations,
+                   help=f"optimiser evaluations per combination (default {Protocol.evaluations})")
+    p.add_argument("--draws", type=int, default=Protocol.draws,
+                   help=f"noise-seed and model-mismatch draws per tuned combination (default {Protocol.draws})")
+    p.add_argument("--out", default="reports", help="folder for benchmark.md, .csv and the figures (default: reports/)")
     p.add_argument("--workers", type=int, help="processes (default: one per core)")
-    p.set_defaults(func=_benchmark, default_budget=DEFAULT_BUDGET)
+    p.set_defaults(func=_benchmark)
     args = parser.parse_args(argv)
     try:
         args.func(args)

@@ -1,0 +1,520 @@
+"""Fair tuning: every gain of a method tuned on its own, by one optimiser, under the same constraints, on a
+machine with the imperfections every real feed drive has; its result given with an interval.
+
+How control engineers compare controllers (Åström & Hägglund, Advanced PID Control, ISA, 2006, ch. 7;
+Garpinger & Hägglund, "Software-based optimal PID design with robustness and noise sensitivity
+constraints", J. Process Control 33, 2015): at equal robustness and equal noise sensitivity, not at equal
+gains; performance is then the error. Here, per combination (estimator x contour controller x servo set of a
+scenario):
+
+Machine. The scenario runs on a *realistic* machine (:data:`REALISTIC`): an encoder of 0.1 um, 0.05 um RMS
+of position noise, one sample of computation delay and velocity from the differentiated encoder (Altintas,
+Manufacturing Automation, 2nd ed., 2012, ch. 5-6: encoders of 0.1-1 um, servo loops at 1 kHz with velocity
+from the encoder), and an actuator limit: the paper's where its file states one, else
+:data:`SATURATION_MARGIN` times the largest command the proposed method needs with the paper's gains on the
+ideal machine. A key the scenario file sets itself is kept. The ideal machine (none of these) stays
+available for comparison.
+
+Search. Every gain of the controller (:data:`GAIN_KEYS`) is a variable of its own on a log10 scale,
+:attr:`Protocol.decades` decades either side of its anchor: the file's value, or for a gain that is 0 in the
+file an anchor from its sibling (ki: 30 kp, kd: 1e-3 kp) so that it is free to become non-zero; the lower
+end of the span means 0 (off). The same budget of evaluations for every method, spent by
+:func:`minimise`: CMA-ES (Hansen, "The CMA evolution strategy: a tutorial", 2016; the ``cma`` package) for a
+global search, then Nelder-Mead (scipy) to converge from its best point. The file's own gains are the first
+evaluation, so a tuned result is never worse than the file's when that is admissible.
+
+Constraints (the same for every method of a scenario, measured in simulation):
+
+- stable: the run did not diverge;
+- noise sensitivity: the RMS of the command's sample-to-sample change in the steady state (RMS over the
+  axes) at most :attr:`Protocol.noise_factor` times the proposed method's with the paper's gains on the
+  same machine and seed;
+- saturation: at most :attr:`Protocol.saturation_share` of the steady-state steps with an axis' command
+  at or beyond its limit;
+- robustness (checked on the best admissible points, best first): with each plant parameter (gain, time
+  constant, mass, damping) at plus and minus :attr:`Protocol.perturbation` on every axis, the run stays
+  stable and its steady-state TACE within :attr:`Protocol.robust_factor` times the nominal one.
+
+Objective: the steady-state TACE of the exact contour error (median seed).
+
+Interval. The tuned gains then run :attr:`Protocol.draws` times, draw j with noise seed j, a model
+mismatch drawn uniformly within +-:attr:`Protocol.mismatch` of every plant parameter and a disturbance
+phase (:func:`draw_settings`) (the same draws for
+every method of the scenario, so ratios are paired draw by draw); the report gives the median and the
+2.5-97.5 percentile interval of each figure and ratio.
+"""
+from __future__ import annotations
+
+import copy
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = ["REALISTIC", "SATURATION_MARGIN", "PLANT_PARAMETERS", "GAIN_KEYS", "Protocol", "Outcome",
+           "Evaluation", "Tuned", "gain_keys", "anchors", "machine_settings", "perturbations", "draw_settings",
+           "run_outcomes", "minimise", "nelder_mead_restarts", "tune", "interval", "pareto_front"]
+
+#: plant keys of the realistic machine (a key the scenario file sets is kept)
+REALISTIC = {"encoder_resolution": 1e-7, "measurement_noise": 5e-8, "command_delay": 1,
+             "velocity_measurement": "encoder"}
+#: the actuator limit, where the paper states none: this times the proposed method's largest command
+SATURATION_MARGIN = 2.0
+#: the physical parameters of each plant type that robustness and model-mismatch draws vary
+PLANT_PARAMETERS = {"first_order_velocity": ("gain", "time_constant"),
+                    "mass_damper": ("mass", "damping", "gain")}
+#: the gains tuned per controller type; a controller not listed: its float parameters whose names start with 'k'
+GAIN_KEYS = {"variable_gain": ("kp", "ki", "kd"), "unit_vector": ("kp", "ki", "kd"), "tvt": ("kc",),
+             "task_frame_pd": ("f_t", "f_n", "f_b"),
+             "adaptive_tnb": ("coupling", "alpha", "gamma_mass", "gamma_damping"), "none": ()}
+#: the anchor of a gain that is 0 in the file, relative to its sibling (same units as the PID's)
+SIBLING_ANCHOR = {"ki": ("kp", 30.0), "kd": ("kp", 1e-3)}
+OFF = 0.05          # decades above the lower end of a gain's span that mean "off" (0)
+PENALTY = 10.0      # objective added per decade (log10) a constraint is exceeded by; diverged: 100
+
+
+@dataclass(frozen=True)
+class Protocol:
+    """The tuning protocol: the same numbers for every method of a benchmark."""
+
+    evaluations: int = 40          # evaluations per combination (the file's gains included)
+    popsize: int = 6
+    decades: float = 4.0           # each gain's span either side of its anchor [decades]
+    noise_factor: float = 2.0      # noise sensitivity at most this x the proposed method's (paper's gains)
+    saturation_share: float = 0.01  # share of steady-state steps at the actuator limit, at most
+    perturbation: float = 0.2      # robustness: each plant parameter x (1 +- this)
+    robust_factor: float = 3.0     # ... with steady-state TACE at most this x the nominal
+    robust_candidates: int = 3     # admissible points checked for robustness, best first
+    draws: int = 8                 # noise seeds x model-mismatch draws of the interval
+    mismatch: float = 0.1          # model mismatch of a draw: each plant parameter x U(1 - this, 1 + this)
+    seed: int = 1                  # CMA-ES seed
+    global_share: float = 0.5      # share of the evaluations for CMA-ES; the rest polish with Nelder-Mead
+    polish_step: float = 0.3       # Nelder-Mead's first simplex [decades]
+
+    def describe(self) -> str:
+        return (f"{self.evaluations} evaluations: CMA-ES (population {self.popsize}) for "
+                f"{100 * self.global_share:.0f}% of them, then Nelder-Mead from its best point; each gain log-scaled over "
+                f"+-{self.decades:g} decades of its anchor; noise sensitivity <= {self.noise_factor:g} x the "
+                f"proposed method's; <= {100 * self.saturation_share:g}% of steps saturated; stable with TACE "
+                f"<= {self.robust_factor:g} x nominal at +-{100 * self.perturbation:g}% of each plant parameter; "
+                f"{self.draws} draws (noise seed, +-{100 * self.mismatch:g}% model mismatch)")
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """One run's figures (steady state unless said); ``failure`` is set (and the figures nan) when it diverged."""
+
+    tace: float = math.nan
+    mce: float = math.nan
+    rms: float = math.nan
+    noise: float = math.nan        # RMS of the command's sample-to-sample change (RMS over axes)
+    saturated: float = math.nan    # share of steps with an axis' command at or beyond its limit
+    effort: float = math.nan       # RMS command (RMS over axes), whole run
+    peak_command: tuple = ()       # largest |command| per axis, whole run
+    failure: str = ""
+
+    @property
+    def ok(self) -> bool:
+        return not self.failure
+
+
+@dataclass
+class Evaluation:
+    """One point of the search."""
+
+    gains: dict
+    outcome: Outcome
+    objective: float
+    admissible: bool
+
+
+@dataclass
+class Tuned:
+    """A combination's tuned result."""
+
+    gains: dict = field(default_factory=dict)
+    file_gains: dict = field(default_factory=dict)
+    at_bound: list = field(default_factory=list)       # gains at an end of their span (not an optimum there)
+    evaluations: list = field(default_factory=list)    # every Evaluation of the search, in order
+    nominal: Outcome | None = None                     # the tuned gains, seed 0, nominal plant
+    robust_worst: float = math.nan                     # worst TACE over the +-perturbation runs / nominal
+    robustness_runs: int = 0
+    draws: list = field(default_factory=list)          # Outcome per draw
+    ideal: Outcome | None = None                       # the tuned gains on the ideal machine
+    status: str = "ok"
+
+    @property
+    def ok(self) -> bool:
+        return self.nominal is not None and self.status == "ok"
+
+
+# ------------------------------------------------------------------------------------------ gains
+
+
+def gain_keys(controller: str, section: dict) -> tuple:
+    """The gains of a controller section that the tuning varies (those the section sets)."""
+    if controller in GAIN_KEYS:
+        keys = GAIN_KEYS[controller]
+    else:
+        from .config import CONTROLLERS
+        params = CONTROLLERS.entry(controller).params
+        keys = tuple(k for k, p in params.items() if p.kind in ("float", "floats") and k.startswith("k"))
+    return tuple(k for k in keys if section.get(k) is not None)
+
+
+def _magnitude(value) -> float:
+    values = [abs(float(v)) for v in (value if isinstance(value, list) else [value])]
+    return max(values) if values else 0.0
+
+
+def anchors(section: dict, keys: tuple) -> dict:
+    """key -> the gain's anchor: its magnitude in the file (a per-axis list: its largest entry), else
+    :data:`SIBLING_ANCHOR` from a sibling, else 1."""
+    out = {}
+    for key in keys:
+        value = _magnitude(section[key])
+        if value > 0.0:
+            out[key] = value
+            continue
+        sibling, ratio = SIBLING_ANCHOR.get(key, (None, 1.0))
+        base = _magnitude(section.get(sibling, 0.0)) if sibling else 0.0
+        out[key] = base * ratio if base > 0.0 else 1.0
+    return out
+
+
+def _set_gain(section: dict, key: str, magnitude: float) -> None:
+    """The gain ``key`` of ``section`` set to ``magnitude`` (a per-axis list keeps its proportions; a list
+    of zeros becomes ``magnitude`` on every axis)."""
+    value = section[key]
+    if isinstance(value, list):
+        top = _magnitude(value)
+        section[key] = [magnitude * float(v) / top for v in value] if top > 0 else [magnitude] * len(value)
+    else:
+        section[key] = magnitude
+
+
+def _gains_from(x, keys: tuple, anchor: dict, decades: float) -> dict:
+    out = {}
+    for key, xi in zip(keys, x):
+        low = math.log10(anchor[key]) - decades
+        out[key] = 0.0 if xi <= low + OFF else 10.0 ** float(xi)
+    return out
+
+
+# ---------------------------------------------------------------------------------------- machines
+
+
+def _plants(data: dict) -> dict:
+    """'/x/plant' -> its parameters, for every axis of the file."""
+    axes = data["/**"]["ros__parameters"]["axes"]
+    return {f"/{a}/plant": data[f"/{a}/plant"]["ros__parameters"] for a in axes}
+
+
+def machine_settings(data: dict, kind: str, peak_command: tuple = ()) -> dict:
+    """Grid settings (see :mod:`contouring_ros.sweep`) that put the file's plants on a machine ``kind``:
+    'ideal' (no settings) or 'realistic' (:data:`REALISTIC`, each key the file does not set; an actuator
+    limit of :data:`SATURATION_MARGIN` x ``peak_command`` of the axis where the file sets none)."""
+    if kind == "ideal":
+        return {}
+    if kind != "realistic":
+        raise ValueError(f"machine {kind!r}: expected ideal or realistic")
+    settings = {}
+    for i, (node, params) in enumerate(_plants(data).items()):
+        where = node[1:]
+        for key, value in REALISTIC.items():
+            if not params.get(key):
+                settings[f"{where}.{key}"] = value
+        if "noise_seed" not in params:                     # noise independent between the axes
+            settings[f"{where}.noise_seed"] = i
+        if not params.get("saturation") and i < len(peak_command) and peak_command[i] > 0:
+            settings[f"{where}.saturation"] = SATURATION_MARGIN * float(peak_command[i])
+    return settings
+
+
+def perturbations(data: dict, fraction: float) -> list:
+    """Settings for the robustness runs: each plant parameter of :data:`PLANT_PARAMETERS` at (1 - fraction)
+    and (1 + fraction) of its value, on every axis at once."""
+    plants = _plants(data)
+    keys = []
+    for params in plants.values():
+        for key in PLANT_PARAMETERS.get(params.get("model"), ()):
+            if key not in keys and params.get(key):
+                keys.append(key)
+    out = []
+    for key in keys:
+        for factor in (1.0 - fraction, 1.0 + fraction):
+            out.append({f"{node[1:]}.{key}": float(params[key]) * factor for node, params in plants.items()
+                        if params.get(key)})
+    return out
+
+
+def draw_settings(data: dict, j: int, mismatch: float) -> dict:
+    """Draw ``j``'s settings: noise seeds from j, every plant parameter x U(1 - mismatch, 1 + mismatch), and
+    from draw 1 on a sinusoidal disturbance's phase U(0, 2 pi) and a random disturbance's seed (drawn from j
+    alone, so every method of a scenario meets the same draws)."""
+    rng = np.random.default_rng(1000 + j)
+    settings = {}
+    for i, (node, params) in enumerate(_plants(data).items()):
+        settings[f"{node[1:]}.noise_seed"] = 1 + j * 16 + i
+        for key in PLANT_PARAMETERS.get(params.get("model"), ()):
+            factor = float(rng.uniform(1.0 - mismatch, 1.0 + mismatch))
+            if params.get(key):
+                settings[f"{node[1:]}.{key}"] = float(params[key]) * factor
+        phase = float(rng.uniform(0.0, 2.0 * math.pi))
+        disturbance = params.get("disturbance") or {}
+        if j and disturbance.get("type") == "sinusoid":
+            settings[f"{node[1:]}.disturbance.phase"] = phase
+        elif j and disturbance.get("type") == "random":
+            settings[f"{node[1:]}.disturbance.seed"] = int(disturbance.get("seed", 0)) + 7919 * j
+    return settings
+
+
+# -------------------------------------------------------------------------------------------- runs
+
+
+def _outcome(experiment, from_time: float, limits: tuple) -> Outcome:
+    from .config import build_loop
+    from .core.simulation import simulate
+    from .errors import Diverged
+    from .sweep import RUN_FAILURES, _score_one
+    loop = build_loop(experiment)
+    try:
+        with np.errstate(all="ignore"):
+            result = simulate(loop)
+    except Diverged as error:
+        return Outcome(failure=str(error))
+    except RUN_FAILURES as error:
+        return Outcome(failure=f"diverged: {error}")
+    with np.errstate(all="ignore"):
+        scores, failure = _score_one(loop, result, from_time)
+    if scores is None:
+        return Outcome(failure=failure)
+    command = np.asarray(result.command, dtype=float)
+    steady = command[result.time >= from_time - 1e-12]
+    change = np.diff(steady, axis=0)
+    noise = float(np.sqrt(np.mean(np.square(change)))) if change.size else 0.0
+    limit = np.array([v if v > 0 else np.inf for v in limits] if limits else [np.inf] * command.shape[1])
+    saturated = float(np.mean(np.any(np.abs(steady) >= limit * (1 - 1e-12), axis=1))) if len(steady) else 0.0
+    return Outcome(scores.tace, scores.mce, scores.rms, noise, saturated,
+                   float(np.sqrt(np.mean(np.square(command)))), tuple(float(v) for v in np.max(np.abs(command), 0)))
+
+
+def _limits(data: dict, settings: dict) -> tuple:
+    return tuple(float(settings.get(f"{node[1:]}.saturation", params.get("saturation") or 0.0))
+                 for node, params in _plants(data).items())
+
+
+def run_outcomes(data: dict, sections: dict, settings_list: list, from_time: float, where: str) -> list:
+    """An :class:`Outcome` per settings mapping: ``data`` (a parsed experiment file) with the node
+    ``sections`` and the settings applied, simulated in-process."""
+    from .config import experiment_from_data
+    from .errors import ConfigError
+    from .sweep import apply_settings
+    base = apply_settings(copy.deepcopy(data), sections)
+    out = []
+    for settings in settings_list:
+        here = apply_settings(copy.deepcopy(base), settings)
+        try:
+            experiment = experiment_from_data(here, where)
+        except ConfigError as error:
+            out.append(Outcome(failure=f"refused: {error}"))
+            continue
+        out.append(_outcome(experiment, from_time, _limits(data, settings)))
+    return out
+
+
+# ------------------------------------------------------------------------------------------ search
+
+
+def _objective(outcome: Outcome, noise_limit: float, protocol: Protocol) -> tuple:
+    """(objective, admissible): log10 of the TACE in um, plus :data:`PENALTY` per decade a constraint is
+    exceeded by; 100 for a run that diverged."""
+    if not outcome.ok or not math.isfinite(outcome.tace):
+        return 100.0, False
+    value = math.log10(max(outcome.tace, 1e-15) * 1e6)
+    excess = 0.0
+    if math.isfinite(noise_limit) and outcome.noise > noise_limit:
+        excess += math.log10(outcome.noise / noise_limit) + 0.1
+    if outcome.saturated > protocol.saturation_share:
+        excess += outcome.saturated - protocol.saturation_share + 0.1
+    return value + PENALTY * excess, excess == 0.0
+
+
+def minimise(objective, x0: list, low: list, high: list, evaluations: int, protocol: Protocol) -> tuple:
+    """(best x, its value, evaluations used) of ``objective`` within the box [low, high] from ``x0``.
+
+    Two phases within one budget of ``evaluations``: CMA-ES (Hansen 2016; the ``cma`` package) with a step of
+    one unit (a decade on a log scale) for :attr:`Protocol.global_share` of it, a global search that can
+    leave the start's basin; then Nelder-Mead (scipy.optimize, bounded) from the best point found, with a
+    simplex of :attr:`Protocol.polish_step` units, which converges on the optimum (often on a constraint's
+    edge) in few evaluations where CMA-ES would still be adapting its step."""
+    import cma
+    from scipy.optimize import minimize
+    state = {"best": [float(v) for v in x0], "value": math.inf, "used": 0}
+
+    def counted(x):
+        if state["used"] >= evaluations:
+            raise _Spent
+        state["used"] += 1
+        value = float(objective(x))
+        if value < state["value"]:
+            state["best"], state["value"] = [float(v) for v in x], value
+        return value
+
+    first = max(1, int(round(evaluations * protocol.global_share)))
+    n = len(x0)
+    pad = [0.0] if n == 1 else []         # cma cannot search one dimension: a second one, ignored
+    options = {"bounds": [list(low) + [-1.0] * len(pad), list(high) + [1.0] * len(pad)],
+               "popsize": protocol.popsize, "seed": protocol.seed, "verbose": -9, "tolx": 1e-3, "tolfun": 1e-6}
+    step = min(1.0, 0.3 * float(np.min(np.subtract(high, low))))     # within the box's narrowest side
+    es = cma.CMAEvolutionStrategy(list(x0) + pad, step, options)
+    try:
+        while not es.stop() and state["used"] + protocol.popsize <= first:
+            xs = es.ask()
+            es.tell(xs, [counted(x[:n]) for x in xs])
+        start = np.asarray(state["best"], dtype=float)
+        simplex = np.vstack([start] + [start + protocol.polish_step * e for e in np.eye(len(start))])
+        simplex = np.clip(simplex, low, high)
+        for i in range(1, len(simplex)):           # a vertex pushed onto the start by a bound steps back instead
+            if np.array_equal(simplex[i], start):
+                simplex[i, i - 1] -= protocol.polish_step
+        minimize(counted, start, method="Nelder-Mead", bounds=list(zip(low, high)),
+                 options={"maxfev": max(evaluations - state["used"], 1), "initial_simplex": simplex,
+                          "xatol": 1e-3, "fatol": 1e-6})
+    except _Spent:
+        pass
+    return state["best"], state["value"], state["used"]
+
+
+def nelder_mead_restarts(objective, x0: list, low: list, high: list, evaluations: int, protocol: Protocol,
+                         starts: int = 4) -> tuple:
+    """(best x, its value, evaluations used): bounded Nelder-Mead (scipy) from ``x0`` and from
+    ``starts`` - 1 points drawn uniformly in the box, the budget split evenly: an independent search to check
+    :func:`minimise` against (SCIENCE: "Nelder-Mead from several starts")."""
+    from scipy.optimize import minimize
+    rng = np.random.default_rng(protocol.seed + 100)
+    points = [np.asarray(x0, dtype=float)] + [rng.uniform(low, high) for _ in range(starts - 1)]
+    best, value, used = list(x0), math.inf, 0
+    for i, start in enumerate(points):
+        share = (evaluations - used) // (len(points) - i)
+        calls = []
+
+        def counted(x):
+            if len(calls) >= share:
+                raise _Spent
+            calls.append(1)
+            return float(objective(x))
+        simplex = np.clip(np.vstack([start] + [start + 1.0 * e for e in np.eye(len(start))]), low, high)
+        for j in range(1, len(simplex)):
+            if np.array_equal(simplex[j], start):
+                simplex[j, j - 1] -= 1.0
+        try:
+            result = minimize(counted, start, method="Nelder-Mead", bounds=list(zip(low, high)),
+                              options={"maxfev": share, "initial_simplex": simplex, "xatol": 1e-3, "fatol": 1e-6})
+            if result.fun < value:
+                best, value = [float(v) for v in result.x], float(result.fun)
+        except _Spent:
+            pass
+        used += len(calls)
+    return best, value, used
+
+
+class _Spent(Exception):
+    """The evaluation budget is spent."""
+
+
+def tune(data: dict, sections: dict, keys: tuple, machine: dict, noise_limit: float, from_time: float,
+         protocol: Protocol, where: str = "tuning", optimiser=None) -> Tuned:
+    """Tune the gains ``keys`` of ``sections['/ccc']`` (see the module docstring) on ``data`` with the
+    machine settings ``machine``; then check robustness, run the draws and the ideal machine.
+    ``optimiser``: another search with :func:`minimise`'s signature (to check the tuning against it)."""
+    ccc = sections["/ccc"]
+    file_gains = {k: ccc[k] for k in keys}
+    tuned = Tuned(file_gains=file_gains)
+
+    def with_gains(gains: dict) -> dict:
+        section = dict(ccc)
+        for key, magnitude in gains.items():
+            _set_gain(section, key, magnitude)
+        return dict(sections, **{"/ccc": section})
+
+    def evaluate(gains: dict) -> Evaluation:
+        outcome = run_outcomes(data, with_gains(gains), [machine], from_time, where)[0]
+        objective, admissible = _objective(outcome, noise_limit, protocol)
+        evaluation = Evaluation(gains, outcome, objective, admissible)
+        tuned.evaluations.append(evaluation)
+        return evaluation
+
+    anchor = anchors(ccc, keys)
+    evaluate({k: _magnitude(ccc[k]) for k in keys})             # the file's gains
+    if keys:
+        low = [math.log10(anchor[k]) - protocol.decades for k in keys]
+        high = [math.log10(anchor[k]) + protocol.decades for k in keys]
+        x0 = [math.log10(_magnitude(ccc[k])) if _magnitude(ccc[k]) > 0 else math.log10(anchor[k]) - 1.0
+              for k in keys]
+        (optimiser or minimise)(lambda x: evaluate(_gains_from(x, keys, anchor, protocol.decades)).objective,
+                                x0, low, high, protocol.evaluations - 1, protocol)
+    ranked = sorted((e for e in tuned.evaluations if e.admissible), key=lambda e: e.outcome.tace)
+    if not ranked:
+        failures = sorted({e.outcome.failure.split(":")[0] for e in tuned.evaluations if e.outcome.failure})
+        tuned.status = ("no admissible gain: every point diverged or broke a constraint"
+                        + (f" ({'; '.join(failures)})" if failures else ""))
+        return tuned
+    checks = perturbations(data, protocol.perturbation)
+    chosen = None
+    seen = []
+    for candidate in ranked:
+        if len(seen) >= protocol.robust_candidates:
+            break
+        if any(candidate.gains == s for s in seen):
+            continue
+        seen.append(candidate.gains)
+        runs = run_outcomes(data, with_gains(candidate.gains), [dict(machine, **c) for c in checks], from_time, where)
+        tuned.robustness_runs += len(runs)
+        worst = max((r.tace / candidate.outcome.tace if r.ok and candidate.outcome.tace > 0 else math.inf)
+                    for r in runs) if runs else 1.0
+        if worst <= protocol.robust_factor:
+            chosen, tuned.robust_worst = candidate, worst
+            break
+        if tuned.robust_worst != tuned.robust_worst or worst < tuned.robust_worst:
+            tuned.robust_worst = worst
+    if chosen is None:
+        tuned.status = (f"not robust: the {len(seen)} best admissible gains diverge or lose more than "
+                        f"{protocol.robust_factor:g}x at +-{100 * protocol.perturbation:g}% of a plant parameter "
+                        f"(best worst case {tuned.robust_worst:.3g}x)")
+        chosen = ranked[0]
+    tuned.gains, tuned.nominal = chosen.gains, chosen.outcome
+    for key in keys:
+        value = chosen.gains[key]
+        if value == 0.0:
+            tuned.at_bound.append(f"{key} off")
+        elif math.log10(value) >= math.log10(anchor[key]) + protocol.decades - 0.05:
+            tuned.at_bound.append(f"{key} at the upper bound")
+    final = with_gains(chosen.gains)
+    tuned.draws = run_outcomes(data, final, [dict(machine, **draw_settings(data, j, protocol.mismatch))
+                                             for j in range(protocol.draws)], from_time, where)
+    ideal = {k: v for k, v in machine.items() if k.rsplit(".", 1)[-1] == "saturation"}
+    tuned.ideal = run_outcomes(data, final, [ideal], from_time, where)[0]
+    return tuned
+
+
+# ------------------------------------------------------------------------------------------ figures
+
+
+def interval(values) -> tuple:
+    """(median, 2.5th percentile, 97.5th percentile) of the finite ``values`` (nan where there are none)."""
+    values = np.asarray([v for v in values if v is not None and math.isfinite(v)], dtype=float)
+    if not values.size:
+        return math.nan, math.nan, math.nan
+    return (float(np.median(values)), float(np.percentile(values, 2.5)), float(np.percentile(values, 97.5)))
+
+
+def pareto_front(points) -> list:
+    """The points (noise, tace, ...) that no other point beats in both noise and TACE, by noise."""
+    points = sorted((p for p in points if math.isfinite(p[0]) and math.isfinite(p[1])), key=lambda p: (p[0], p[1]))
+    front, best = [], math.inf
+    for p in points:
+        if p[1] < best:
+            front.append(p)
+            best = p[1]
+    return front
