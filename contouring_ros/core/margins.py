@@ -1,0 +1,474 @@
+"""Gain margin, phase margin and peak sensitivity Ms of the linear axis feedback loops.
+
+Controllers are fairly compared at equal robustness, and the usual single measure of robustness is the
+peak of the sensitivity function,
+
+    Ms = max_w |S(e^{jwTs})| = max_w 1 / |1 + L(e^{jwTs})|,
+
+the inverse of the shortest distance from the Nyquist curve of the loop transfer function L to the
+critical point -1 (Åström & Hägglund, Advanced PID Control, ISA, 2006: the maximum sensitivity, with
+reasonable values from about 1.2 to 2). Ms bounds the classical margins: GM >= Ms / (Ms - 1) and
+PM >= 2 arcsin(1 / (2 Ms)).
+
+Every loop here is the discrete-time loop the code runs at the sample time Ts, broken at the plant input
+(the actuator command): L(z) = C(z) P(z), where P(z) is the zero-order-hold discretisation of the axis
+from the command to what the servo reads (position, and velocity where the law feeds it back) and C(z)
+is the servo law's difference equations (:mod:`contouring_ros.core.servo`, :class:`~.pid.DiscretePID`).
+The timing is the one of :func:`contouring_ros.core.simulation.simulate`: the state measured at step k
+gives the command at k, applied over [t_k, t_k+1), so P(z) is strictly proper; a plant's
+``command_delay`` of d samples adds z^-d. The loops are the small-signal linear part: actuator and
+output limits, Coulomb friction, encoder quantisation and measurement noise are left out, and so is the
+reference feedforward, which does not act on the loop.
+
+Linear time-invariant feedback laws: ``pid`` (:class:`~.servo.PIDServo`), ``pid_feedforward``
+(:class:`~.servo.PIDFeedforwardServo`) and ``cascade`` (:class:`~.servo.CascadeServo`). Not linear
+time-invariant feedback, so without a loop transfer function here (None): integral sliding mode
+(:class:`~.servo.IntegralSlidingModeServo`, its switching term and disturbance observer),
+ESO sliding mode (:class:`~.servo.ESOSlidingModeServo`) and ``direct``
+(:class:`~.servo.DirectServo`: the whole command comes from a contour controller, task-frame PD or TVT,
+whose frame moves with the reference).
+"""
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass
+
+import control
+import numpy as np
+from scipy.optimize import brentq, minimize_scalar
+
+from .contouring import NoCoupling, UnitVectorCCC, VariableGainCCC
+from .plants import FirstOrderVelocityAxis, MassDamperAxis
+from .servo import CascadeServo, PIDFeedforwardServo, PIDServo
+
+__all__ = ["LoopMargins", "plant_transfer", "axis_loop", "coupled_loop", "margins", "experiment_margins"]
+
+#: points of each of the two frequency grids (logarithmic and linear, up to Nyquist) the margins are sought on
+GRID_POINTS = 20001
+#: lowest frequency of the logarithmic grid, as a fraction of the Nyquist frequency
+GRID_LOW = 1e-7
+_CANCEL_TOLERANCE = 1e-10     # relative size of a polynomial's value at z = 0 or 1 that counts as a root there
+
+
+@dataclass(frozen=True)
+class LoopMargins:
+    """Robustness of one discrete-time loop L(z), broken at the plant input.
+
+    Attributes
+    ----------
+    gain_margin : float
+        Factor by which the loop gain may change before the closed loop becomes unstable: 1 / |L| at the
+        phase crossover (arg L = -180 deg, the Nyquist frequency included) whose margin is closest to 1;
+        a ratio, not dB; inf if the phase never crosses -180 deg.
+    phase_margin_deg : float
+        180 deg + arg L at the gain crossover (|L| = 1) of the smallest |margin|; inf if |L| never crosses 1.
+    ms : float
+        Peak sensitivity max over 0 < w <= pi / Ts of 1 / |1 + L(e^{jwTs})| (Åström & Hägglund, Advanced
+        PID Control, 2006).
+    crossover_hz : float
+        Gain crossover frequency [Hz] of ``phase_margin_deg``; nan if none.
+    stable : bool
+        Whether every closed-loop pole, root of den(z) + num(z), lies inside the unit circle. The margins
+        describe the distance to instability only for a stable closed loop.
+    """
+
+    gain_margin: float
+    phase_margin_deg: float
+    ms: float
+    crossover_hz: float
+    stable: bool
+
+
+# --- polynomials in z (numpy order: highest power first), rationals (num, den) ---------------------------
+
+def _trim(p) -> np.ndarray:
+    p = np.atleast_1d(np.asarray(p, dtype=float))
+    nonzero = np.flatnonzero(p)
+    return p[nonzero[0]:] if nonzero.size else np.zeros(1)
+
+
+def _has_root(p: np.ndarray, z: float) -> bool:
+    if len(p) < 2:
+        return False
+    scale = float(np.sum(np.abs(p)))
+    return abs(float(np.polyval(p, z))) <= _CANCEL_TOLERANCE * scale
+
+
+def _deflate(p: np.ndarray, z: float) -> np.ndarray:
+    """p(x) / (x - z) for a root z of p (the remainder, ~0, dropped)."""
+    return np.polydiv(p, np.array([1.0, -z]))[0]
+
+
+def _cancel(num, den) -> tuple:
+    """num / den with the common factors z and (z - 1) removed: the only poles the controllers and the
+    plants share with a numerator (integrators, backward differences, delays)."""
+    num, den = _trim(num), _trim(den)
+    changed = True
+    while changed and len(num) > 1 and len(den) > 1:
+        changed = False
+        for root in (0.0, 1.0):
+            if _has_root(num, root) and _has_root(den, root):
+                num, den = _trim(_deflate(num, root)), _trim(_deflate(den, root))
+                changed = True
+                break
+    return num, den
+
+
+def _add(f: tuple, g: tuple) -> tuple:
+    return _cancel(np.polyadd(np.polymul(f[0], g[1]), np.polymul(g[0], f[1])), np.polymul(f[1], g[1]))
+
+
+def _mul(f: tuple, g: tuple) -> tuple:
+    return _cancel(np.polymul(f[0], g[0]), np.polymul(f[1], g[1]))
+
+
+_ZERO, _ONE = (np.zeros(1), np.ones(1)), (np.ones(1), np.ones(1))
+
+
+def _pid(kp: float, ki: float, kd: float, ts: float) -> tuple:
+    """C(z) = kp + ki Ts z / (z - 1) + kd (z - 1) / (Ts z): :class:`~.pid.DiscretePID` on an error it
+    differentiates itself (backward rectangle integral I_k = I_{k-1} + Ts e_k, used at k; derivative
+    (e_k - e_{k-1}) / Ts). Terms with a zero gain leave their pole out."""
+    c = (np.array([float(kp)]), np.ones(1))
+    if ki:
+        c = _add(c, (np.array([ki * ts, 0.0]), np.array([1.0, -1.0])))
+    if kd:
+        c = _add(c, (np.array([kd / ts, -kd / ts]), np.array([1.0, 0.0])))
+    return c
+
+
+def _check_sample_time(owner, ts: float, what: str):
+    own = getattr(owner, "sample_time", None)
+    if own is not None and not math.isclose(float(own), ts, rel_tol=1e-9):
+        raise ValueError(f"the {what} was built for Ts = {own} s, not {ts} s")
+
+
+# --- the plant ----------------------------------------------------------------------------------------------
+
+def _plant_polynomials(plant, ts: float):
+    """(Np, Nv, D): command -> position reading Np / D and command -> velocity reading Nv / D (a common
+    denominator, z^d of the command delay included), or None for a plant without a linear model here.
+
+    Both models are x+ = Phi x + Gamma u with x = (position, velocity), Phi = [[1, pv], [0, alpha]],
+    Gamma = (pu, vu), exactly as :mod:`contouring_ros.core.plants` discretises them, so
+    P_v = vu / (z - alpha) and P_p = (pu (z - alpha) + pv vu) / ((z - 1)(z - alpha)).
+    """
+    if isinstance(plant, FirstOrderVelocityAxis):
+        k, tau = float(plant.gain), float(plant.time_constant)
+        alpha = math.exp(-ts / tau)
+        pv, vu = tau * (1.0 - alpha), k * (1.0 - alpha)
+        pu = k * (ts - pv)
+    elif isinstance(plant, MassDamperAxis):
+        a, scale = float(plant.damping) / float(plant.mass), float(plant.gain) / float(plant.mass)
+        if a * ts < 1e-9:           # the undamped limit plants.py uses
+            alpha, pv, vw, pw = 1.0, ts, ts, 0.5 * ts * ts
+        else:
+            one_minus_e = -math.expm1(-a * ts)
+            alpha, pv, vw = 1.0 - one_minus_e, one_minus_e / a, one_minus_e / a
+            pw = (ts - one_minus_e / a) / a
+        pu, vu = scale * pw, scale * vw
+    else:
+        return None
+    _check_sample_time(plant, ts, "plant")
+    num_p = np.array([pu, pv * vu - pu * alpha])
+    num_v = np.array([vu, -vu])                       # vu (z - 1) over the common (z - 1)(z - alpha)
+    den = np.polymul([1.0, -1.0], [1.0, -alpha])
+    if getattr(plant, "velocity_measurement", "model") == "encoder":
+        # the velocity read is the backward difference of the position readings: (z - 1) / (Ts z) P_p
+        num_v = np.polymul([1.0, -1.0], num_p)
+        num_p = np.polymul([ts, 0.0], num_p)
+        den = np.polymul([ts, 0.0], den)
+    delay = getattr(plant, "command_delay", 0)
+    if int(delay) != delay or delay < 0:
+        raise ValueError(f"command_delay must be a non-negative integer number of samples, got {delay!r}")
+    den = np.polymul(den, np.r_[1.0, np.zeros(int(delay))])
+    return num_p, num_v, den
+
+
+def _transfer(num, den, ts: float) -> control.TransferFunction:
+    num, den = _trim(num), _trim(den)
+    return control.tf(num / den[0], den / den[0], ts)
+
+
+def plant_transfer(plant, sample_time: float) -> tuple | None:
+    """The axis as the servo sees it: (command -> position, command -> velocity reading).
+
+    Parameters
+    ----------
+    plant : FirstOrderVelocityAxis or MassDamperAxis
+        k / (s (tau s + 1)), or K / (M s^2 + B s), from command to position; discretised by zero-order
+        hold from the plant's own parameters (the same exact discretisation as the plant's ``step``). A
+        ``command_delay`` attribute of d samples multiplies both by z^-d; ``velocity_measurement``
+        "encoder" makes the velocity reading the backward difference of the position readings.
+    sample_time : float
+        Ts [s]; must be the plant's.
+
+    Returns
+    -------
+    tuple of control.TransferFunction, or None
+        (P_p(z), P_v(z)) with time step Ts; None for a plant type without a linear model here.
+    """
+    ts = float(sample_time)
+    polynomials = _plant_polynomials(plant, ts)
+    if polynomials is None:
+        return None
+    num_p, num_v, den = polynomials
+    return (_transfer(*_cancel(num_p, den), ts), _transfer(*_cancel(num_v, den), ts))
+
+
+# --- the loops ----------------------------------------------------------------------------------------------
+
+def _servo_filters(servo, ts: float, ccc: tuple = _ZERO):
+    """(F_p, F_v): the servo's command is -(F_p position + F_v velocity) + (terms in the reference), with a
+    linear contour correction ccc(z) acting on the position error normal to the path. None if the law is
+    not linear time-invariant feedback."""
+    if isinstance(servo, (PIDServo, PIDFeedforwardServo)):
+        # T = kp e + ki I(e) + kd (R' - V) [+ feedforward] + correction: the derivative is the velocity error
+        pid = servo.pid
+        _check_sample_time(pid, ts, "servo")
+        return _add(_pid(pid.kp, pid.ki, 0.0, ts), ccc), (np.array([pid.kd]), np.ones(1))
+    if isinstance(servo, CascadeServo):
+        # V* = R' + kp_position (R - P) + correction, T = PI(V* - V) [+ friction feedforward]
+        loop = servo.velocity_loop
+        _check_sample_time(loop, ts, "servo")
+        velocity_pi = _pid(loop.kp, loop.ki, 0.0, ts)       # stepped with an error rate of 0: no derivative
+        return _mul(velocity_pi, _add((np.array([servo.kp_position]), np.ones(1)), ccc)), velocity_pi
+    return None
+
+
+def _loop(plant, filters, ts: float) -> control.TransferFunction | None:
+    polynomials = _plant_polynomials(plant, ts)
+    if polynomials is None or filters is None:
+        return None
+    num_p, num_v, den = polynomials
+    (fp_num, fp_den), (fv_num, fv_den) = filters
+    num = np.polyadd(np.polymul(np.polymul(fp_num, num_p), fv_den), np.polymul(np.polymul(fv_num, num_v), fp_den))
+    return _transfer(*_cancel(num, np.polymul(np.polymul(fp_den, fv_den), den)), ts)
+
+
+def axis_loop(plant, servo, sample_time: float) -> control.TransferFunction | None:
+    """The loop transfer function L(z) = C(z) P(z) of one axis' feedback, broken at the plant input.
+
+    C(z) follows the servo's difference equations exactly: ``pid`` and ``pid_feedforward`` are
+    kp + ki Ts z / (z - 1) on the position and kd on the velocity reading (the derivative term is the
+    velocity error R' - V, not a difference of the position error); ``cascade`` is
+    (kp_v + ki_v Ts z / (z - 1)) (kp_position P_p + P_v). Feedforward terms do not act on the loop.
+
+    Parameters
+    ----------
+    plant : FirstOrderVelocityAxis or MassDamperAxis
+        See :func:`plant_transfer` (its ``command_delay`` and ``velocity_measurement`` are included).
+    servo : PIDServo, PIDFeedforwardServo or CascadeServo
+        Any other law gives None: integral sliding mode (switching term and disturbance observer), ESO
+        sliding mode and ``direct`` are not linear time-invariant feedback on the axis alone.
+    sample_time : float
+        Ts [s]; must be the plant's and the servo's.
+
+    Returns
+    -------
+    control.TransferFunction or None
+        L(z) with time step Ts (command in, minus the command the feedback makes of it out), or None.
+    """
+    ts = float(sample_time)
+    return _loop(plant, _servo_filters(servo, ts), ts)
+
+
+def _contour_pid(controller, ts: float):
+    """The linear contour controller's C_ccc(z), (0, 1) for no coupling, None if not linear."""
+    if isinstance(controller, NoCoupling):
+        return _ZERO
+    if isinstance(controller, (VariableGainCCC, UnitVectorCCC)):
+        pid = controller.pid
+        _check_sample_time(pid, ts, "contour controller")
+        if isinstance(controller, VariableGainCCC) and controller.curve.dimension != 2 and (pid.ki or pid.kd):
+            # in 3-D the variable-gain CCC filters |E| and multiplies by the direction E / |E|: not linear
+            return None
+        return _pid(pid.kp, pid.ki, pid.kd, ts)
+    return None
+
+
+def coupled_loop(plant, servo, controller, sample_time: float) -> control.TransferFunction | None:
+    """The axis loop with a linear cross-coupled contour controller closed around it, broken at the plant
+    input, for the error component normal to a straight line.
+
+    Assumptions: every axis is identical to this one (its plant and servo); the contour is a straight
+    line (e.g. at 45 degrees to a pair of axes); the contour error estimate is exact (the tangent-line
+    estimate on a line, a converged Newton estimate), E = n n^T (R - P) for the unit normal n. The
+    variable-gain CCC's coefficients C = E / epsilon are then the constant normal n (Koren & Lo's
+    coefficients of a line), and the unit-vector CCC's per-axis PIDs act on the components of E, so both
+    give the correction n C_ccc(z) n^T (R - P), with C_ccc(z) = kp + ki Ts z / (z - 1) + kd (z - 1) / (Ts z)
+    (:class:`~.pid.DiscretePID` differencing the contour error itself). The loop of the axes then splits,
+    for any direction of the line, into the tangential loop (:func:`axis_loop`) and the normal loop
+    returned here: L = (C_servo + C_ccc) P for the PID laws, C_ccc adding to the position gain,
+    L = C_v ((kp_position + C_ccc) P_p + P_v) for the cascade law, whose correction adds to the velocity
+    command. For axes that are not identical this is the loop as if the others were like this one.
+
+    Parameters
+    ----------
+    plant, servo :
+        As for :func:`axis_loop`.
+    controller : VariableGainCCC, UnitVectorCCC or NoCoupling
+        NoCoupling gives the axis loop itself. Any other controller gives None (task-frame PD, TVT and
+        the adaptive TNB controller are not linear time-invariant), and so does a variable-gain CCC with
+        integral or derivative action on a 3-D contour (it filters |E|).
+    sample_time : float
+        Ts [s].
+
+    Returns
+    -------
+    control.TransferFunction or None
+    """
+    ts = float(sample_time)
+    ccc = _contour_pid(controller, ts)
+    if ccc is None:
+        return None
+    return _loop(plant, _servo_filters(servo, ts, ccc), ts)
+
+
+# --- the margins --------------------------------------------------------------------------------------------
+
+def _response(num: np.ndarray, den: np.ndarray, theta):
+    z = np.exp(1j * np.asarray(theta, dtype=float))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.polyval(num, z) / np.polyval(den, z)
+
+
+def _grid_roots(function, theta: np.ndarray, values: np.ndarray) -> list:
+    """The roots of ``function`` between neighbouring grid points where ``values`` changes sign."""
+    finite = np.isfinite(values)
+    change = np.flatnonzero(finite[:-1] & finite[1:] & (np.sign(values[:-1]) * np.sign(values[1:]) < 0))
+    return [brentq(function, theta[i], theta[i + 1], xtol=1e-15, rtol=4 * np.finfo(float).eps) for i in change]
+
+
+def _merged(found: list, candidates, residual, accept: float) -> list:
+    """``found`` plus each candidate not already there whose ``residual`` is within ``accept``."""
+    out = list(found)
+    for theta in candidates:
+        if 0.0 < theta <= math.pi and all(abs(theta - t) > 1e-7 * max(t, 1e-300) for t in out) \
+                and abs(residual(theta)) <= accept:
+            out.append(float(theta))
+    return sorted(out)
+
+
+def margins(loop: control.TransferFunction, sample_time: float) -> LoopMargins:
+    """Gain margin, phase margin, peak sensitivity Ms and crossover of a discrete-time loop.
+
+    The crossings are the union of python-control's (:func:`control.stability_margins`, polynomial method,
+    every crossing) and of the sign changes of log|L| and of Im L / |L| on a dense grid of
+    0 < w <= pi / Ts (logarithmic and linear), each refined to machine precision; the Nyquist frequency,
+    where L is real and which python-control leaves out, is a phase crossover when L(-1) < 0. Ms is the
+    maximum of 1 / |1 + L| over the same grid, refined around its peak (Åström & Hägglund, Advanced PID
+    Control, 2006).
+
+    Parameters
+    ----------
+    loop : control.TransferFunction
+        SISO L(z), e.g. from :func:`axis_loop` or :func:`coupled_loop`, broken at the plant input.
+    sample_time : float
+        Ts [s]; the loop's own time step, if it has one, must agree.
+
+    Returns
+    -------
+    LoopMargins
+    """
+    ts = float(sample_time)
+    if not ts > 0.0:
+        raise ValueError(f"sample_time must be positive, got {sample_time!r}")
+    dt = loop.dt
+    if dt is not None and not isinstance(dt, bool) and dt == 0:
+        raise ValueError("a continuous-time loop: the margins here are of a discrete-time L(z)")
+    if dt is not None and not isinstance(dt, bool) and not math.isclose(float(dt), ts, rel_tol=1e-9):
+        raise ValueError(f"the loop has time step {dt}, not the sample time {ts}")
+    num, den = _trim(loop.num[0][0]), _trim(loop.den[0][0])
+    characteristic = np.polyadd(den, num)
+    stable = bool(np.all(np.abs(np.roots(characteristic)) < 1.0)) if len(_trim(characteristic)) > 1 else True
+    theta = np.unique(np.concatenate([np.geomspace(GRID_LOW * math.pi, math.pi, GRID_POINTS),
+                                      np.linspace(0.0, math.pi, GRID_POINTS)[1:]]))
+    response = _response(num, den, theta)
+    magnitude = np.abs(response)
+
+    def log_gain(t):
+        return float(np.log(np.abs(_response(num, den, t))))
+
+    def phase_sine(t):
+        value = _response(num, den, t)
+        return float(value.imag / abs(value))
+
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            _, _, _, w_phase, w_gain, w_stab = control.stability_margins(loop, returnall=True, method="poly")
+        theta_phase, theta_gain = np.asarray(w_phase) * ts, np.asarray(w_gain) * ts
+        theta_stab = np.asarray(w_stab) * ts
+    except (ValueError, np.linalg.LinAlgError):      # e.g. an improper L: the grid alone
+        theta_phase = theta_gain = theta_stab = np.zeros(0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        gain_crossings = _merged(_grid_roots(log_gain, theta, np.log(magnitude)), theta_gain, log_gain, 1e-9)
+        sine = response.imag / magnitude
+        near_nyquist = theta < math.pi * (1.0 - 1e-9)
+        phase_crossings = _merged(_grid_roots(phase_sine, theta[near_nyquist], sine[near_nyquist]),
+                                  theta_phase[theta_phase < math.pi * (1.0 - 1e-9)], phase_sine, 1e-9)
+    phase_crossings = [t for t in phase_crossings if _response(num, den, t).real < 0.0]
+    at_nyquist = complex(_response(num, den, math.pi))
+    if np.isfinite(at_nyquist) and at_nyquist.real < 0.0:
+        phase_crossings.append(math.pi)
+
+    gain_margin = math.inf
+    if phase_crossings:
+        with np.errstate(divide="ignore"):
+            candidates = 1.0 / np.abs(_response(num, den, np.array(phase_crossings)))
+        finite = candidates[np.isfinite(candidates) & (candidates > 0.0)]
+        if finite.size:
+            gain_margin = float(finite[np.argmin(np.abs(np.log(finite)))])
+    phase_margin, crossover_hz = math.inf, math.nan
+    if gain_crossings:
+        angles = np.angle(_response(num, den, np.array(gain_crossings)), deg=True)
+        pms = np.remainder(angles, 360.0) - 180.0
+        best = int(np.argmin(np.abs(pms)))
+        phase_margin, crossover_hz = float(pms[best]), gain_crossings[best] / (2.0 * math.pi * ts)
+
+    with np.errstate(divide="ignore", invalid="ignore"):
+        distance = np.abs(1.0 + response)
+    distance = np.where(np.isfinite(distance), distance, np.inf)
+    i = int(np.argmin(distance))
+    smallest = float(distance[i])
+
+    def distance_at(t):
+        value = abs(1.0 + complex(_response(num, den, t)))
+        return value if math.isfinite(value) else math.inf
+
+    lo, hi = theta[max(i - 1, 0)], theta[min(i + 1, len(theta) - 1)]
+    if hi > lo:
+        refined = minimize_scalar(distance_at, bounds=(lo, hi), method="bounded", options={"xatol": 1e-13})
+        smallest = min(smallest, float(refined.fun))
+    for t in np.remainder(theta_stab, 2.0 * math.pi):     # python-control's optimum (mirrored above Nyquist)
+        smallest = min(smallest, distance_at(min(t, 2.0 * math.pi - t)))
+    ms = 1.0 / smallest if smallest > 0.0 else math.inf
+    return LoopMargins(gain_margin=gain_margin, phase_margin_deg=phase_margin, ms=ms, crossover_hz=crossover_hz,
+                       stable=stable)
+
+
+def experiment_margins(experiment) -> dict:
+    """The margins of every axis of an experiment: {axis: {"axis": LoopMargins | None, "coupled": ...}}.
+
+    "axis" is :func:`axis_loop` of the axis' plant and servo, "coupled" :func:`coupled_loop` with the
+    experiment's contour controller (each axis as if the others were identical to it, on a straight
+    line); None where the law is not linear time-invariant feedback.
+
+    Parameters
+    ----------
+    experiment : contouring_ros.config.Experiment
+        A validated experiment; its objects are built with :mod:`contouring_ros.config`'s builders.
+    """
+    from .. import config        # the experiment format lives above the core; imported only when used
+
+    ts = float(experiment.sample_time)
+    controller = config.build_controller(experiment, config.build_curve(experiment))
+    out = {}
+    for axis in experiment.axes:
+        plant = config.build_plant(experiment, axis, 0.0, 0.0)
+        servo = config.build_servo(experiment, axis, 0.0, 0.0, 0.0)
+        loops = {"axis": axis_loop(plant, servo, ts), "coupled": coupled_loop(plant, servo, controller, ts)}
+        out[axis] = {name: None if loop is None else margins(loop, ts) for name, loop in loops.items()}
+    return out
