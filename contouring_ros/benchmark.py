@@ -466,7 +466,7 @@ def write_csv(rows: list, path) -> Path:
             "tace_um", "mce_um", "noise", "noise_ratio", "saturated_share", "effort_rms",
             "tace_median_um", "tace_lo_um", "tace_hi_um", "mce_median_um", "mce_lo_um", "mce_hi_um",
             "tace_ratio", "tace_ratio_lo", "tace_ratio_hi", "mce_ratio", "mce_ratio_lo", "mce_ratio_hi",
-            "tace_verdict", "ideal_tace_um", "ideal_mce_um"]
+            "tace_verdict", "ideal_tace_um", "ideal_mce_um", "ms", "gain_margin", "phase_margin_deg"]
     with open(path, "w", newline="") as stream:
         writer = csv.writer(stream)
         writer.writerow(head)
@@ -486,7 +486,8 @@ def write_csv(rows: list, path) -> Path:
                 _num(row.noise_ratio), _num(n.saturated if n else None), _num(n.effort if n else None),
                 *(_um(v) for v in tace), *(_um(v) for v in mce), *(_num(v) for v in tr), *(_num(v) for v in mr),
                 "" if row.is_proposed or not row.ok else verdict(tr[1], tr[2]),
-                _um(t.ideal.tace if t and t.ideal else None), _um(t.ideal.mce if t and t.ideal else None)])
+                _um(t.ideal.tace if t and t.ideal else None), _um(t.ideal.mce if t and t.ideal else None),
+                *((_num(m.ms), _num(m.gain_margin), _num(m.phase_margin_deg)) if (m := t and t.margins) else ("",) * 3)])
     return path
 
 
@@ -683,6 +684,13 @@ def _gain_text(row: Row) -> str:
     return text + (f" ({'; '.join(row.tuned.at_bound)})" if row.tuned.at_bound else "")
 
 
+def _margin_text(m) -> str:
+    if m is None:
+        return "-"
+    unstable = "" if m.stable else ", unstable"
+    return f"{m.ms:.2f} ({_f(m.gain_margin, 2)}, {m.phase_margin_deg:.0f} deg{unstable})"
+
+
 def _family_table(rows: list, family: Family) -> list:
     mine = [r for r in rows if r.family is family and r.combination]
     ranked = sorted(mine, key=lambda r: (not r.ok, r.figure("tace")[0] if r.ok else 0.0))
@@ -694,13 +702,13 @@ def _family_table(rows: list, family: Family) -> list:
                f"{_f(ref.ideal_published.tace * 1e6)} / {_f(ref.ideal_published.mce * 1e6)} um)."
                if published and published.ok else f"{published.failure if published else 'no run'}."), "",
             "| combination | tuned gains | evals | TACE [um] median [95%] | MCE [um] median [95%] | TACE ratio [95%] "
-            "| verdict | noise / paper's | saturated | worst at +-20% | ideal machine TACE / MCE [um] |",
-            "|---|---|---:|---|---|---|---|---:|---:|---:|---|"]
+            "| verdict | noise / paper's | saturated | worst at +-20% | Ms (GM, PM) | ideal machine TACE / MCE [um] |",
+            "|---|---|---:|---|---|---|---|---:|---:|---:|---|---|"]
     for r in ranked:
         name = f"**{r.label}** (proposed)" if r.is_proposed else r.label
         t = r.tuned
         if not r.ok:
-            head.append(f"| {name} | - | {len(t.evaluations) if t else 0} | {r.status} | | | | | | | |")
+            head.append(f"| {name} | - | {len(t.evaluations) if t else 0} | {r.status} | | | | | | | | |")
             continue
         tr = r.ratio("tace")
         status = "" if r.status == "ok" else " (not robust)"
@@ -708,7 +716,7 @@ def _family_table(rows: list, family: Family) -> list:
         head.append(f"| {name} | {_gain_text(r)} | {len(t.evaluations)} | {_iv(r.figure('tace'), 1e6)} | "
                     f"{_iv(r.figure('mce'), 1e6)} | {'1' if r.is_proposed else _iv(tr)} | "
                     f"{'' if r.is_proposed else verdict(tr[1], tr[2])}{status} | {_f(r.noise_ratio)} | "
-                    f"{_f(100 * t.nominal.saturated, 2)}% | {_f(t.robust_worst)}x | "
+                    f"{_f(100 * t.nominal.saturated, 2)}% | {_f(t.robust_worst)}x | {_margin_text(t.margins)} | "
                     f"{_f(ideal.tace * 1e6) if ideal and ideal.ok else 'diverged'} / "
                     f"{_f(ideal.mce * 1e6) if ideal and ideal.ok else '-'} |")
     return head

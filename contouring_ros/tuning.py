@@ -53,7 +53,8 @@ import numpy as np
 
 __all__ = ["REALISTIC", "SATURATION_MARGIN", "PLANT_PARAMETERS", "GAIN_KEYS", "Protocol", "Outcome",
            "Evaluation", "Tuned", "gain_keys", "anchors", "machine_settings", "perturbations", "draw_settings",
-           "run_outcomes", "minimise", "nelder_mead_restarts", "tune", "interval", "pareto_front"]
+           "experiment_for", "experiment_margins", "worst_margins", "run_outcomes", "minimise",
+           "nelder_mead_restarts", "tune", "interval", "pareto_front"]
 
 #: plant keys of the realistic machine (a key the scenario file sets is kept)
 REALISTIC = {"encoder_resolution": 1e-7, "measurement_noise": 5e-8, "command_delay": 1,
@@ -141,6 +142,7 @@ class Tuned:
     robustness_runs: int = 0
     draws: list = field(default_factory=list)          # Outcome per draw
     ideal: Outcome | None = None                       # the tuned gains on the ideal machine
+    margins: object = None                             # worst_margins of the tuned loop on the machine, if linear
     status: str = "ok"
 
     @property
@@ -304,23 +306,56 @@ def _limits(data: dict, settings: dict) -> tuple:
                  for node, params in _plants(data).items())
 
 
-def run_outcomes(data: dict, sections: dict, settings_list: list, from_time: float, where: str) -> list:
-    """An :class:`Outcome` per settings mapping: ``data`` (a parsed experiment file) with the node
-    ``sections`` and the settings applied, simulated in-process."""
+def experiment_for(data: dict, sections: dict, settings: dict, where: str):
+    """The validated experiment of ``data`` (a parsed experiment file) with the node ``sections`` and the
+    grid ``settings`` applied (ConfigError when refused)."""
     from .config import experiment_from_data
-    from .errors import ConfigError
     from .sweep import apply_settings
-    base = apply_settings(copy.deepcopy(data), sections)
+    here = apply_settings(apply_settings(copy.deepcopy(data), sections), settings)
+    return experiment_from_data(here, where)
+
+
+def run_outcomes(data: dict, sections: dict, settings_list: list, from_time: float, where: str) -> list:
+    """An :class:`Outcome` per settings mapping: :func:`experiment_for` each, simulated in-process."""
+    from .errors import ConfigError
     out = []
     for settings in settings_list:
-        here = apply_settings(copy.deepcopy(base), settings)
         try:
-            experiment = experiment_from_data(here, where)
+            experiment = experiment_for(data, sections, settings, where)
         except ConfigError as error:
             out.append(Outcome(failure=f"refused: {error}"))
             continue
         out.append(_outcome(experiment, from_time, _limits(data, settings)))
     return out
+
+
+def experiment_margins(experiment) -> dict:
+    """The margins of every axis of an experiment: {axis: {"axis": LoopMargins | None, "coupled": ...}}.
+
+    "axis" is :func:`contouring_ros.core.margins.axis_loop` of the axis' plant and servo, "coupled"
+    :func:`~contouring_ros.core.margins.coupled_loop` with the experiment's contour controller (each axis as
+    if the others were identical to it, on a straight line); None where the law is not linear
+    time-invariant feedback.
+    """
+    from . import config
+    from .core.margins import axis_loop, coupled_loop, margins
+    ts = float(experiment.sample_time)
+    controller = config.build_controller(experiment, config.build_curve(experiment))
+    out = {}
+    for axis in experiment.axes:
+        plant = config.build_plant(experiment, axis, 0.0, 0.0)
+        servo = config.build_servo(experiment, axis, 0.0, 0.0, 0.0)
+        loops = {"axis": axis_loop(plant, servo, ts), "coupled": coupled_loop(plant, servo, controller, ts)}
+        out[axis] = {name: None if loop is None else margins(loop, ts) for name, loop in loops.items()}
+    return out
+
+
+def worst_margins(per_axis: dict):
+    """The axis loop with the highest Ms among the coupled loops (else the axis loops) of
+    :func:`experiment_margins`, or None when no loop is linear."""
+    loops = [m["coupled"] for m in per_axis.values() if m["coupled"] is not None] or \
+        [m["axis"] for m in per_axis.values() if m["axis"] is not None]
+    return max(loops, key=lambda m: m.ms) if loops else None
 
 
 # ------------------------------------------------------------------------------------------ search
@@ -493,8 +528,8 @@ def tune(data: dict, sections: dict, keys: tuple, machine: dict, noise_limit: fl
     final = with_gains(chosen.gains)
     tuned.draws = run_outcomes(data, final, [dict(machine, **draw_settings(data, j, protocol.mismatch))
                                              for j in range(protocol.draws)], from_time, where)
-    ideal = {k: v for k, v in machine.items() if k.rsplit(".", 1)[-1] == "saturation"}
-    tuned.ideal = run_outcomes(data, final, [ideal], from_time, where)[0]
+    tuned.ideal = run_outcomes(data, final, [{}], from_time, where)[0]          # the file's machine as it is
+    tuned.margins = worst_margins(experiment_margins(experiment_for(data, final, machine, where)))
     return tuned
 
 

@@ -17,9 +17,10 @@ from contouring_ros.core import contouring, servo as servos
 from contouring_ros.core.curves import Helix, Line
 from contouring_ros.core.estimators import TangentLineEstimator
 from contouring_ros.core.interpolation import Reference
-from contouring_ros.core.margins import (LoopMargins, axis_loop, coupled_loop, experiment_margins, margins,
+from contouring_ros.core.margins import (LoopMargins, axis_loop, coupled_loop, margins,
                                          plant_transfer)
 from contouring_ros.core.plants import FirstOrderVelocityAxis, MassDamperAxis
+from contouring_ros.tuning import experiment_margins
 
 TS = 1e-3
 PIDFF = CONFIG / "paper000_a_pidff_h50_newton.yaml"

@@ -42,7 +42,7 @@ from .contouring import NoCoupling, UnitVectorCCC, VariableGainCCC
 from .plants import FirstOrderVelocityAxis, MassDamperAxis
 from .servo import CascadeServo, PIDFeedforwardServo, PIDServo
 
-__all__ = ["LoopMargins", "plant_transfer", "axis_loop", "coupled_loop", "margins", "experiment_margins"]
+__all__ = ["LoopMargins", "plant_transfer", "axis_loop", "coupled_loop", "margins"]
 
 #: points of each of the two frequency grids (logarithmic and linear, up to Nyquist) the margins are sought on
 GRID_POINTS = 20001
@@ -447,28 +447,3 @@ def margins(loop: control.TransferFunction, sample_time: float) -> LoopMargins:
     ms = 1.0 / smallest if smallest > 0.0 else math.inf
     return LoopMargins(gain_margin=gain_margin, phase_margin_deg=phase_margin, ms=ms, crossover_hz=crossover_hz,
                        stable=stable)
-
-
-def experiment_margins(experiment) -> dict:
-    """The margins of every axis of an experiment: {axis: {"axis": LoopMargins | None, "coupled": ...}}.
-
-    "axis" is :func:`axis_loop` of the axis' plant and servo, "coupled" :func:`coupled_loop` with the
-    experiment's contour controller (each axis as if the others were identical to it, on a straight
-    line); None where the law is not linear time-invariant feedback.
-
-    Parameters
-    ----------
-    experiment : contouring_ros.config.Experiment
-        A validated experiment; its objects are built with :mod:`contouring_ros.config`'s builders.
-    """
-    from .. import config        # the experiment format lives above the core; imported only when used
-
-    ts = float(experiment.sample_time)
-    controller = config.build_controller(experiment, config.build_curve(experiment))
-    out = {}
-    for axis in experiment.axes:
-        plant = config.build_plant(experiment, axis, 0.0, 0.0)
-        servo = config.build_servo(experiment, axis, 0.0, 0.0, 0.0)
-        loops = {"axis": axis_loop(plant, servo, ts), "coupled": coupled_loop(plant, servo, controller, ts)}
-        out[axis] = {name: None if loop is None else margins(loop, ts) for name, loop in loops.items()}
-    return out
