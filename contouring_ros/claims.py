@@ -78,7 +78,14 @@ METRICS = {"mce": "MCE", "tace": "TACE", "rms": "RMS", "estimation_max": "estima
 VERDICT_RULE = ("A ratio is proposed / baseline in the claim's metric (lower: the proposed method better); r is "
                 "ours, p the paper's. Verdict: **holds** when 1 - r >= 0.75 (1 - p) (our reduction reaches three "
                 "quarters of the paper's), **holds weaker** when r < 0.95, **does not hold** when 0.95 <= r <= "
-                "1.05, **reversed** when r > 1.05, **not testable** when no pair of runs can test it.")
+                "1.05, **reversed** when r > 1.05, **not testable** when no pair of runs can test it. Where the "
+                "paper gives no figure (paper ratio null, shown as -) the verdict is only **lowers** (r < 1) or "
+                "**does not lower** (r >= 1). Our r is the median over the paired draws on the realistic machine, "
+                "with the 2.5-97.5% interval [lo, hi] of the per-draw ratios; the verdict is given only where lo and "
+                "hi have the same verdict (the interval crosses no threshold; with no paper figure: lowers where hi < "
+                "1, does not lower where lo >= 1), else **undecided**. Sensitivity: the verdict of the seed-0 ratio "
+                "(realistic machine, no mismatch) with each decisive parameter x0.7 and x1.4 (both files alike); "
+                "**robust** when all equal the unscaled seed-0 verdict, else **knife-edge** (naming the flips).")
 
 
 def verdict(ratio: float | None, paper_ratio: float | None) -> str:
@@ -727,7 +734,8 @@ def _with_interval(result: "ClaimResult", reading: str) -> str:
     if median is None:
         return "-"
     failed = result.failures(reading)
-    return f"{median:.3g} [{low:.3g}, {high:.3g}]" + (f" ({failed} draws diverged)" if failed else "")
+    digits = 3 if f"{low:.3g}" != f"{high:.3g}" else 6     # a narrow interval (an inert term) shown as it is
+    return f"{median:.{digits}g} [{low:.{digits}g}, {high:.{digits}g}]" + (f" ({failed} draws diverged)" if failed else "")
 
 
 def _sensitivity(result: "ClaimResult", reading: str) -> str:
@@ -848,7 +856,8 @@ def claims_report(papers: list | None = None, directory="reports", maps: bool = 
             summary_table(rows), ""]
     took = time.monotonic() - started
     tail = [f"_{len(rows)} claims; {took:.0f} s on this machine"
-            + (f", of which the regime maps {map_seconds:.0f} s" if maps else "") + "._", ""]
+            + (f", of which the regime maps {map_seconds:.0f} s" if maps else
+               "; the regime maps were not recomputed (--no-maps: those drawn by the last run with maps)") + "._", ""]
     return "\n".join(head + sections + tail)
 
 
