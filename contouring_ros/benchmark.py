@@ -375,9 +375,12 @@ class Row:
 
 
 def verdict(low: float, high: float, threshold: float = 1.0) -> str:
-    """'lower' when the interval lies below ``threshold``, 'higher' above it, else 'undecided'."""
+    """'lower' when the interval lies below ``threshold``, 'higher' above it, 'same' when it is the
+    threshold itself to 1e-9 (a method that does not read what differs), else 'undecided'."""
     if not (math.isfinite(low) or math.isfinite(high)) or low != low or high != high:
         return "undecided"
+    if abs(low - threshold) <= 1e-9 * threshold and abs(high - threshold) <= 1e-9 * threshold:
+        return "same"
     if high < threshold:
         return "lower"
     if low > threshold:

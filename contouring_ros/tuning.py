@@ -31,7 +31,12 @@ Constraints (the same for every method of a scenario, measured in simulation):
   same machine and seed;
 - saturation: at most :attr:`Protocol.saturation_share` of the steady-state steps with an axis' command
   at or beyond its limit;
-- robustness (checked on the best admissible points, best first): with each plant parameter (gain, time
+- peak sensitivity, where the loop is linear (PID, PID + feedforward and cascade servos with a linear
+  contour controller; :func:`loop_robustness`): the closed loop stable and Ms at most :data:`MS_LIMIT`
+  (Åström & Hägglund's 1.4-2), or the drive's own Ms where its servo alone already exceeds that; a point
+  beyond it is refused before it runs;
+- robustness (checked on the best admissible points, best first, then on the best with every gain backed
+  off a quarter decade at a time, then on the file's gains): with each plant parameter (gain, time
   constant, mass, damping) at plus and minus :attr:`Protocol.perturbation` on every axis, the run stays
   stable and its steady-state TACE within :attr:`Protocol.robust_factor` times the nominal one.
 
@@ -53,7 +58,7 @@ import numpy as np
 
 __all__ = ["REALISTIC", "SATURATION_MARGIN", "PLANT_PARAMETERS", "GAIN_KEYS", "Protocol", "Outcome",
            "Evaluation", "Tuned", "gain_keys", "anchors", "machine_settings", "perturbations", "draw_settings",
-           "experiment_for", "experiment_margins", "worst_margins", "run_outcomes", "minimise",
+           "experiment_for", "experiment_margins", "worst_margins", "loop_robustness", "MS_LIMIT", "run_outcomes", "minimise",
            "nelder_mead_restarts", "tune", "interval", "pareto_front"]
 
 #: plant keys of the realistic machine (a key the scenario file sets is kept)
@@ -70,6 +75,7 @@ GAIN_KEYS = {"variable_gain": ("kp", "ki", "kd"), "unit_vector": ("kp", "ki", "k
              "adaptive_tnb": ("coupling", "alpha", "gamma_mass", "gamma_damping"), "none": ()}
 #: the anchor of a gain that is 0 in the file, relative to its sibling (same units as the PID's)
 SIBLING_ANCHOR = {"ki": ("kp", 30.0), "kd": ("kp", 1e-3)}
+MS_LIMIT = 2.0      # peak sensitivity a linear loop may reach (Åström & Hägglund: 1.4-2)
 OFF = 0.05          # decades above the lower end of a gain's span that mean "off" (0)
 PENALTY = 10.0      # objective added per decade (log10) a constraint is exceeded by; diverged: 100
 
@@ -86,6 +92,8 @@ class Protocol:
     perturbation: float = 0.2      # robustness: each plant parameter x (1 +- this)
     robust_factor: float = 3.0     # ... with steady-state TACE at most this x the nominal
     robust_candidates: int = 3     # admissible points checked for robustness, best first
+    backoff: int = 4               # ... then the best with every gain lowered a quarter decade at a time
+    ms_limit: bool = True          # refuse points whose linear loop has Ms over MS_LIMIT (see loop_robustness)
     draws: int = 8                 # noise seeds x model-mismatch draws of the interval
     mismatch: float = 0.1          # model mismatch of a draw: each plant parameter x U(1 - this, 1 + this)
     seed: int = 1                  # CMA-ES seed
@@ -96,7 +104,8 @@ class Protocol:
         return (f"{self.evaluations} evaluations: CMA-ES (population {self.popsize}) for "
                 f"{100 * self.global_share:.0f}% of them, then Nelder-Mead from its best point; each gain log-scaled over "
                 f"+-{self.decades:g} decades of its anchor; noise sensitivity <= {self.noise_factor:g} x the "
-                f"proposed method's; <= {100 * self.saturation_share:g}% of steps saturated; stable with TACE "
+                f"proposed method's; <= {100 * self.saturation_share:g}% of steps saturated; "
+                f"{f'linear loops stable with Ms <= {MS_LIMIT:g}; ' if self.ms_limit else ''}stable with TACE "
                 f"<= {self.robust_factor:g} x nominal at +-{100 * self.perturbation:g}% of each plant parameter; "
                 f"{self.draws} draws (noise seed, +-{100 * self.mismatch:g}% model mismatch)")
 
@@ -458,14 +467,42 @@ class _Spent(Exception):
     """The evaluation budget is spent."""
 
 
+def loop_robustness(experiment) -> tuple | None:
+    """(Ms, stable, allowed Ms) of the least robust linear loop of an experiment, fast enough to ask at every
+    point of a search (:func:`contouring_ros.core.margins.quick_robustness`); None when no loop is linear.
+    The loop is each axis coupled with a linear contour controller (:func:`experiment_margins`'s "coupled");
+    allowed is :data:`MS_LIMIT`, or the axis loop's own Ms where the drive's servo alone already exceeds it
+    (a contour controller must then not make it worse)."""
+    from . import config
+    from .core.margins import axis_loop, coupled_loop, quick_robustness
+    ts = float(experiment.sample_time)
+    controller = config.build_controller(experiment, config.build_curve(experiment))
+    worst = None
+    for axis in experiment.axes:
+        plant = config.build_plant(experiment, axis, 0.0, 0.0)
+        servo = config.build_servo(experiment, axis, 0.0, 0.0, 0.0)
+        coupled = coupled_loop(plant, servo, controller, ts)
+        if coupled is None:
+            continue
+        ms, stable = quick_robustness(coupled)
+        alone = axis_loop(plant, servo, ts)
+        allowed = max(MS_LIMIT, quick_robustness(alone)[0]) if alone is not None else MS_LIMIT
+        here = (ms if stable else math.inf, stable, allowed)
+        if worst is None or here[0] / here[2] > worst[0] / worst[2]:
+            worst = here
+    return worst
+
+
 def tune(data: dict, sections: dict, keys: tuple, machine: dict, noise_limit: float, from_time: float,
          protocol: Protocol, where: str = "tuning", optimiser=None) -> Tuned:
     """Tune the gains ``keys`` of ``sections['/ccc']`` (see the module docstring) on ``data`` with the
     machine settings ``machine``; then check robustness, run the draws and the ideal machine.
     ``optimiser``: another search with :func:`minimise`'s signature (to check the tuning against it)."""
+    from .errors import ConfigError
     ccc = sections["/ccc"]
     file_gains = {k: ccc[k] for k in keys}
     tuned = Tuned(file_gains=file_gains)
+    limits = _limits(data, machine)
 
     def with_gains(gains: dict) -> dict:
         section = dict(ccc)
@@ -473,12 +510,32 @@ def tune(data: dict, sections: dict, keys: tuple, machine: dict, noise_limit: fl
             _set_gain(section, key, magnitude)
         return dict(sections, **{"/ccc": section})
 
+    def measure(gains: dict) -> Evaluation:
+        """One point: refused before it runs where its linear loop is unstable or beyond the Ms bound."""
+        try:
+            experiment = experiment_for(data, with_gains(gains), machine, where)
+        except ConfigError as error:
+            return Evaluation(gains, Outcome(failure=f"refused: {error}"), 100.0, False)
+        robustness = loop_robustness(experiment) if protocol.ms_limit else None
+        if robustness is not None and not robustness[0] <= robustness[2]:
+            ms, stable, allowed = robustness
+            what = "its linear loop is unstable" if not stable else f"Ms {ms:.3g} over {allowed:.3g}"
+            excess = 3.0 if not stable else math.log10(ms / allowed)
+            return Evaluation(gains, Outcome(failure=f"refused: {what}"), 50.0 + PENALTY * excess, False)
+        outcome = _outcome(experiment, from_time, limits)
+        return Evaluation(gains, outcome, *_objective(outcome, noise_limit, protocol))
+
     def evaluate(gains: dict) -> Evaluation:
-        outcome = run_outcomes(data, with_gains(gains), [machine], from_time, where)[0]
-        objective, admissible = _objective(outcome, noise_limit, protocol)
-        evaluation = Evaluation(gains, outcome, objective, admissible)
+        evaluation = measure(gains)
         tuned.evaluations.append(evaluation)
         return evaluation
+
+    def robust(candidate: Evaluation) -> float:
+        """The worst TACE over the +-perturbation runs relative to the candidate's nominal one."""
+        runs = run_outcomes(data, with_gains(candidate.gains), [dict(machine, **c) for c in checks], from_time, where)
+        tuned.robustness_runs += len(runs)
+        return max((r.tace / candidate.outcome.tace if r.ok and candidate.outcome.tace > 0 else math.inf)
+                   for r in runs) if runs else 1.0
 
     anchor = anchors(ccc, keys)
     evaluate({k: _magnitude(ccc[k]) for k in keys})             # the file's gains
@@ -492,32 +549,40 @@ def tune(data: dict, sections: dict, keys: tuple, machine: dict, noise_limit: fl
     ranked = sorted((e for e in tuned.evaluations if e.admissible), key=lambda e: e.outcome.tace)
     if not ranked:
         failures = sorted({e.outcome.failure.split(":")[0] for e in tuned.evaluations if e.outcome.failure})
+        noisy = [e.outcome.noise / noise_limit for e in tuned.evaluations if e.outcome.ok and noise_limit > 0]
         tuned.status = ("no admissible gain: every point diverged or broke a constraint"
+                        + (f" (least noise {min(noisy):.3g} x the bound)" if noisy else "")
                         + (f" ({'; '.join(failures)})" if failures else ""))
         return tuned
     checks = perturbations(data, protocol.perturbation)
-    chosen = None
-    seen = []
+    # the best admissible points in turn; then the best backed off in quarter decades (every gain
+    # together, toward more margin); then the file's gains
+    candidates = []
     for candidate in ranked:
-        if len(seen) >= protocol.robust_candidates:
-            break
-        if any(candidate.gains == s for s in seen):
-            continue
-        seen.append(candidate.gains)
-        runs = run_outcomes(data, with_gains(candidate.gains), [dict(machine, **c) for c in checks], from_time, where)
-        tuned.robustness_runs += len(runs)
-        worst = max((r.tace / candidate.outcome.tace if r.ok and candidate.outcome.tace > 0 else math.inf)
-                    for r in runs) if runs else 1.0
+        if len(candidates) < protocol.robust_candidates and all(candidate.gains != c.gains for c in candidates):
+            candidates.append(candidate)
+    best = ranked[0]
+    backed = [{k: v * 10.0 ** (-0.25 * step) for k, v in best.gains.items()} for step in range(1, protocol.backoff + 1)]
+    file_point = tuned.evaluations[0] if tuned.evaluations[0].admissible else None
+    chosen = None
+    for candidate in candidates + backed + ([file_point] if file_point else []):
+        if isinstance(candidate, dict):                  # a backed-off point: measured first (not in the budget)
+            candidate = measure(candidate)
+            tuned.robustness_runs += 1
+            if not candidate.admissible:
+                continue
+        worst = robust(candidate)
         if worst <= protocol.robust_factor:
             chosen, tuned.robust_worst = candidate, worst
             break
         if tuned.robust_worst != tuned.robust_worst or worst < tuned.robust_worst:
             tuned.robust_worst = worst
     if chosen is None:
-        tuned.status = (f"not robust: the {len(seen)} best admissible gains diverge or lose more than "
-                        f"{protocol.robust_factor:g}x at +-{100 * protocol.perturbation:g}% of a plant parameter "
-                        f"(best worst case {tuned.robust_worst:.3g}x)")
-        chosen = ranked[0]
+        tuned.status = (f"not robust: no admissible point checked (the {len(candidates)} best, the best backed "
+                        f"off {protocol.backoff} times, the file's gains) stays within {protocol.robust_factor:g}x "
+                        f"at +-{100 * protocol.perturbation:g}% of a plant parameter (best worst case "
+                        f"{tuned.robust_worst:.3g}x)")
+        chosen = best
     tuned.gains, tuned.nominal = chosen.gains, chosen.outcome
     for key in keys:
         value = chosen.gains[key]

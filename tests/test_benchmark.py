@@ -130,7 +130,7 @@ def test_intervals_verdicts_and_fronts():
     assert tuning.interval([1.0, 2.0, 3.0, float("nan")])[0] == 2.0
     assert all(math.isnan(v) for v in tuning.interval([]))
     assert verdict(0.2, 0.8) == "lower" and verdict(1.1, 3.0) == "higher" and verdict(0.5, 1.5) == "undecided"
-    assert verdict(0.1, 0.4, threshold=0.5) == "lower"
+    assert verdict(0.1, 0.4, threshold=0.5) == "lower" and verdict(1.0, 1.0) == "same"
     front = tuning.pareto_front([(1.0, 5.0), (2.0, 3.0), (3.0, 4.0), (0.5, 9.0), (4.0, 1.0)])
     assert front == [(0.5, 9.0), (1.0, 5.0), (2.0, 3.0), (4.0, 1.0)]
 
@@ -189,3 +189,26 @@ def test_cli_writes_the_report_the_table_and_the_figures(tmp_path):
     assert len((tmp_path / "benchmark.csv").read_text().splitlines()) > 10
     assert main(["benchmark", "--budget", "0", "--out", str(tmp_path)]) == 2
     assert main(["benchmark", "--draws", "0", "--out", str(tmp_path)]) == 2
+
+
+def test_quick_robustness_agrees_with_the_margins_and_the_ms_bound_refuses_before_running():
+    import control
+    from contouring_ros.core.margins import margins, quick_robustness
+    for k in (100.0, 800.0, 1900.0, 2100.0):          # K Ts/(z-1): stable while K Ts < 2
+        loop = control.tf([k * 1e-3], [1.0, -1.0], 1e-3)
+        ms, stable = quick_robustness(loop)
+        assert stable == (k * 1e-3 < 2.0)
+        if stable:
+            assert ms == pytest.approx(margins(loop, 1e-3).ms, rel=1e-3)
+    # a PID contour controller pushed far beyond the drive's loop: its coupled loop is refused unrun
+    families = {f.name: f for f in scenario_families()}
+    family = families["paper002_butterfly"]
+    data = family.data["paper002_butterfly_c4_foot_point_ccc"]
+    combo = next(c for c in plan(family)[0] if c.label == "foot_point_search + variable_gain / pid_feedforward")
+    sections = dict(combo.sections, **{"/ccc": dict(combo.sections["/ccc"], kp=1e6, ki=0.0, kd=0.0)})
+    experiment = tuning.experiment_for(data, sections, {}, "test")
+    ms, stable, allowed = tuning.loop_robustness(experiment)
+    assert not ms <= allowed
+    tuned = tuning.tune(data, sections, ("kp",), {}, math.inf, family.from_time,
+                        Protocol(evaluations=2, popsize=2, draws=1, robust_candidates=1, backoff=0))
+    assert tuned.evaluations[0].outcome.failure.startswith("refused: ")

@@ -42,7 +42,7 @@ from .contouring import NoCoupling, UnitVectorCCC, VariableGainCCC
 from .plants import FirstOrderVelocityAxis, MassDamperAxis
 from .servo import CascadeServo, PIDFeedforwardServo, PIDServo
 
-__all__ = ["LoopMargins", "plant_transfer", "axis_loop", "coupled_loop", "margins"]
+__all__ = ["LoopMargins", "plant_transfer", "axis_loop", "coupled_loop", "margins", "quick_robustness"]
 
 #: points of each of the two frequency grids (logarithmic and linear, up to Nyquist) the margins are sought on
 GRID_POINTS = 20001
@@ -447,3 +447,19 @@ def margins(loop: control.TransferFunction, sample_time: float) -> LoopMargins:
     ms = 1.0 / smallest if smallest > 0.0 else math.inf
     return LoopMargins(gain_margin=gain_margin, phase_margin_deg=phase_margin, ms=ms, crossover_hz=crossover_hz,
                        stable=stable)
+
+
+def quick_robustness(loop: control.TransferFunction, points: int = 4096) -> tuple:
+    """(Ms, stable) of a discrete-time loop in about a millisecond, for a search that asks it at every point:
+    Ms = max 1 / |1 + L| on ``points`` frequencies spaced logarithmically up to Nyquist (without the
+    refinement of :func:`margins`, so at most a few per cent low at a sharp peak), stable when every root of
+    the characteristic polynomial den + num lies inside the unit circle."""
+    num, den = _trim(loop.num[0][0]), _trim(loop.den[0][0])
+    theta = np.pi * np.logspace(-5.0, 0.0, points)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        sensitivity = 1.0 / np.abs(1.0 + _response(num, den, theta))
+    ms = float(np.nanmax(sensitivity)) if np.isfinite(sensitivity).any() else math.inf
+    characteristic = np.polyadd(den, num)
+    stable = bool(np.all(np.abs(np.roots(characteristic)) < 1.0)) if len(characteristic) > 1 else True
+    return ms, stable
+
