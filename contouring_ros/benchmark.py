@@ -593,10 +593,13 @@ def draw_pareto(rows: list, families: list, paper: str, path) -> Path:
         shown = _pareto_rows(rows, family)
         bound = shown[0].bound if shown else None
         scale = bound.published.noise if bound and bound.published.ok and bound.published.noise > 0 else 1.0
+        stars = [r.tuned.nominal.tace * 1e6 for r in shown]
+        top = 30.0 * max(stars) if stars else math.inf          # the region of interest: near the tuned points
+        bound_x = bound.noise_limit / scale if bound and math.isfinite(bound.noise_limit) else 10.0
         for k, row in enumerate(shown):
             colour = "black" if row.is_proposed else f"C{k}"
             points = [(e.outcome.noise / scale, e.outcome.tace * 1e6) for e in row.tuned.evaluations
-                      if e.outcome.ok and e.outcome.saturated <= 1.0]
+                      if e.outcome.ok and e.outcome.tace * 1e6 <= top and e.outcome.noise / scale <= 5 * bound_x]
             if points:
                 xs, ys = zip(*points)
                 ax.scatter(xs, ys, s=6, color=colour, alpha=0.25)
@@ -609,7 +612,9 @@ def draw_pareto(rows: list, families: list, paper: str, path) -> Path:
             ax.axvline(bound.noise_limit / scale, color="grey", ls="--", lw=1)
         ax.set_xscale("log")
         ax.set_yscale("log")
-        ax.set_title(family.name, fontsize=9)
+        ax.set_xlim(right=5 * bound_x)
+        ax.set_title(f"{family.name} (points beyond 30x the worst tuned TACE or 5x the noise bound left out)",
+                     fontsize=8)
         ax.set_xlabel("noise sensitivity / proposed method's with the paper's gains")
         ax.set_ylabel("steady-state TACE [um]")
         ax.legend(fontsize=6, loc="upper right")
