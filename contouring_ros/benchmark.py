@@ -588,7 +588,7 @@ def draw_pareto(rows: list, families: list, paper: str, path) -> Path:
     mine = [f for f in families if f.paper == paper]
     cols = min(3, len(mine))
     lines = math.ceil(len(mine) / cols)
-    fig, axes = plt.subplots(lines, cols, figsize=(5.2 * cols, 4.0 * lines), squeeze=False)
+    fig, axes = plt.subplots(lines, cols, figsize=(max(5.2 * cols, 9.0), 4.2 * lines), squeeze=False)
     for ax, family in zip(axes.flat, mine):
         shown = _pareto_rows(rows, family)
         bound = shown[0].bound if shown else None
@@ -613,16 +613,16 @@ def draw_pareto(rows: list, families: list, paper: str, path) -> Path:
         ax.set_xscale("log")
         ax.set_yscale("log")
         ax.set_xlim(right=5 * bound_x)
-        ax.set_title(f"{family.name} (points beyond 30x the worst tuned TACE or 5x the noise bound left out)",
-                     fontsize=8)
+        ax.set_title(family.name, fontsize=9)
         ax.set_xlabel("noise sensitivity / proposed method's with the paper's gains")
         ax.set_ylabel("steady-state TACE [um]")
         ax.legend(fontsize=6, loc="upper right")
         ax.grid(True, which="both", alpha=0.2)
     for ax in list(axes.flat)[len(mine):]:
         ax.set_visible(False)
-    fig.suptitle(f"Paper {paper}: TACE against noise sensitivity of every stable point each search evaluated "
-                 "(lines: Pareto fronts; stars: tuned; dashed: the noise bound)", fontsize=10)
+    fig.suptitle(f"Paper {paper}: TACE against noise sensitivity of every stable point each search evaluated\n"
+                 "lines: Pareto fronts; stars: tuned; dashed: the noise bound; points beyond 30x the worst tuned "
+                 "TACE or 5x the noise bound left out", fontsize=9)
     fig.tight_layout()
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
