@@ -21,7 +21,9 @@ file an anchor from its sibling (ki: 30 kp, kd: 1e-3 kp) so that it is free to b
 end of the span means 0 (off). The same budget of evaluations for every method, spent by
 :func:`minimise`: CMA-ES (Hansen, "The CMA evolution strategy: a tutorial", 2016; the ``cma`` package) for a
 global search, then Nelder-Mead (scipy) to converge from its best point. The file's own gains are the first
-evaluation, so a tuned result is never worse than the file's when that is admissible.
+evaluation, so a tuned result is never worse than the file's when that is admissible; a coarse scan of
+every gain scaled together (:attr:`Protocol.scan` decades) comes next, and the search starts from the best
+of these points, so a paper whose gains sit decades from where its loop acts is not tuned short.
 
 Constraints (the same for every method of a scenario, measured in simulation):
 
@@ -86,7 +88,8 @@ class Protocol:
 
     evaluations: int = 40          # evaluations per combination (the file's gains included)
     popsize: int = 6
-    decades: float = 4.0           # each gain's span either side of its anchor [decades]
+    decades: float = 8.0           # each gain's span either side of its anchor [decades]
+    scan: tuple = (-2.0, 2.0, 4.0, 6.0)  # decades every gain is shifted by together in the first scan
     noise_factor: float = 2.0      # noise sensitivity at most this x the proposed method's (paper's gains)
     saturation_share: float = 0.01  # share of steady-state steps at the actuator limit, at most
     perturbation: float = 0.2      # robustness: each plant parameter x (1 +- this)
@@ -101,7 +104,8 @@ class Protocol:
     polish_step: float = 0.3       # Nelder-Mead's first simplex [decades]
 
     def describe(self) -> str:
-        return (f"{self.evaluations} evaluations: CMA-ES (population {self.popsize}) for "
+        return (f"{self.evaluations} evaluations: the file's gains, the file's gains scaled together by "
+                f"10^({', '.join(f'{d:+g}' for d in self.scan)}), then CMA-ES (population {self.popsize}) for "
                 f"{100 * self.global_share:.0f}% of them, then Nelder-Mead from its best point; each gain log-scaled over "
                 f"+-{self.decades:g} decades of its anchor; noise sensitivity <= {self.noise_factor:g} x the "
                 f"proposed method's; <= {100 * self.saturation_share:g}% of steps saturated; "
@@ -544,8 +548,18 @@ def tune(data: dict, sections: dict, keys: tuple, machine: dict, noise_limit: fl
         high = [math.log10(anchor[k]) + protocol.decades for k in keys]
         x0 = [math.log10(_magnitude(ccc[k])) if _magnitude(ccc[k]) > 0 else math.log10(anchor[k]) - 1.0
               for k in keys]
-        (optimiser or minimise)(lambda x: evaluate(_gains_from(x, keys, anchor, protocol.decades)).objective,
-                                x0, low, high, protocol.evaluations - 1, protocol)
+
+        def objective(x):
+            return evaluate(_gains_from(x, keys, anchor, protocol.decades)).objective
+        # a coarse scan first: every gain scaled together by each of SCAN_DECADES (a file's gains may sit
+        # decades from where the loop acts); the search starts from the best of them and the file's point
+        values = {tuple(x0): tuned.evaluations[0].objective}
+        for shift in protocol.scan:
+            x = [min(max(v + shift, lo), hi) for v, lo, hi in zip(x0, low, high)]
+            if tuple(x) not in values and len(tuned.evaluations) < protocol.evaluations - 1:
+                values[tuple(x)] = objective(x)
+        start = list(min(values, key=values.get))
+        (optimiser or minimise)(objective, start, low, high, protocol.evaluations - len(tuned.evaluations), protocol)
     ranked = sorted((e for e in tuned.evaluations if e.admissible), key=lambda e: e.outcome.tace)
     if not ranked:
         failures = sorted({e.outcome.failure.split(":")[0] for e in tuned.evaluations if e.outcome.failure})
