@@ -55,13 +55,13 @@ def test_the_code_cites_only_documents_in_the_repository():
 
 
 def test_package_xml_declares_what_setup_py_installs():
-    """Every install requirement has a rosdep key in package.xml, or is one of the two pip-only packages the
+    """Every install requirement has a rosdep key in package.xml, or is one of the pip-only packages the
     README's ROS recipe installs with pip."""
     import re
     xml = (ROOT / "package.xml").read_text()
     setup = (ROOT / "setup.py").read_text()
     required = re.search(r"install_requires=\[(.*?)\]", setup, re.S).group(1)
-    pip_only = {"mcap", "mcap-ros2-support", "ruckig"}
+    pip_only = {"mcap", "mcap-ros2-support", "ruckig", "cma", "control"}
     keys = {"setuptools": None, "PyYAML": "python3-yaml"}
     for name in re.findall(r'"([^"]+)"', required):
         if name in pip_only:
