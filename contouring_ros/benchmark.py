@@ -616,7 +616,8 @@ def draw_pareto(rows: list, families: list, paper: str, path) -> Path:
         ax.set_title(family.name, fontsize=9)
         ax.set_xlabel("noise sensitivity / proposed method's with the paper's gains")
         ax.set_ylabel("steady-state TACE [um]")
-        ax.legend(fontsize=6, loc="upper right")
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(fontsize=6, loc="upper right")
         ax.grid(True, which="both", alpha=0.2)
     for ax in list(axes.flat)[len(mine):]:
         ax.set_visible(False)
@@ -790,7 +791,8 @@ def benchmark_report(rows: list, families: list, protocol: Protocol, seconds: fl
         "- **Constraints**: noise sensitivity = RMS of the command's sample-to-sample change in the steady state; "
         "saturation = share of steady-state steps with a command at its limit; robustness = stable with TACE "
         "within the stated factor of nominal at each plant parameter (gain, time constant, mass, damping) "
-        f"+-{100 * protocol.perturbation:g}% on every axis, checked on the best admissible points in turn. "
+        f"+-{100 * protocol.perturbation:g}% on every axis, checked on every admissible point that would become "
+        "the best so far (one that fails is inadmissible, and the search turns away from it). "
         "A row marked *not robust* had no robust point among those checked: its best admissible point is "
         "shown, and it cannot be the best of its scenario.",
         f"- **Intervals**: each tuned method runs {protocol.draws} draws (noise seed, model mismatch within "

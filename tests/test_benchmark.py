@@ -12,7 +12,7 @@ from contouring_ros.errors import ConfigError
 from contouring_ros.tuning import Protocol
 
 SMALL = "paper003_mech_ellipse"      # one scenario of two files, two combinations
-FAST = Protocol(evaluations=6, popsize=4, draws=2, robust_candidates=1)
+FAST = Protocol(evaluations=6, popsize=4, draws=2, backoff=1)
 
 
 def test_scenarios_group_the_files_of_one_experiment_and_pick_the_proposed_file():
@@ -210,5 +210,5 @@ def test_quick_robustness_agrees_with_the_margins_and_the_ms_bound_refuses_befor
     ms, stable, allowed = tuning.loop_robustness(experiment)
     assert not ms <= allowed
     tuned = tuning.tune(data, sections, ("kp",), {}, math.inf, family.from_time,
-                        Protocol(evaluations=2, popsize=2, draws=1, robust_candidates=1, backoff=0))
+                        Protocol(evaluations=2, popsize=2, draws=1, backoff=0))
     assert tuned.evaluations[0].outcome.failure.startswith("refused: ")
