@@ -157,19 +157,10 @@ class FirstOrderVelocityAxis(Axis):
     position, velocity : float
         Initial state [m], [m/s].
     saturation : float
-        Actuator limit: the command is clipped to +-saturation before the disturbance adds (0: none).    encoder_resolution : float
-        Encoder resolution [m] the position reading is rounded to (0: exact).
-    measurement_noise : float
-        Standard deviation [m] of the white Gaussian noise added to the position reading before the
-        rounding (0: none).
-    noise_seed : int
-        Seed of that noise (same seed, same noise sequence).
-    command_delay : int
-        Computation delay [samples], 0 to :data:`MAX_COMMAND_DELAY`.
-    velocity_measurement : str
-        "model" (the exact velocity) or "encoder" (the backward difference of the position readings).
-
-    See :class:`Axis` for what each imperfection models.
+        Actuator limit: the command is clipped to +-saturation before the disturbance adds (0: none).
+    encoder_resolution, measurement_noise, noise_seed, command_delay, velocity_measurement :
+        The drive's imperfections (encoder [m], position noise [m] and its seed, computation delay
+        [samples], the velocity reading): see :class:`Axis`.
     """
 
     #: steps elementwise on arrays with a leading batch axis (:mod:`contouring_ros.core.batch`)
@@ -266,19 +257,9 @@ class MassDamperAxis(Axis):
         Coulomb friction moving forward, backward [command units].
     disturbance_unit : str
         "command" or "acceleration".
-    encoder_resolution : float
-        Encoder resolution [m] the position reading is rounded to (0: exact).
-    measurement_noise : float
-        Standard deviation [m] of the white Gaussian noise added to the position reading before the
-        rounding (0: none).
-    noise_seed : int
-        Seed of that noise (same seed, same noise sequence).
-    command_delay : int
-        Computation delay [samples], 0 to :data:`MAX_COMMAND_DELAY`.
-    velocity_measurement : str
-        "model" (the exact velocity) or "encoder" (the backward difference of the position readings).
-
-    See :class:`Axis` for what each imperfection models.
+    encoder_resolution, measurement_noise, noise_seed, command_delay, velocity_measurement :
+        The drive's imperfections (encoder [m], position noise [m] and its seed, computation delay
+        [samples], the velocity reading): see :class:`Axis`.
     """
 
     #: steps elementwise on arrays with a leading batch axis (:mod:`contouring_ros.core.batch`)
