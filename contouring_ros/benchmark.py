@@ -24,7 +24,6 @@ saturation and robustness constraints, a realistic machine, intervals over seeds
 """
 from __future__ import annotations
 
-import copy
 import csv
 import fnmatch
 import json
@@ -39,7 +38,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from .tuning import Protocol, gain_keys, interval, machine_settings, pareto_front, run_outcomes, tune
+from .tuning import Protocol, experiment_for, gain_keys, interval, machine_settings, pareto_front, run_outcomes, tune
 
 __all__ = ["GOAL", "Family", "Combination", "Excluded", "Row", "Reference",
            "scenario_families", "select_families", "plan", "run_benchmark", "write_csv", "draw_heatmap",
@@ -229,12 +228,7 @@ def _catalogue_estimators(families: list) -> dict:
 
 
 def _experiment(family: Family, sections: dict, where: str, settings: dict | None = None):
-    from .config import experiment_from_data
-    from .sweep import apply_settings
-    data = apply_settings(copy.deepcopy(family.data[family.proposed]), sections)
-    if settings:
-        apply_settings(data, settings)
-    return experiment_from_data(data, where)
+    return experiment_for(family.data[family.proposed], sections, settings or {}, where)
 
 
 def _probe(family: Family, sections: dict) -> str:

@@ -344,25 +344,30 @@ def run_outcomes(data: dict, sections: dict, settings_list: list, from_time: flo
     return out
 
 
-def experiment_margins(experiment) -> dict:
-    """The margins of every axis of an experiment: {axis: {"axis": LoopMargins | None, "coupled": ...}}.
-
-    "axis" is :func:`contouring_ros.core.margins.axis_loop` of the axis' plant and servo, "coupled"
-    :func:`~contouring_ros.core.margins.coupled_loop` with the experiment's contour controller (each axis as
-    if the others were identical to it, on a straight line); None where the law is not linear
-    time-invariant feedback.
-    """
+def _loops(experiment) -> dict:
+    """{axis: {"axis": L(z) | None, "coupled": L(z) | None}}: each axis' loop alone
+    (:func:`contouring_ros.core.margins.axis_loop`) and with the experiment's contour controller
+    (:func:`~contouring_ros.core.margins.coupled_loop`: each axis as if the others were identical to it, on
+    a straight line); None where the law is not linear time-invariant feedback."""
     from . import config
-    from .core.margins import axis_loop, coupled_loop, margins
+    from .core.margins import axis_loop, coupled_loop
     ts = float(experiment.sample_time)
     controller = config.build_controller(experiment, config.build_curve(experiment))
     out = {}
     for axis in experiment.axes:
         plant = config.build_plant(experiment, axis, 0.0, 0.0)
         servo = config.build_servo(experiment, axis, 0.0, 0.0, 0.0)
-        loops = {"axis": axis_loop(plant, servo, ts), "coupled": coupled_loop(plant, servo, controller, ts)}
-        out[axis] = {name: None if loop is None else margins(loop, ts) for name, loop in loops.items()}
+        out[axis] = {"axis": axis_loop(plant, servo, ts), "coupled": coupled_loop(plant, servo, controller, ts)}
     return out
+
+
+def experiment_margins(experiment) -> dict:
+    """The margins of every axis of an experiment: {axis: {"axis": LoopMargins | None, "coupled": ...}} of
+    the loops of :func:`_loops`."""
+    from .core.margins import margins
+    ts = float(experiment.sample_time)
+    return {axis: {name: None if loop is None else margins(loop, ts) for name, loop in loops.items()}
+            for axis, loops in _loops(experiment).items()}
 
 
 def worst_margins(per_axis: dict):
@@ -479,20 +484,13 @@ def loop_robustness(experiment) -> tuple | None:
     The loop is each axis coupled with a linear contour controller (:func:`experiment_margins`'s "coupled");
     allowed is :data:`MS_LIMIT`, or the axis loop's own Ms where the drive's servo alone already exceeds it
     (a contour controller must then not make it worse)."""
-    from . import config
-    from .core.margins import axis_loop, coupled_loop, quick_robustness
-    ts = float(experiment.sample_time)
-    controller = config.build_controller(experiment, config.build_curve(experiment))
+    from .core.margins import quick_robustness
     worst = None
-    for axis in experiment.axes:
-        plant = config.build_plant(experiment, axis, 0.0, 0.0)
-        servo = config.build_servo(experiment, axis, 0.0, 0.0, 0.0)
-        coupled = coupled_loop(plant, servo, controller, ts)
-        if coupled is None:
+    for loops in _loops(experiment).values():
+        if loops["coupled"] is None:
             continue
-        ms, stable = quick_robustness(coupled)
-        alone = axis_loop(plant, servo, ts)
-        allowed = max(MS_LIMIT, quick_robustness(alone)[0]) if alone is not None else MS_LIMIT
+        ms, stable = quick_robustness(loops["coupled"])
+        allowed = max(MS_LIMIT, quick_robustness(loops["axis"])[0]) if loops["axis"] is not None else MS_LIMIT
         here = (ms if stable else math.inf, stable, allowed)
         if worst is None or here[0] / here[2] > worst[0] / worst[2]:
             worst = here
