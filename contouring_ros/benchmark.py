@@ -38,7 +38,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from .tuning import Protocol, experiment_for, gain_keys, interval, machine_settings, pareto_front, run_outcomes, tune
+from .tuning import Protocol, experiment_for, gain_keys, interval, machine_settings, pareto_front, run_outcomes, tune, worst_case
 
 __all__ = ["GOAL", "Family", "Combination", "Excluded", "Row", "Reference",
            "scenario_families", "select_families", "plan", "run_benchmark", "write_csv", "draw_heatmap",
@@ -307,6 +307,7 @@ class Reference:
     published: object             # tuning.Outcome: the proposed file's gains on that machine
     ideal_published: object       # ... on the ideal machine (the file as it is)
     noise_limit: float            # the noise sensitivity every combination must stay under
+    worst: float = math.nan       # the proposed method's worst TACE [m] at +-perturbation (tuning.worst_case)
 
 
 @dataclass
@@ -382,15 +383,16 @@ def verdict(low: float, high: float, threshold: float = 1.0) -> str:
     return "undecided"
 
 
-def _reference_job(data: dict, from_time: float, where: str) -> Reference:
+def _reference_job(data: dict, from_time: float, where: str, protocol: Protocol | None = None) -> Reference:
     ideal = run_outcomes(data, {}, [{}], from_time, where)[0]
     machine = machine_settings(data, "realistic", ideal.peak_command if ideal.ok else ())
     published = run_outcomes(data, {}, [machine], from_time, where)[0]
-    return Reference(machine, published, ideal, math.nan)
+    return Reference(machine, published, ideal, math.nan,
+                     worst_case(data, {}, machine, from_time, protocol or Protocol(), where))
 
 
-def _tune_job(data, sections, keys, machine, noise_limit, from_time, protocol, where):
-    return tune(data, sections, keys, machine, noise_limit, from_time, protocol, where)
+def _tune_job(data, sections, keys, machine, noise_limit, from_time, protocol, where, robust_floor):
+    return tune(data, sections, keys, machine, noise_limit, from_time, protocol, where, robust_floor=robust_floor)
 
 
 def run_benchmark(families: list, protocol: Protocol | None = None, workers: int | None = None,
@@ -403,7 +405,7 @@ def run_benchmark(families: list, protocol: Protocol | None = None, workers: int
     catalogue = _catalogue_estimators(scenario_families() if families else [])
     rows = []
     with ProcessPoolExecutor(max_workers=workers) as pool:
-        references = {f.name: pool.submit(_reference_job, f.data[f.proposed], f.from_time, f.name) for f in families}
+        references = {f.name: pool.submit(_reference_job, f.data[f.proposed], f.from_time, f.name, protocol) for f in families}
         jobs = []
         for family in families:
             combos, excluded = plan(family, catalogue)
@@ -416,7 +418,8 @@ def run_benchmark(families: list, protocol: Protocol | None = None, workers: int
                 rows.append(row)
                 jobs.append((row, pool.submit(_tune_job, family.data[family.proposed], combo.sections,
                                               combo.gain_keys, reference.machine, reference.noise_limit,
-                                              family.from_time, protocol, f"{family.name} {combo.label}")))
+                                              family.from_time, protocol, f"{family.name} {combo.label}",
+                                              reference.worst if math.isfinite(reference.worst) else 0.0)))
             rows += [Row(family, None, e, status=f"cannot be paired: {e.reason}") for e in excluded]
         with tqdm(total=len(jobs), desc="benchmark", disable=not progress, leave=False) as bar:
             for row, job in jobs:
