@@ -104,6 +104,43 @@ def test_batch_of_the_frenet_frame_and_foot_point_classes_equals_each_run_alone(
     _assert_equal_runs(simulate_batch(batch), [simulate(loop) for loop in loops()], tolerance=1e-12)
 
 
+def _on_spline():
+    # a spline through points of the default parabola, driven by the feedrate schedule
+    data = yaml.safe_load(shortened(DEFAULT, 0.4))
+    x = np.linspace(-0.02, 0.02, 9)
+    data["/**"]["ros__parameters"]["curve"] = {"type": "spline", "x": x.tolist(), "y": (50.0 * x * x).tolist()}
+    data["/**"]["ros__parameters"]["schedule"] = {"type": "feedrate", "feedrate": 0.02, "acceleration": 0.5}
+    return yaml.safe_dump(data)
+
+
+def _with_random_disturbance():
+    data = yaml.safe_load(shortened(DEFAULT, 0.3))
+    data["/x/plant"]["ros__parameters"]["disturbance"] = {"type": "random", "std": 1e-4, "seed": 1}
+    return yaml.safe_dump(data)
+
+
+# the tool path of a part program with its jerk-limited feed plan (shared across the batch), a spline, a random
+# disturbance of its own seed per run: each member equals its run alone to 1e-12
+@pytest.mark.parametrize("text, grid", [
+    (shortened(CONFIG / "gcode_example_part.yaml", 1.0), {"ccc.kp": [1.0, 2.0], "contour_estimator.k_prime": [400.0, 500.0]}),
+    (_on_spline(), {"ccc.kp": [0.5, 4.0], "x/servo.a": [10.0, 12.5]}),
+    (_with_random_disturbance(), {"x/plant.disturbance.seed": [1, 2, 3], "x/plant.disturbance.std": [1e-4, 2e-4]}),
+], ids=["gcode-feed-plan", "spline", "random-disturbance"])
+def test_batch_of_tool_paths_splines_and_random_disturbances_equals_each_run_alone(text, grid):
+    def loops():
+        return [build_loop(experiment) for _, experiment in combinations(text, grid)]
+    batch = loops()
+    assert batchable(batch)
+    _assert_equal_runs(simulate_batch(batch), [simulate(loop) for loop in loops()], tolerance=1e-12)
+
+
+def test_tool_paths_and_feed_plans_batch_only_when_they_are_the_same():
+    text = _on_spline()
+    assert not batchable(_loops(text, ["curve.closed=false,true"]))
+    part = shortened(CONFIG / "gcode_example_part.yaml", 0.2)
+    assert batch_problem(_loops(part, ["schedule.jerk=10,20"])) == "FeedPlan.limits must be the same across a batch"
+
+
 def test_foot_point_search_batch_counts_each_members_backsteps_and_caps_as_alone():
     text, grid = _settings("paper002_butterfly_c4_foot_point_ccc.yaml", 0.3,
                            {"contour_estimator.max_iterations": [1, 2, 10], "contour_estimator.tolerance": [1e-6, 1e-9]})

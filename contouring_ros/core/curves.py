@@ -301,6 +301,11 @@ class SplineCurve(Curve):
         Periodic spline (the last point is joined back to the first).
     """
 
+    #: columns() works on a batch of parameters when every experiment of the batch has the same spline
+    #: (:mod:`contouring_ros.core.batch`)
+    batchable = True
+    batch_shared = ("_splines",)
+
     def __init__(self, points, closed: bool = False):
         from scipy.interpolate import make_interp_spline
         points = np.asarray(points, dtype=float)
@@ -371,6 +376,11 @@ class ToolPath(Curve):
     curvature jumps where moves meet, as on a machine. ``blocks`` lists the stretches between block
     boundaries (:class:`PathBlock`) for feed planning.
     """
+
+    #: columns() works on a batch of parameters when every experiment of the batch has the same path
+    #: (:mod:`contouring_ros.core.batch`)
+    batchable = True
+    batch_shared = ("segments", "blocks", "program")
 
     dimension = 2
 

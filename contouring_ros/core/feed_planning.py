@@ -20,6 +20,8 @@ parameter is s itself: theta = s, theta_dot = v (the feed), theta_ddot = dv/dt.
 """
 from __future__ import annotations
 
+import copy
+
 import math
 from dataclasses import dataclass
 
@@ -184,7 +186,11 @@ class FeedPlan:
         Start time of each block, then the duration.
     """
 
-    batchable = False
+    #: runs on a batch of times (:mod:`contouring_ros.core.batch`) when every experiment of the batch has the
+    #: same plan (its trajectories follow from the shared limits, junction speeds and block times)
+    batchable = True
+    batch_shared = ("limits", "junctions", "_dwell", "block_times", "_starts")
+    batch_kept = ("_trajectories",)
 
     def __init__(self, path: ToolPath, acceleration: float, jerk: float, feedrate: float | None = None,
                  rapid_feedrate: float | None = None, normal_acceleration: float = 0.0, axis_feedrate=None,
@@ -241,6 +247,15 @@ class FeedPlan:
         self.duration = float(times[-1])
         self._table = None
 
+    def __deepcopy__(self, memo):
+        """A deep copy sharing the planned trajectories (read only once planned; Ruckig's cannot be copied)."""
+        out = copy.copy(self)
+        memo[id(self)] = out
+        for name, value in vars(self).items():
+            if name != "_trajectories":
+                setattr(out, name, copy.deepcopy(value, memo))
+        return out
+
     def _one(self, t: float):
         if t >= self.duration:
             return self.theta_end, 0.0, 0.0
@@ -256,7 +271,8 @@ class FeedPlan:
         """theta (= arc length), theta_dot (feed), theta_ddot at time(s) t."""
         if np.ndim(t) == 0:
             return self._one(float(t))
-        rows = np.array([self._one(float(x)) for x in np.ravel(t)]).reshape(np.shape(t) + (3,))
+        times, where = np.unique(np.ravel(t), return_inverse=True)      # a batch's steps share one time
+        rows = np.array([self._one(float(x)) for x in times])[where].reshape(np.shape(t) + (3,))
         return rows[..., 0], rows[..., 1], rows[..., 2]
 
     def feed_limit_at(self, theta):
