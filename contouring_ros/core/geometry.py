@@ -63,13 +63,19 @@ def dot_rows(a, b) -> np.ndarray:
 
 def matvec_rows(m, v) -> np.ndarray:
     """:func:`matvec` of a batch: m (..., r, c), v (..., c) -> (..., r)."""
-    return np.stack([dot_rows(m[..., i, :], v) for i in range(np.shape(m)[-2])], axis=-1)
+    out = np.empty(np.broadcast_shapes(np.shape(m)[:-1], np.shape(v)[:-1] + (1,)))
+    for i in range(out.shape[-1]):
+        out[..., i] = dot_rows(m[..., i, :], v)
+    return out
 
 
 def matmul_rows(a, b) -> np.ndarray:
     """:func:`matmul` of a batch: a (..., r, k), b (..., k, c) -> (..., r, c)."""
-    return np.stack([np.stack([dot_rows(a[..., i, :], b[..., :, j]) for j in range(np.shape(b)[-1])], axis=-1)
-                     for i in range(np.shape(a)[-2])], axis=-2)
+    out = np.empty(np.broadcast_shapes(np.shape(a)[:-2], np.shape(b)[:-2]) + (np.shape(a)[-2], np.shape(b)[-1]))
+    for i in range(out.shape[-2]):
+        for j in range(out.shape[-1]):
+            out[..., i, j] = dot_rows(a[..., i, :], b[..., :, j])
+    return out
 
 
 def unit_tangent(curve: Curve, theta) -> np.ndarray:
