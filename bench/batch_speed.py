@@ -10,14 +10,16 @@ a range) are simulated:
   did for these classes before they had a batch path, and still does for a class without one).
 
 It prints configuration-steps per second of wall time and of process CPU time (the machine may be shared:
-CPU time is the steadier figure) and the ratio vectorised / one by one. One process, one core: a sweep
-multiplies either figure by its workers.
+CPU time is the steadier figure), each the median of ``--repeat`` measurements, the two sides alternated,
+and the ratio vectorised / one by one. One process, one core: a sweep multiplies either figure by its
+workers.
 
-Usage: python bench/batch_speed.py [--batch 64] [--alone 4] [--seconds 0.5] [--only LABEL ...]
+Usage: python bench/batch_speed.py [--batch 64] [--alone 4] [--seconds 0.5] [--repeat 3] [--only LABEL ...]
 """
 from __future__ import annotations
 
 import argparse
+import statistics
 import sys
 import time
 from pathlib import Path
@@ -97,10 +99,11 @@ def main() -> None:
     parser.add_argument("--batch", type=int, default=64, help="configurations simulated as one batch")
     parser.add_argument("--alone", type=int, default=4, help="configurations simulated one by one")
     parser.add_argument("--seconds", type=float, default=0.5, help="simulated seconds per configuration")
+    parser.add_argument("--repeat", type=int, default=3, help="measurements of each side (medians printed)")
     parser.add_argument("--only", nargs="*", help="labels of the cases to run (default: all)")
     args = parser.parse_args()
     print(f"configuration-steps/s, {args.seconds:g} s of each experiment; vectorised: one batch of {args.batch}; "
-          f"one by one: {args.alone} runs; wall (CPU)")
+          f"one by one: {args.alone} runs; wall (CPU), medians of {args.repeat}")
     print(f"{'case':16} {'vectorised':>22} {'one by one':>20} {'ratio':>12}  classes")
     for label, classes, experiment, key, span in CASES:
         if args.only and label not in args.only:
@@ -112,11 +115,13 @@ def main() -> None:
             print(f"{label:16} not batchable: {problem}")
             continue
         steps = batch[0].n_steps
-        wall_b, cpu_b = _timed(lambda: simulate_batch(batch))
-        alone = _loops(text, key, span, args.alone)
-        wall_a, cpu_a = _timed(lambda: [simulate(loop) for loop in alone])
-        vec = (args.batch * steps / wall_b, args.batch * steps / cpu_b)
-        one = (args.alone * steps / wall_a, args.alone * steps / cpu_a)
+        vectorised, alone = [], []
+        for _ in range(args.repeat):        # simulate_batch leaves its loops untouched; simulate needs fresh ones
+            vectorised.append(_timed(lambda: simulate_batch(batch)))
+            loops = _loops(text, key, span, args.alone)
+            alone.append(_timed(lambda: [simulate(loop) for loop in loops]))
+        vec = tuple(args.batch * steps / statistics.median(t[i] for t in vectorised) for i in (0, 1))
+        one = tuple(args.alone * steps / statistics.median(t[i] for t in alone) for i in (0, 1))
         print(f"{label:16} {vec[0]:>10.0f} ({vec[1]:>9.0f}) {one[0]:>9.0f} ({one[1]:>8.0f}) "
               f"{vec[0] / one[0]:>5.1f} ({vec[1] / one[1]:>4.1f})  {classes}", flush=True)
 
