@@ -141,6 +141,19 @@ def test_tool_paths_and_feed_plans_batch_only_when_they_are_the_same():
     assert batch_problem(_loops(part, ["schedule.jerk=10,20"])) == "FeedPlan.limits must be the same across a batch"
 
 
+def test_every_scenario_file_can_run_as_a_batch():
+    # every class a scenario of config/ is built of has a batch path: sweeps, maps and the benchmark's tuning
+    # run none of them one by one for want of one
+    from contouring_ros.config import load_experiment
+    problems = {}
+    for path in sorted(CONFIG.glob("*.yaml")):
+        experiment = load_experiment(path)
+        problem = batch_problem([build_loop(experiment), build_loop(experiment)])
+        if problem:
+            problems[path.name] = problem
+    assert problems == {}
+
+
 def test_foot_point_search_batch_counts_each_members_backsteps_and_caps_as_alone():
     text, grid = _settings("paper002_butterfly_c4_foot_point_ccc.yaml", 0.3,
                            {"contour_estimator.max_iterations": [1, 2, 10], "contour_estimator.tolerance": [1e-6, 1e-9]})
