@@ -31,13 +31,13 @@ import math
 import os
 import time
 from collections import Counter
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 import yaml
 
+from .executors import pool as executor
 from .tuning import Protocol, experiment_for, gain_keys, interval, machine_settings, pareto_front, run_outcomes, tune, worst_case
 
 __all__ = ["GOAL", "Family", "Combination", "Excluded", "Row", "Reference",
@@ -396,15 +396,15 @@ def _tune_job(data, sections, keys, machine, noise_limit, from_time, protocol, w
 
 
 def run_benchmark(families: list, protocol: Protocol | None = None, workers: int | None = None,
-                  progress: bool = False, say=None) -> list:
-    """Every row (one per scenario x combination, the excluded ones included) of ``families``."""
+                  progress: bool = False, say=None, scheduler: str | None = None) -> list:
+    """Every row (one per scenario x combination, the excluded ones included) of ``families``, on local
+    processes or the Dask cluster at ``scheduler`` (:func:`contouring_ros.executors.pool`)."""
     from tqdm import tqdm
     protocol = protocol or Protocol()
     say = say or (lambda message: None)
-    workers = workers or os.cpu_count() or 1
     catalogue = _catalogue_estimators(scenario_families() if families else [])
     rows = []
-    with ProcessPoolExecutor(max_workers=workers) as pool:
+    with executor(workers, scheduler) as (pool, _):
         references = {f.name: pool.submit(_reference_job, f.data[f.proposed], f.from_time, f.name, protocol) for f in families}
         jobs = []
         for family in families:
@@ -827,7 +827,7 @@ def read_notes(path) -> dict:
 
 
 def main_benchmark(patterns=None, protocol: Protocol | None = None, out="reports", workers=None, progress=False,
-                   say=None, command: str = "contouring-ros benchmark") -> tuple:
+                   say=None, command: str = "contouring-ros benchmark", scheduler: str | None = None) -> tuple:
     """Run the benchmark and write benchmark.md, benchmark.csv, benchmark_heatmap.png and one
     benchmark_pareto_paper<N>.png per paper into ``out``."""
     from .paper import CONFIG_DIR
@@ -835,7 +835,7 @@ def main_benchmark(patterns=None, protocol: Protocol | None = None, out="reports
     protocol = protocol or Protocol()
     start = time.perf_counter()
     families = select_families(scenario_families(), patterns)
-    rows = run_benchmark(families, protocol, workers, progress, say)
+    rows = run_benchmark(families, protocol, workers, progress, say, scheduler)
     out = Path(out)
     csv_path = write_csv(rows, out / "benchmark.csv")
     png = draw_heatmap(rows, out / "benchmark_heatmap.png")
