@@ -64,6 +64,9 @@ def _run(args):
         if sum(map(bool, (args.composed, args.group, args.process))) > 1:
             raise ConfigError("--process, --composed and --group are three layouts: give one")
         layout = "composed" if args.composed else "process" if args.process or args.group else None
+        from .config import build_curve, load_experiment, program_warnings
+        for warning in program_warnings(build_curve(load_experiment(config))):
+            print(f"warning: {warning}", file=sys.stderr)
         bag = run_graph(config, args.bag, progress=lambda m: print(m, flush=True),
                         layout=layout, groups=args.group,
                         namespace=args.namespace, domain_id=args.domain, shared_domain=args.domain is not None)
@@ -103,8 +106,11 @@ def _simulate(args):
     from .core.simulation import simulate
     from .scoring import format_scores, score_run, tolerance_line
     from .errors import Diverged
+    from .config import program_warnings
     experiment = load_experiment(_experiment_path(args.config))
     loop = build_loop(experiment)
+    for warning in program_warnings(loop.curve):
+        print(f"warning: {warning}", file=sys.stderr)
     try:
         result = simulate(loop, progress=loop.n_steps > LONG_RUN_STEPS and sys.stderr.isatty())
     except Diverged as error:

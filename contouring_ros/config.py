@@ -101,7 +101,7 @@ def _spline(s, context):
 
 
 _PLAN_KEYS = ("rapid_feedrate", "axis_feedrate", "axis_acceleration", "axis_jerk", "contour_tolerance", "tracking_lag",
-              "exact_stop_dwell")
+              "exact_stop_dwell", "feed_override")
 
 
 def _feedrate_schedule(section, context):
@@ -115,7 +115,7 @@ def _feedrate_schedule(section, context):
     if jerk or program is not None:
         return _feed_plan(where, context.curve, program, jerk, arguments, plan)
     for key, value in plan.items():
-        if value not in (None, 0.0):
+        if value not in (None, 0.0) and not (key == "feed_override" and value == 100.0):
             _fail(where, f"schedule.{key}", "applies to the jerk-limited feed plan of a tool path: give jerk too")
     if arguments["feedrate"] is None:
         _fail(where, "schedule.feedrate", "missing required key")
@@ -151,7 +151,8 @@ def _feed_plan(where, curve, program, jerk, arguments, plan):
     try:
         return FeedPlan(curve, arguments["acceleration"], jerk, arguments["feedrate"], plan["rapid_feedrate"] or None,
                         arguments["normal_acceleration"], plan["axis_feedrate"], plan["axis_acceleration"],
-                        plan["axis_jerk"], plan["contour_tolerance"], plan["tracking_lag"], plan["exact_stop_dwell"])
+                        plan["axis_jerk"], plan["contour_tolerance"], plan["tracking_lag"], plan["exact_stop_dwell"],
+                        plan["feed_override"] / 100.0)
     except ValueError as error:
         raise ConfigError(f"{_printable(where)}: schedule: {_printable(error, 400)}") from None
 
@@ -165,19 +166,28 @@ def _gcode(s, context):
     if path is None:
         raise ValueError(f"file: cannot find the part program {s['file']!r} (relative paths are read from the "
                          "experiment file's directory)")
-    raw = _read_file(path, _printable(path))
+    raw = _read_file(path, _printable(path), MAX_PROGRAM_BYTES, "a part program is a text file")
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError as error:
         raise ValueError(f"{path}: not a text file (not UTF-8 at byte {error.start})") from None
     try:
-        program = gcode.parse_program(text, s["start"])
+        program = gcode.parse_program(text, s["start"], s["strict"])
         tool_path = curves.ToolPath.from_program(program, s["blend_tolerance"])
     except ValueError as error:
         raise ValueError(f"{path.name}: {error}") from None
     tool_path.program = program
     tool_path.source = str(path.resolve())
     return tool_path
+
+
+def program_warnings(curve) -> list:
+    """One line per kind of setup word the part program of ``curve`` read (none for other curves), naming
+    the program file and the line."""
+    program = getattr(curve, "program", None)
+    if program is None:
+        return []
+    return [f"{Path(curve.source).name}: {warning}" for warning in program.warnings]
 
 
 def resolve_part_program(name: str, where: str):
@@ -302,7 +312,8 @@ _CURVE_SPECS = {
     "spline": {"x": Param("floats"), "y": Param("floats"), "z": Param("floats", None), "closed": Param("bool", False)},
     "toolpath": {"start": Param("floats"), "moves": Param("strings")},
     "gcode": {"file": Param("str"), "start": Param("floats", [0.0, 0.0, 0.0]),
-              "blend_tolerance": Param("float", 0.0, "nonnegative", help="m, as G64 P; 0: exact stop (G61)")},
+              "blend_tolerance": Param("float", 0.0, "nonnegative", help="m, as G64 P; 0: exact stop (G61)"),
+              "strict": Param("bool", False)},
     "helix": {"a": Param("float", check="positive"), "b": Param("float", check="positive"), "c": Param("float"),
               "omega": Param("float"), "length": Param("float", check="positive")},
 }
@@ -334,7 +345,8 @@ _register(SCHEDULES, {
                  "axis_feedrate": Param("floats", None), "axis_acceleration": Param("floats", None),
                  "axis_jerk": Param("floats", None),
                  "contour_tolerance": Param("float", 0.0, "nonnegative"),
-                 "tracking_lag": Param("floats", None), "exact_stop_dwell": Param("float", 0.0, "nonnegative")},
+                 "tracking_lag": Param("floats", None), "exact_stop_dwell": Param("float", 0.0, "nonnegative"),
+                 "feed_override": Param("float", 100.0, "positive")},
 }, {
     "uniform": lambda s, c: UniformSchedule(**_kwargs(s)),
     "feedrate": _feedrate_schedule,
@@ -497,6 +509,7 @@ OPTIONAL_NODES = {"interpolator": {}, "recorder": {"bag": Param("str", ""), "exp
 
 # --- bounds: every number a file gives lies in a stated range, so no run starts that cannot end or fit --------
 MAX_FILE_BYTES = 1 << 20        # an experiment file (UTF-8 text) is at most 1 MiB
+MAX_PROGRAM_BYTES = 256 << 20   # a part program at most 256 MiB (a million short blocks take tens of MB)
 MAX_DEPTH = 16                  # levels of YAML nesting (the shipped files use 6)
 MAX_STEPS = 10_000_000          # control steps of one run: duration / sample_time + 1
 MAX_DURATION = 3600.0           # s of simulated time
@@ -522,7 +535,8 @@ BOUNDS = {
                   "feedrate": (1e-6, 100.0), "acceleration": (1e-6, 1e5), "normal_acceleration": (0.0, 1e5),
                   "samples": (2, 1_000_000), "jerk": (0.0, 1e7), "rapid_feedrate": (0.0, 100.0),
                   "axis_feedrate": (1e-6, 100.0), "axis_acceleration": (1e-6, 1e5), "axis_jerk": (1e-6, 1e7),
-                  "contour_tolerance": (0.0, 1e-2), "tracking_lag": (0.0, 10.0), "exact_stop_dwell": (0.0, 60.0)},
+                  "contour_tolerance": (0.0, 1e-2), "tracking_lag": (0.0, 10.0), "exact_stop_dwell": (0.0, 60.0),
+                  "feed_override": (1.0, 1000.0)},
     "DISTURBANCES": {"value": (-1e9, 1e9), "amplitude": (-1e9, 1e9), "offset": (-1e9, 1e9),
                      "frequency": (1e-6, 1e5), "phase": (-1e3, 1e3), "std": (0.0, 1e9), "seed": (0, 2 ** 32 - 1)},
     "PLANTS": {"gain": _AXIS_GAIN, "time_constant": _TIME_CONSTANT, "mass": _MASS, "damping": _DAMPING,
@@ -1349,9 +1363,11 @@ def _program_path_in_text(text: str, given: str, resolved: str) -> str:
     return pattern.sub(lambda match: match.group(1) + quoted, text)
 
 
-def _read_file(path: Path, where: str) -> bytes:
-    """The bytes of a regular file of at most MAX_FILE_BYTES; FIFOs, devices, sockets and directories are
-    refused before they are opened (a FIFO would block, /dev/zero never end)."""
+def _read_file(path: Path, where: str, limit: int = MAX_FILE_BYTES,
+               what: str = "an experiment is a YAML file") -> bytes:
+    """The bytes of a regular file of at most ``limit`` bytes (an experiment's MAX_FILE_BYTES, a part
+    program's MAX_PROGRAM_BYTES); FIFOs, devices, sockets and directories are refused before they are
+    opened (a FIFO would block, /dev/zero never end)."""
     try:
         info = path.stat()
     except (OSError, ValueError) as error:   # ValueError: a NUL in the path
@@ -1360,24 +1376,24 @@ def _read_file(path: Path, where: str) -> bytes:
              (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket"))
     for test, kind in kinds:
         if test(info.st_mode):
-            raise ConfigError(f"{where}: not a regular file ({kind}); an experiment is a YAML file")
+            raise ConfigError(f"{where}: not a regular file ({kind}); {what}")
     if not stat.S_ISREG(info.st_mode):
-        raise ConfigError(f"{where}: not a regular file; an experiment is a YAML file")
-    if info.st_size > MAX_FILE_BYTES:
-        raise ConfigError(f"{where}: too large ({info.st_size} bytes; an experiment is at most {MAX_FILE_BYTES})")
+        raise ConfigError(f"{where}: not a regular file; {what}")
+    if info.st_size > limit:
+        raise ConfigError(f"{where}: too large ({info.st_size} bytes; {what.split(' is ')[0]} is at most {limit})")
     try:   # O_NONBLOCK: should the path have become a FIFO since, opening it does not wait for a writer
         descriptor = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOCTTY", 0))
     except OSError as error:
         raise ConfigError(f"{where}: cannot read ({error.strerror})") from None
     with os.fdopen(descriptor, "rb") as stream:
         if not stat.S_ISREG(os.fstat(stream.fileno()).st_mode):
-            raise ConfigError(f"{where}: not a regular file; an experiment is a YAML file")
+            raise ConfigError(f"{where}: not a regular file; {what}")
         try:
-            raw = stream.read(MAX_FILE_BYTES + 1)
+            raw = stream.read(limit + 1)
         except OSError as error:
             raise ConfigError(f"{where}: cannot read ({error.strerror})") from None
-    if len(raw) > MAX_FILE_BYTES:
-        raise ConfigError(f"{where}: too large (more than {MAX_FILE_BYTES} bytes)")
+    if len(raw) > limit:
+        raise ConfigError(f"{where}: too large (more than {limit} bytes)")
     return raw
 
 

@@ -42,6 +42,7 @@ DESCRIPTIONS = {
         "moves": "tool path moves (G1/G2/G3 words)", "file": "part program (RS274/NGC subset), absolute path",
         "gcode.start": f"where the program starts {_M}",
         "blend_tolerance": f"corner blending within this distance of the corner (as G64 P), 0: exact stop (G61) {_M}",
+        "strict": "refuse the part program's setup words (G40, G54, M3, T ...) instead of reading and reporting them",
         "contour_error_window": "parameter half-width the exact contour error searches around the reference (0: whole curve)"},
     "SCHEDULES": {
         "type": "schedule type", "theta_start": "curve parameter at t = 0", "theta_end": "curve parameter at the end",
@@ -53,7 +54,8 @@ DESCRIPTIONS = {
         "axis_acceleration": "per-axis acceleration bounds [m/s^2]", "axis_jerk": "per-axis jerk bounds [m/s^3]",
         "contour_tolerance": f"lower the feed where the predicted contour error exceeds this, 0: off {_M}",
         "tracking_lag": f"each axis' tracking lag for the contour-error prediction {_S}",
-        "exact_stop_dwell": f"dwell at each exact-stop corner {_S}"},
+        "exact_stop_dwell": f"dwell at each exact-stop corner {_S}",
+        "feed_override": "feed override [percent of every programmed feed, rapids included]"},
     "DISTURBANCES": {
         "type": "disturbance type", "value": "constant disturbance [command units or m/s^2]",
         "amplitude": "amplitude [command units or m/s^2]", "offset": "offset [command units or m/s^2]",
