@@ -27,7 +27,7 @@ import yaml
 
 from .core import contouring, curves, disturbances, estimators, gcode, plants, servo
 from .core.feed_planning import FeedPlan
-from .core.interpolation import FeedrateSchedule, UniformSchedule, reference
+from .core.interpolation import FeedrateSchedule, InPositionClock, UniformSchedule, reference
 from .core.simulation import ControlLoop
 from .errors import ConfigError
 from .registry import BuildContext, Role
@@ -101,7 +101,7 @@ def _spline(s, context):
 
 
 _PLAN_KEYS = ("rapid_feedrate", "axis_feedrate", "axis_acceleration", "axis_jerk", "contour_tolerance", "tracking_lag",
-              "exact_stop_dwell", "feed_override")
+              "exact_stop_dwell", "feed_override", "in_position_timeout")
 
 
 def _feedrate_schedule(section, context):
@@ -112,10 +112,11 @@ def _feedrate_schedule(section, context):
     program = getattr(context.curve, "program", None)
     jerk = arguments.pop("jerk")
     plan = {key: arguments.pop(key) for key in _PLAN_KEYS}
+    plan.pop("in_position_timeout")          # the reference's, not the plan's (build_clock)
     if jerk or program is not None:
         return _feed_plan(where, context.curve, program, jerk, arguments, plan)
     for key, value in plan.items():
-        if value not in (None, 0.0) and not (key == "feed_override" and value == 100.0):
+        if value not in (None, 0.0) and (key, value) not in (("feed_override", 100.0), ("in_position_timeout", 0.5)):
             _fail(where, f"schedule.{key}", "applies to the jerk-limited feed plan of a tool path: give jerk too")
     if arguments["feedrate"] is None:
         _fail(where, "schedule.feedrate", "missing required key")
@@ -346,7 +347,8 @@ _register(SCHEDULES, {
                  "axis_jerk": Param("floats", None),
                  "contour_tolerance": Param("float", 0.0, "nonnegative"),
                  "tracking_lag": Param("floats", None), "exact_stop_dwell": Param("float", 0.0, "nonnegative"),
-                 "feed_override": Param("float", 100.0, "positive")},
+                 "feed_override": Param("float", 100.0, "positive"),
+                 "in_position_timeout": Param("float", 0.5, "positive")},
 }, {
     "uniform": lambda s, c: UniformSchedule(**_kwargs(s)),
     "feedrate": _feedrate_schedule,
@@ -384,7 +386,7 @@ _register(PLANTS, {
         c.velocity, s["saturation"], s["coulomb_positive"], s["coulomb_negative"], s["disturbance_unit"],
         **_machine(s)),
 })
-_register(SERVOS, {
+_SERVO_SPECS = {
     "pid_feedforward": {**_gains(), "gain": Param("float", check="positive"),
                         "time_constant": Param("float", check="nonnegative")},
     "ismc": {"a": Param("float", check="positive"), "b": Param("float", check="positive"),
@@ -402,7 +404,8 @@ _register(SERVOS, {
                 "k": Param("float", check="positive"), "alphas": Param("floats"),
                 "sigma": Param("float", check="positive"), "disturbance_compensation": Param("bool", True),
                 "output_limit": LIMIT},
-}, {
+}
+_register(SERVOS, _SERVO_SPECS, {
     "pid_feedforward": lambda s, c: servo.PIDFeedforwardServo(s["kp"], s["ki"], s["kd"], s["gain"], s["time_constant"],
                                                               c.sample_time, s["output_limit"]),
     "ismc": _ismc,
@@ -500,6 +503,9 @@ GLOBALS = {
     # whether the CCC subscribes to /reference and the states: contouring-ros run sets false where the
     # controller does not use them (3 fewer deliveries a step with 2 axes); true is always safe
     "ccc_takes_state": Param("bool", True),
+    # m, one value or one per axis: the drives' in-position window; on a tool path an exact stop waits until
+    # every axis' following error is within it (0: no wait, the plan's own time)
+    "in_position": Param("floats", [1e-5]),
 }
 # node section -> (key holding the type name, registry)
 ROLE_TYPES = {"plant": ("model", PLANTS), "servo": ("law", SERVOS),
@@ -526,7 +532,8 @@ _AXIS_GAIN, _TIME_CONSTANT = (1e-9, 1e9), (1e-6, 1e3)      # command units -> m/
 BOUNDS = {
     "GLOBALS": {"sample_time": (1e-5, 1.0), "duration": (0.0, MAX_DURATION), "settle_time": (0.0, MAX_DURATION),
                 "stall_timeout": (1e-3, 3600.0), "graph_timeout": (1e-3, 86400.0), "start_time": (0.0, 1e10),
-                "divergence_factor": (0.0, 1e6), "max_lag": (1e-6, 3600.0)},
+                "divergence_factor": (0.0, 1e6), "max_lag": (1e-6, 3600.0),
+                "in_position": (0.0, 1e-2)},
     "CURVES": {"a": _SIZE, "b": _SIZE, "radius": _SIZE, "scale": _SIZE, "length": (1e-9, 1e6), "h": (-1e3, 1e3),
                "c": (-1e3, 1e3), "omega": (-1e4, 1e4), "center": _COORDINATE, "start": _COORDINATE,
                "end": _COORDINATE, "x": _COORDINATE, "y": _COORDINATE, "z": _COORDINATE,
@@ -536,7 +543,7 @@ BOUNDS = {
                   "samples": (2, 1_000_000), "jerk": (0.0, 1e7), "rapid_feedrate": (0.0, 100.0),
                   "axis_feedrate": (1e-6, 100.0), "axis_acceleration": (1e-6, 1e5), "axis_jerk": (1e-6, 1e7),
                   "contour_tolerance": (0.0, 1e-2), "tracking_lag": (0.0, 10.0), "exact_stop_dwell": (0.0, 60.0),
-                  "feed_override": (1.0, 1000.0)},
+                  "feed_override": (1.0, 1000.0), "in_position_timeout": (1e-3, 60.0)},
     "DISTURBANCES": {"value": (-1e9, 1e9), "amplitude": (-1e9, 1e9), "offset": (-1e9, 1e9),
                      "frequency": (1e-6, 1e5), "phase": (-1e3, 1e3), "std": (0.0, 1e9), "seed": (0, 2 ** 32 - 1)},
     "PLANTS": {"gain": _AXIS_GAIN, "time_constant": _TIME_CONSTANT, "mass": _MASS, "damping": _DAMPING,
@@ -625,6 +632,7 @@ class Experiment:
     layout: str = "process"
     groups: str = ""
     ccc_takes_state: bool = True
+    in_position: tuple = (1e-5,)                   # m, one or one per axis (0: exact stops do not wait)
     plants: dict = field(default_factory=dict)     # axis -> plant section
     servos: dict = field(default_factory=dict)     # axis -> servo section
     estimator: dict = field(default_factory=dict)
@@ -1101,9 +1109,15 @@ def _validate_globals(where, given: dict) -> dict:
     if dimension != len(axes):
         _fail(where, "axes", f"{len(axes)} axes given but the {out['curve']['type']} curve has {dimension} "
                              "coordinates")
+    if len(out["in_position"]) not in (1, len(axes)):
+        _fail(where, "in_position", f"expected 1 value or one per axis ({len(axes)}), got {len(out['in_position'])}")
     if out["duration"] == 0.0:
         try:
-            out["duration"] = _schedule_duration(where, out["curve"], out["schedule"]) + out["settle_time"]
+            schedule = build_schedule_from(out["schedule"], curve, where)
+            # with in-position checks every exact stop may wait up to its timeout
+            waits = len(schedule.stops) * out["schedule"]["in_position_timeout"] \
+                if in_position_windows(out) is not None and hasattr(schedule, "stops") else 0.0
+            out["duration"] = schedule.duration + waits + out["settle_time"]
         except (ArithmeticError, ValueError, MemoryError, np.linalg.LinAlgError) as error:
             _fail(where, "schedule", f"cannot build the schedule ({type(error).__name__}: {error})")
         if not out["duration"] <= MAX_DURATION:
@@ -1262,6 +1276,7 @@ def _shared_fields(globals_: dict) -> dict:
     (axes as a tuple), so that a new shared key reaches the Experiment of a file and of a node alike."""
     out = {f.name: globals_[f.name] for f in fields(Experiment) if f.name in GLOBALS}
     out["axes"] = tuple(out["axes"])
+    out["in_position"] = tuple(out["in_position"])
     return out
 
 
@@ -1432,10 +1447,6 @@ def build_schedule_from(section: dict, curve, where: str = "schedule"):
     return SCHEDULES.build(section, BuildContext(curve=curve, where=where))
 
 
-def _schedule_duration(where: str, curve_section: dict, schedule_section: dict) -> float:
-    return build_schedule_from(schedule_section, build_curve_from(curve_section, where), where).duration
-
-
 def build_schedule(experiment: Experiment, curve=None):
     return build_schedule_from(experiment.schedule, curve or build_curve(experiment), experiment.path)
 
@@ -1460,6 +1471,32 @@ def build_plant(experiment: Experiment, axis: str, position: float, velocity: fl
                                                               velocity=velocity, where=experiment.path))
 
 
+def in_position_windows(shared) -> list | None:
+    """Each axis' in-position window [m] (the shared key ``in_position``, an Experiment or the shared
+    section) where the reference waits at exact stops for the axes: a tool path planned by the jerk-limited
+    feed plan with a window > 0; else None (the reference runs on the plan's own time and the interpolator
+    takes no axis state)."""
+    get = shared.get if isinstance(shared, dict) else lambda key: getattr(shared, key)
+    curve, schedule = get("curve"), get("schedule")
+    planned = curve["type"] == "gcode" or (curve["type"] == "toolpath" and schedule["type"] == "feedrate"
+                                           and schedule.get("jerk"))
+    windows = [float(w) for w in get("in_position")]
+    if not planned or not any(windows):
+        return None
+    return windows * len(get("axes")) if len(windows) == 1 else windows
+
+
+def build_clock(experiment: Experiment, curve, schedule):
+    """The reference's :class:`~contouring_ros.core.interpolation.InPositionClock`, or None (see
+    :func:`in_position_windows`)."""
+    windows = in_position_windows(experiment)
+    if windows is None or not hasattr(schedule, "stops"):
+        return None
+    from .graph import LOOKAHEAD
+    return InPositionClock(schedule, curve, windows, experiment.sample_time,
+                           experiment.schedule["in_position_timeout"], LOOKAHEAD)
+
+
 def build_servo(experiment: Experiment, axis: str, position: float, velocity: float, acceleration: float):
     return SERVOS.build(experiment.servos[axis], BuildContext(experiment, axis=axis, position=position,
                                                               velocity=velocity, acceleration=acceleration,
@@ -1481,7 +1518,7 @@ def build_loop(experiment: Experiment) -> ControlLoop:
     positions, velocities, accelerations = initial_state(experiment, curve, schedule)
     axes = experiment.axes
     return ControlLoop(
-        curve=curve, schedule=schedule,
+        curve=curve, schedule=schedule, clock=build_clock(experiment, curve, schedule),
         plants=[build_plant(experiment, a, positions[i], velocities[i]) for i, a in enumerate(axes)],
         servos=[build_servo(experiment, a, positions[i], velocities[i], accelerations[i])
                 for i, a in enumerate(axes)],

@@ -145,12 +145,15 @@ def node_specs(axes, overrides: dict | None = None, bag: str | None = None,
     return out
 
 
-def topics(axes, ccc_takes_state: bool = True) -> list:
+def topics(axes, ccc_takes_state: bool = True, interpolator_takes_state: bool = False) -> list:
     """Every topic of the graph for ``axes``; the recorder takes them all. The CCC takes /reference and the
-    states only with ``ccc_takes_state`` (the shared key of that name: its controller uses them)."""
+    states only with ``ccc_takes_state`` (the shared key of that name: its controller uses them); the
+    interpolator takes the states only with ``interpolator_takes_state`` (exact stops wait for the axes:
+    ``config.in_position_windows``)."""
     n = len(axes)
     axis_state = (("position", 1), ("velocity", 1))
     ccc = ("/ccc",) if ccc_takes_state else ()
+    interpolator = ("/interpolator",) if interpolator_takes_state else ()
     out = [Topic(CLOCK, "rosgraph_msgs/msg/Clock", "/interpolator", ("/recorder",)),
            Topic(REFERENCE, "trajectory_msgs/msg/JointTrajectory", "/interpolator",
                  ("/contour_estimator",) + ccc + tuple(f"/{a}/servo" for a in axes) + ("/recorder",),
@@ -158,7 +161,8 @@ def topics(axes, ccc_takes_state: bool = True) -> list:
                  names=tuple(axes) + (THETA_NAME,))]
     for a in axes:
         out.append(Topic(state_topic(a), "sensor_msgs/msg/JointState", f"/{a}/plant",
-                         ("/contour_estimator",) + ccc + (f"/{a}/servo", "/recorder"), axis_state, names=(a,)))
+                         interpolator + ("/contour_estimator",) + ccc + (f"/{a}/servo", "/recorder"), axis_state,
+                         names=(a,)))
     out.append(Topic(CONTOUR_ERROR, "sensor_msgs/msg/JointState", "/contour_estimator",
                      ("/ccc", "/interpolator", "/recorder"), (("position", n + 2),),
                      names=tuple(estimate_names(axes))))
@@ -170,9 +174,9 @@ def topics(axes, ccc_takes_state: bool = True) -> list:
     return out
 
 
-def recorded_topics(axes, ccc_takes_state: bool = True) -> list:
+def recorded_topics(axes, ccc_takes_state: bool = True, interpolator_takes_state: bool = False) -> list:
     """What the recorder takes: every lockstep topic, then /diagnostics (event-driven, not counted)."""
-    return topics(axes, ccc_takes_state) + [Topic(DIAGNOSTICS, "diagnostic_msgs/msg/DiagnosticArray", "any node", ("/recorder",),
+    return topics(axes, ccc_takes_state, interpolator_takes_state) + [Topic(DIAGNOSTICS, "diagnostic_msgs/msg/DiagnosticArray", "any node", ("/recorder",),
                                   every_step=False)]
 
 

@@ -32,7 +32,8 @@ DESCRIPTIONS = {
         "start_time": "realtime: Unix time of tick 0 [s since 1970]",
         "ccc_takes_state": "the CCC node subscribes to the reference and the axis states",
         "layout": "where contouring-ros run puts the nodes: a process each, all in one, or the processes of groups",
-        "groups": "grouped layout: the nodes of each process, e.g. 'x/plant,x/servo; y/plant,y/servo'"},
+        "groups": "grouped layout: the nodes of each process, e.g. 'x/plant,x/servo; y/plant,y/servo'",
+        "in_position": f"drives' in-position window, one or one per axis: exact stops wait for it, 0: no wait {_M}"},
     "CURVES": {
         "type": "curve type", "a": f"size a {_M}", "b": f"size b {_M}", "radius": f"radius {_M}", "scale": f"scale {_M}",
         "h": "shape parameter h", "c": f"pitch term c {_M}", "omega": "angular rate [rad per unit of parameter]",
@@ -55,7 +56,8 @@ DESCRIPTIONS = {
         "contour_tolerance": f"lower the feed where the predicted contour error exceeds this, 0: off {_M}",
         "tracking_lag": f"each axis' tracking lag for the contour-error prediction {_S}",
         "exact_stop_dwell": f"dwell at each exact-stop corner {_S}",
-        "feed_override": "feed override [percent of every programmed feed, rapids included]"},
+        "feed_override": "feed override [percent of every programmed feed, rapids included]",
+        "in_position_timeout": f"the longest the reference waits at one exact stop for the axes {_S}"},
     "DISTURBANCES": {
         "type": "disturbance type", "value": "constant disturbance [command units or m/s^2]",
         "amplitude": "amplitude [command units or m/s^2]", "offset": "offset [command units or m/s^2]",

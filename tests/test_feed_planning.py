@@ -229,7 +229,9 @@ def test_experiment_reads_the_program_relative_to_its_file(tmp_path):
     assert parse_experiment(experiment.text, "a bag's copy").curve["file"] == resolved
     loop = build_loop(experiment)
     assert loop.curve.domain[1] == pytest.approx(0.01)
-    assert experiment.duration == pytest.approx(loop.schedule.duration)
+    # the in-position check (on by default) lets each exact stop wait up to in_position_timeout (0.5 s)
+    assert len(loop.schedule.stops) == 1
+    assert experiment.duration == pytest.approx(loop.schedule.duration + 0.5)
 
 
 @pytest.mark.parametrize("program, schedule, fragment", [

@@ -27,7 +27,7 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from .. import cdr, graph
-from ..config import experiment_for_node
+from ..config import experiment_for_node, in_position_windows
 from ..parameters import descriptor, node_parameters
 from ..errors import ConfigError, ContouringError, RunError
 
@@ -98,7 +98,8 @@ class LockstepNode:
         self.sample_time_ns = int(round(self.experiment.sample_time * 1e9))
         self.n_steps = self.experiment.n_steps
         self.axes = list(self.experiment.axes)
-        self._topics = {t.name: t for t in graph.recorded_topics(self.axes, self.experiment.ccc_takes_state)}
+        self._topics = {t.name: t for t in graph.recorded_topics(
+            self.axes, self.experiment.ccc_takes_state, in_position_windows(self.experiment) is not None)}
         self._inputs = []          # (topic name, subscription, msg class, decoder)
         self._decoded_keys = {}    # input topic -> its key in _DECODED
         self._outputs = {}         # topic name -> publisher

@@ -21,7 +21,7 @@ from rclpy.serialization import deserialize_message
 
 from .. import __version__, cdr, graph
 from ..bag import EXPERIMENT_METADATA, RUN_METADATA, BagWriter
-from ..config import recorded_text
+from ..config import in_position_windows, recorded_text
 from ..errors import ConfigError
 from .lockstep import DIAGNOSTICS_QOS, GRAPH_QOS, LockstepNode, run_node
 
@@ -38,7 +38,8 @@ class RecorderNode(LockstepNode):
         if not options["bag"]:
             raise ConfigError(f"{self.name}: parameter 'bag' (the .mcap file to write) is required")
         text = recorded_text(options["experiment_file"]) if options["experiment_file"] else ""
-        self.topic_list = graph.recorded_topics(self.axes, self.experiment.ccc_takes_state)
+        self.topic_list = graph.recorded_topics(
+            self.axes, self.experiment.ccc_takes_state, in_position_windows(self.experiment) is not None)
         for topic in self.topic_list:
             self.add_input(topic.name, GRAPH_QOS if topic.name != graph.DIAGNOSTICS else DIAGNOSTICS_QOS)
         self.counts = {topic.name: 0 for topic in self.topic_list}
