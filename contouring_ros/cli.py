@@ -87,10 +87,9 @@ def _run(args):
     print(f"bag: {bag}")
     print(format_scores([(config.stem, scores)], run.axes))
     from .config import parse_experiment
-    from .scoring import tolerance_line
-    held = tolerance_line(parse_experiment(run.experiment_text, str(config)).schedule, scores.mce)
-    if held:
-        print(held)
+    from .scoring import curve_of, cutting_lines
+    for line in cutting_lines(curve_of(run), run.result, parse_experiment(run.experiment_text, str(config)).schedule):
+        print(line)
     from .bag import node_reports
     from .scoring import format_realtime
     realtime = format_realtime(node_reports(bag))
@@ -104,7 +103,7 @@ LONG_RUN_STEPS = 20_000       # simulate shows a progress bar beyond this many s
 def _simulate(args):
     from .config import build_loop, load_experiment
     from .core.simulation import simulate
-    from .scoring import format_scores, score_run, tolerance_line
+    from .scoring import cutting_lines, format_scores, score_run
     from .errors import Diverged
     from .config import program_warnings
     experiment = load_experiment(_experiment_path(args.config))
@@ -121,9 +120,8 @@ def _simulate(args):
         raise SystemExit(1)
     scores = score_run(loop.curve, result)
     print(format_scores([(experiment.name, scores)], list(experiment.axes)))
-    held = tolerance_line(experiment.schedule, scores.mce)
-    if held:
-        print(held)
+    for line in cutting_lines(loop.curve, result, experiment.schedule):
+        print(line)
 
 
 def _experiment_text(args):
@@ -166,6 +164,30 @@ def _score(args):
         if args.from_time:
             print(f"scores of the samples at t >= {args.from_time:g} s")
         print(format_scores([(name, scores) for name, scores, _ in results], results[0][2].axes))
+
+
+def _blocks(args):
+    from .blocks import block_results, format_blocks, write_blocks_csv
+    from .config import build_schedule, parse_experiment
+    from .scoring import curve_of, cutting_lines
+    text = _experiment_text(args)
+    for bag in args.bags:
+        from .bag import read_run
+        run = read_run(bag, experiment_text=text, progress=sys.stderr.isatty())
+        _warn(run)
+        curve = curve_of(run)
+        if not hasattr(curve, "blocks"):
+            raise ConfigError(f"{bag}: not a tool path run (curve type gcode or toolpath): it has no blocks")
+        experiment = parse_experiment(run.experiment_text, str(bag))
+        rows = block_results(curve, run.result, build_schedule(experiment, curve),
+                             experiment.schedule.get("contour_tolerance") or 0.0)
+        print(f"{bag}:")
+        for line in cutting_lines(curve, run.result, experiment.schedule):
+            print(line)
+        print(format_blocks(rows, run.axes))
+        if args.csv:
+            Path(args.csv).mkdir(parents=True, exist_ok=True)
+            print(write_blocks_csv(rows, run.axes, Path(args.csv) / f"{Path(bag).stem}_blocks.csv"))
 
 
 def _compare(args):
@@ -333,6 +355,11 @@ def main(argv=None):
                    help="score only the samples at t >= T seconds (steady state; same keys)")
     p.add_argument("--experiment", help=experiment_help)
     p.set_defaults(func=_score)
+    p = sub.add_parser("blocks", help="results per block of tool path runs, and the scores of their cutting moves")
+    p.add_argument("bags", nargs="+")
+    p.add_argument("--csv", metavar="DIR", help="also write <bag>_blocks.csv per bag into DIR")
+    p.add_argument("--experiment", help=experiment_help)
+    p.set_defaults(func=_blocks)
     p = sub.add_parser("compare", help="score runs side by side, with ratios to a baseline")
     p.add_argument("bags", nargs="+")
     p.add_argument("--baseline", help="the bag the ratios refer to (default: the first)")

@@ -96,6 +96,8 @@ class Block:
         G61.1, G9); None where the program says neither (the experiment's ``blend_tolerance``).
     dwell : float
         [s] G4 dwell after the block.
+    number : int or None
+        Its N number, where the line gives one.
     """
 
     kind: str
@@ -108,6 +110,7 @@ class Block:
     clockwise: bool = False
     tolerance: float | None = None
     dwell: float = 0.0
+    number: int | None = None
 
 
 @dataclass(frozen=True)
@@ -294,16 +297,17 @@ def parse_program(text: str, start=(0.0, 0.0, 0.0), strict: bool = False) -> Pro
             moved_z = True                                  # an arc in the ZX or YZ plane moves Z
         block_feed = None if motion == 0 or feed is None else feed * unit / 60.0
         block_tolerance = 0.0 if exact_once else tolerance
+        label = _code(words["N"][0]) if "N" in words else None
         if motion in (0, 1):
             if centre or radius is not None:
                 raise ProgramError(f"line {number}: {'I, J, K' if centre else 'R'} on a G{motion} line")
             if np.array_equal(end, position):
                 continue                                    # a move to where the tool is: no motion
             blocks.append(Block("rapid" if motion == 0 else "line", position, end, block_feed, number,
-                                tolerance=block_tolerance))
+                                tolerance=block_tolerance, number=label))
         else:
             blocks.append(replace(_arc(number, motion, plane, position, end, centre, radius, unit, block_feed),
-                                  tolerance=block_tolerance))
+                                  tolerance=block_tolerance, number=label))
         position = end
     if not blocks:
         raise ProgramError("the program has no motion")
