@@ -505,3 +505,14 @@ def test_the_feed_override_is_a_percentage_of_every_feed(tmp_path):
     with pytest.raises(ConfigError, match="schedule.feed_override"):
         load_experiment(write(tmp_path, "G1 X5 F600", "{type: feedrate, acceleration: 1.0, jerk: 20.0, "
                                                       "feed_override: 0}"))
+
+
+def test_blending_and_junction_speeds_hold_for_turns_too_small_for_cosines():
+    # a turn of 2e-9 rad: 1 / cos(phi / 2) - 1 rounds to 0 in floating point
+    text = "G64 P0.001\nG1 X10 F1200\nX20 Y0.00000002\nX30 Y0.00000005"
+    path, schedule = plan(text, acceleration=1.0, jerk=10.0)
+    assert sampled(schedule)[2].max() == pytest.approx(0.02)
+    phi = 1e-7
+    t1 = np.array([math.cos(phi), math.sin(phi)])
+    radius = 1e-5 * math.cos(phi / 2) / (2 * math.sin(phi / 4) ** 2)     # 1 - cos(phi / 2), without cancelling
+    assert junction_speed([1.0, 0.0], t1, 1e-5, 1.0, 1e9) == pytest.approx(math.sqrt(radius), rel=1e-6)

@@ -587,8 +587,8 @@ def _blend(items) -> list:
             cosine = float(np.clip(np.dot(u1, u2), -1.0, 1.0))
             phi = math.acos(cosine)
             if 1e-9 < phi < math.pi - 1e-6:
-                half = phi / 2.0
-                radius = tolerance / (1.0 / math.cos(half) - 1.0)
+                half = phi / 2.0       # 1 / cos(half) - 1 = 2 sin^2(half / 2) / cos(half), exact for tiny turns
+                radius = tolerance * math.cos(half) / (2.0 * math.sin(half / 2.0) ** 2)
                 cut = radius * math.tan(half)
                 limit = 0.45 * min(previous[7], item[7])     # of the lines' programmed lengths
                 if cut > limit:

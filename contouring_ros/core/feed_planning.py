@@ -98,13 +98,15 @@ def junction_speed(tangent_in, tangent_out, deviation: float, acceleration: floa
     of 0 gives 0: an exact stop.
     """
     t0, t1 = np.asarray(tangent_in, dtype=float), np.asarray(tangent_out, dtype=float)
-    half_cosine = math.sqrt(max(0.5 * (1.0 + float(np.dot(t0, t1))), 0.0))    # cos(phi / 2)
+    change = t1 - t0
+    chord = float(np.linalg.norm(change))                   # |t_out - t_in| = 2 sin(phi / 2)
+    half_sine = min(0.5 * chord, 1.0)
+    half_cosine = math.sqrt(1.0 - half_sine * half_sine)    # cos(phi / 2)
     if deviation <= 0.0 or half_cosine <= 1e-9:
         return 0.0
-    if half_cosine >= 1.0:
+    if chord == 0.0:
         return math.inf
-    change = t1 - t0
-    u = np.abs(change) / float(np.linalg.norm(change))
+    u = np.abs(change) / chord
     with np.errstate(divide="ignore"):
         for limit in (axis_acceleration, axis_jerk):
             if limit is not None:
@@ -113,7 +115,7 @@ def junction_speed(tangent_in, tangent_out, deviation: float, acceleration: floa
                     acceleration = min(acceleration, bound)
                 else:
                     jerk = min(jerk, bound)
-    radius = deviation * half_cosine / (1.0 - half_cosine)
+    radius = deviation * half_cosine * (1.0 + half_cosine) / (half_sine * half_sine)   # 1 - cos = sin^2 / (1 + cos)
     return min(math.sqrt(acceleration * radius), (jerk * radius * radius) ** (1.0 / 3.0))
 
 
