@@ -112,8 +112,8 @@ def _feedrate_schedule(section, context):
     program = getattr(context.curve, "program", None)
     jerk = arguments.pop("jerk")
     plan = {key: arguments.pop(key) for key in _PLAN_KEYS}
-    plan.pop("in_position_timeout")          # the reference's, not the plan's (build_clock)
     if jerk or program is not None:
+        plan.pop("in_position_timeout")      # the reference's, not the plan's (build_clock)
         return _feed_plan(where, context.curve, program, jerk, arguments, plan)
     for key, value in plan.items():
         if value not in (None, 0.0) and (key, value) not in (("feed_override", 100.0), ("in_position_timeout", 0.5)):

@@ -276,6 +276,11 @@ def test_jerk_only_for_tool_paths_and_plan_keys_only_with_jerk(tmp_path):
                                                   "rapid_feedrate: 0.1}"))
     with pytest.raises(ConfigError, match="schedule.rapid_feedrate: applies to the jerk-limited feed plan"):
         load_experiment(path)
+    for key in ("feed_override: 50", "in_position_timeout: 2.0"):
+        path.write_text(text.format(file="", kp=20.0, schedule=f"{{type: feedrate, feedrate: 0.01, acceleration: "
+                                                                 f"1.0, {key}}}"))
+        with pytest.raises(ConfigError, match=f"schedule.{key.split(':')[0]}: applies to the jerk-limited"):
+            load_experiment(path)
 
 
 @pytest.mark.slow

@@ -584,8 +584,8 @@ def _blend(items) -> list:
         (_, p1, u2, *_), length1 = item[0], item[1]
         tolerance = previous[5]
         if previous[2] == "line" and item[2] == "line" and tolerance > 0.0 and not previous[6]:
-            cosine = float(np.clip(np.dot(u1, u2), -1.0, 1.0))
-            phi = math.acos(cosine)
+            chord = float(np.linalg.norm(u2 - u1))
+            phi = 2.0 * math.atan2(chord, float(np.linalg.norm(u2 + u1)))     # the turn, accurate at any angle
             if 1e-9 < phi < math.pi - 1e-6:
                 half = phi / 2.0       # 1 / cos(half) - 1 = 2 sin^2(half / 2) / cos(half), exact for tiny turns
                 radius = tolerance * math.cos(half) / (2.0 * math.sin(half / 2.0) ** 2)
@@ -594,7 +594,7 @@ def _blend(items) -> list:
                 if cut > limit:
                     cut, radius = limit, limit / math.tan(half)
                 corner = p1
-                centre_side = (u2 - u1) / np.linalg.norm(u2 - u1)
+                centre_side = (u2 - u1) / chord
                 centre = corner + centre_side * radius / math.cos(half)
                 begin = corner - u1 * cut
                 e1 = (begin - centre) / radius
