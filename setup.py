@@ -22,7 +22,7 @@ setup(
     ],
     install_requires=["setuptools", "numpy", "scipy", "PyYAML", "mcap", "mcap-ros2-support", "tqdm", "ruckig", "matplotlib",
                       "cma", "control"],
-    extras_require={"test": ["pytest"]},
+    extras_require={"test": ["pytest"], "cluster": ["distributed"]},
     zip_safe=True,
     maintainer="contouring_ros maintainers",
     maintainer_email="maintainers@contouring-ros.org",

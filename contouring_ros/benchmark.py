@@ -31,14 +31,14 @@ import math
 import os
 import time
 from collections import Counter
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 import yaml
 
-from .tuning import Protocol, experiment_for, gain_keys, interval, machine_settings, pareto_front, run_outcomes, tune
+from .executors import pool as executor
+from .tuning import Protocol, experiment_for, gain_keys, interval, machine_settings, pareto_front, run_outcomes, tune, worst_case
 
 __all__ = ["GOAL", "Family", "Combination", "Excluded", "Row", "Reference",
            "scenario_families", "select_families", "plan", "run_benchmark", "write_csv", "draw_heatmap",
@@ -307,6 +307,7 @@ class Reference:
     published: object             # tuning.Outcome: the proposed file's gains on that machine
     ideal_published: object       # ... on the ideal machine (the file as it is)
     noise_limit: float            # the noise sensitivity every combination must stay under
+    worst: float = math.nan       # the proposed method's worst TACE [m] at +-perturbation (tuning.worst_case)
 
 
 @dataclass
@@ -382,28 +383,29 @@ def verdict(low: float, high: float, threshold: float = 1.0) -> str:
     return "undecided"
 
 
-def _reference_job(data: dict, from_time: float, where: str) -> Reference:
+def _reference_job(data: dict, from_time: float, where: str, protocol: Protocol | None = None) -> Reference:
     ideal = run_outcomes(data, {}, [{}], from_time, where)[0]
     machine = machine_settings(data, "realistic", ideal.peak_command if ideal.ok else ())
     published = run_outcomes(data, {}, [machine], from_time, where)[0]
-    return Reference(machine, published, ideal, math.nan)
+    return Reference(machine, published, ideal, math.nan,
+                     worst_case(data, {}, machine, from_time, protocol or Protocol(), where))
 
 
-def _tune_job(data, sections, keys, machine, noise_limit, from_time, protocol, where):
-    return tune(data, sections, keys, machine, noise_limit, from_time, protocol, where)
+def _tune_job(data, sections, keys, machine, noise_limit, from_time, protocol, where, robust_floor):
+    return tune(data, sections, keys, machine, noise_limit, from_time, protocol, where, robust_floor=robust_floor)
 
 
 def run_benchmark(families: list, protocol: Protocol | None = None, workers: int | None = None,
-                  progress: bool = False, say=None) -> list:
-    """Every row (one per scenario x combination, the excluded ones included) of ``families``."""
+                  progress: bool = False, say=None, scheduler: str | None = None) -> list:
+    """Every row (one per scenario x combination, the excluded ones included) of ``families``, on local
+    processes or the Dask cluster at ``scheduler`` (:func:`contouring_ros.executors.pool`)."""
     from tqdm import tqdm
     protocol = protocol or Protocol()
     say = say or (lambda message: None)
-    workers = workers or os.cpu_count() or 1
     catalogue = _catalogue_estimators(scenario_families() if families else [])
     rows = []
-    with ProcessPoolExecutor(max_workers=workers) as pool:
-        references = {f.name: pool.submit(_reference_job, f.data[f.proposed], f.from_time, f.name) for f in families}
+    with executor(workers, scheduler) as (pool, _):
+        references = {f.name: pool.submit(_reference_job, f.data[f.proposed], f.from_time, f.name, protocol) for f in families}
         jobs = []
         for family in families:
             combos, excluded = plan(family, catalogue)
@@ -416,7 +418,8 @@ def run_benchmark(families: list, protocol: Protocol | None = None, workers: int
                 rows.append(row)
                 jobs.append((row, pool.submit(_tune_job, family.data[family.proposed], combo.sections,
                                               combo.gain_keys, reference.machine, reference.noise_limit,
-                                              family.from_time, protocol, f"{family.name} {combo.label}")))
+                                              family.from_time, protocol, f"{family.name} {combo.label}",
+                                              reference.worst if math.isfinite(reference.worst) else 0.0)))
             rows += [Row(family, None, e, status=f"cannot be paired: {e.reason}") for e in excluded]
         with tqdm(total=len(jobs), desc="benchmark", disable=not progress, leave=False) as bar:
             for row, job in jobs:
@@ -824,7 +827,7 @@ def read_notes(path) -> dict:
 
 
 def main_benchmark(patterns=None, protocol: Protocol | None = None, out="reports", workers=None, progress=False,
-                   say=None, command: str = "contouring-ros benchmark") -> tuple:
+                   say=None, command: str = "contouring-ros benchmark", scheduler: str | None = None) -> tuple:
     """Run the benchmark and write benchmark.md, benchmark.csv, benchmark_heatmap.png and one
     benchmark_pareto_paper<N>.png per paper into ``out``."""
     from .paper import CONFIG_DIR
@@ -832,7 +835,7 @@ def main_benchmark(patterns=None, protocol: Protocol | None = None, out="reports
     protocol = protocol or Protocol()
     start = time.perf_counter()
     families = select_families(scenario_families(), patterns)
-    rows = run_benchmark(families, protocol, workers, progress, say)
+    rows = run_benchmark(families, protocol, workers, progress, say, scheduler)
     out = Path(out)
     csv_path = write_csv(rows, out / "benchmark.csv")
     png = draw_heatmap(rows, out / "benchmark_heatmap.png")

@@ -344,6 +344,7 @@ class ScenarioScores:
 
     workers: int | None = None
     cache: dict = field(default_factory=dict)
+    scheduler: str | None = None     # a Dask scheduler's address (contouring_ros.executors), else local processes
 
     @staticmethod
     def _key(name, settings, from_time):
@@ -361,7 +362,8 @@ class ScenarioScores:
         for key, (name, settings, from_time) in missing.items():
             by_time.setdefault(float(from_time), []).append((key, _experiment(name, settings)))
         for from_time, runs in by_time.items():
-            results = score_experiments([e for _, e in runs], self.workers, from_time=from_time, batch=1)
+            results = score_experiments([e for _, e in runs], self.workers, from_time=from_time, batch=1,
+                                        scheduler=self.scheduler)
             for (key, _), (scores, _, failure) in zip(runs, results):
                 self.cache[key] = (scores, failure)
 
@@ -384,14 +386,13 @@ def _peak_command(name: str, from_time: float) -> tuple:
     return outcome.peak_command if outcome.ok else ()
 
 
-def peak_commands(names: list, from_time: dict, workers: int | None = None) -> dict:
-    """name -> its ideal run's peak command per axis, on a process pool."""
-    import os
-    from concurrent.futures import ProcessPoolExecutor
+def peak_commands(names: list, from_time: dict, workers: int | None = None, scheduler: str | None = None) -> dict:
+    """name -> its ideal run's peak command per axis, on a process pool (or the Dask cluster at ``scheduler``)."""
+    from .executors import pool as executor
     names = list(dict.fromkeys(names))
     if not names:
         return {}
-    with ProcessPoolExecutor(max_workers=min(len(names), workers or os.cpu_count() or 1)) as pool:
+    with executor(min(len(names), workers) if workers else None, scheduler) as (pool, _):
         return dict(zip(names, pool.map(_peak_command, names, [from_time[n] for n in names])))
 
 
@@ -547,7 +548,7 @@ def evaluate(claims: list, scores: ScenarioScores | None = None, draws: int = DR
     times = {}
     for c, _, pair in pairs:
         times.setdefault(pair.proposed, c.from_time)
-    peaks = peak_commands([pair.proposed for _, _, pair in pairs], times, scores.workers) \
+    peaks = peak_commands([pair.proposed for _, _, pair in pairs], times, scores.workers, scores.scheduler) \
         if machine != "ideal" else {}
     plans = {(c.id, reading): plan_pair(c, pair, peaks.get(pair.proposed, ()), draws, machine, sensitivity)
              for c, reading, pair in pairs}
@@ -606,7 +607,8 @@ def _map_settings(spec: RegimeMap, side: str) -> list:
     return out
 
 
-def map_ratios(claim: Claim, spec: RegimeMap, workers: int | None = None, progress: bool = False) -> dict:
+def map_ratios(claim: Claim, spec: RegimeMap, workers: int | None = None, progress: bool = False,
+               scheduler: str | None = None) -> dict:
     """Proposed / baseline MCE and TACE (and the claim's metric) over the map's grid: metric -> (ny, nx) array
     (NaN where a run diverged), plus 'failures' (ny, nx) of reasons."""
     from .sweep import experiments_for, score_experiments
@@ -618,7 +620,7 @@ def map_ratios(claim: Claim, spec: RegimeMap, workers: int | None = None, progre
         text = _experiment(name).text
         experiments += [e for _, e in experiments_for(text, _map_settings(spec, side), where=f"{name} map")]
     results = score_experiments(experiments, workers, progress, from_time=claim.from_time,
-                                desc=f"map {claim.paper}/{claim.id}")
+                                desc=f"map {claim.paper}/{claim.id}", scheduler=scheduler)
     n = len(experiments) // 2
     shape = (len(spec.y.values) if spec.y else 1, len(spec.x.values))
     out = {"failures": np.array([p[2] or b[2] for p, b in zip(results[:n], results[n:])], dtype=object).reshape(shape)}
@@ -813,14 +815,14 @@ def summary_table(rows: list) -> str:
 
 
 def claims_report(papers: list | None = None, directory="reports", maps: bool = True, workers: int | None = None,
-                  progress=None, command: str = "all", draws: int = DRAWS) -> str:
+                  progress=None, command: str = "all", draws: int = DRAWS, scheduler: str | None = None) -> str:
     """The claims report (Markdown) of the given papers (default: every claims file); with ``maps`` the regime
     maps are computed and drawn into ``directory``/maps first."""
     say = progress or (lambda message: None)
     started = time.monotonic()
     files = [load_claims(path) for path in claim_files()]
     files = [f for f in files if papers is None or f.paper in papers]
-    scores = ScenarioScores(workers)
+    scores = ScenarioScores(workers, scheduler=scheduler)
     sections, rows, drawn, map_seconds = [], [], {}, 0.0
     for paper in files:
         say(f"paper {paper.paper}: {len(paper.claims)} claims")
@@ -832,7 +834,7 @@ def claims_report(papers: list | None = None, directory="reports", maps: bool = 
             for c in paper.claims:
                 for i, spec in enumerate(c.maps):
                     begun = time.monotonic()
-                    png = draw_map(c, spec, map_ratios(c, spec, workers, progress=sys.stderr.isatty()),
+                    png = draw_map(c, spec, map_ratios(c, spec, workers, progress=sys.stderr.isatty(), scheduler=scheduler),
                                    c.map_path(i, directory))
                     map_seconds += time.monotonic() - begun
                     drawn[png] = True

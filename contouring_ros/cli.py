@@ -271,7 +271,7 @@ def _sweep(args):
     if args.batch is not None and args.batch < 1:
         raise ConfigError(f"--batch {args.batch}: expected a positive number of combinations")
     rows = run_sweep(experiment.text, parse_grid(args.grid), args.workers, progress=sys.stderr.isatty(),
-                     batch=args.batch or BATCH, from_time=args.from_time)
+                     batch=args.batch or BATCH, from_time=args.from_time, scheduler=args.scheduler)
     if args.from_time:
         print(f"scores of the samples at t >= {args.from_time:g} s (steady state)")
     print(format_sweep(rows))
@@ -303,9 +303,16 @@ def _paper(args):
     with_claims = [p for p in chosen if any(path.stem == f"paper{p}" for path in claim_files())]
     if with_claims:
         report = claims_report(with_claims, args.out, maps=not args.no_maps, workers=args.workers, progress=say,
-                               command=args.paper)
+                               command=args.paper, scheduler=args.scheduler)
         name = "claims.md" if args.paper == "all" else f"claims_paper{args.paper}.md"
         print(f"wrote {write_claims_report(report, args.out, name)}", file=sys.stderr)
+
+
+def _scheduler_option(parser) -> None:
+    parser.add_argument("--scheduler", metavar="ADDRESS",
+                        help="run on the Dask distributed cluster whose scheduler is at ADDRESS (e.g. "
+                             "tcp://10.0.0.5:8786) instead of local processes; same results (--workers is then "
+                             "the cluster's thread count)")
 
 
 def _benchmark(args):
@@ -321,7 +328,8 @@ def _benchmark(args):
         + (f" --draws {args.draws}" if args.draws != Protocol.draws else "")
     say = lambda m: print(m, file=sys.stderr, flush=True)  # noqa: E731
     md, table, png, seconds = main_benchmark(args.scenarios, protocol, args.out, args.workers,
-                                             progress=sys.stderr.isatty(), say=say, command=command)
+                                             progress=sys.stderr.isatty(), say=say, command=command,
+                                             scheduler=args.scheduler)
     print(f"wrote {md}, {table} and {png} in {seconds / 60:.1f} min")
 
 
@@ -406,6 +414,7 @@ def main(argv=None):
     p.add_argument("--from", dest="from_time", type=_seconds, default=0.0, metavar="T",
                    help="score only the samples at t >= T seconds (steady state)")
     p.add_argument("--out", help="CSV of the ranked results (default bags/<experiment>_sweep_<time>.csv)")
+    _scheduler_option(p)
     p.set_defaults(func=_sweep)
     p = sub.add_parser("paper", help="run a paper's scenarios and print our numbers beside the paper's")
     p.add_argument("paper", help="paper number with scenario files in config/ (e.g. 000, 003) or 'all'")
@@ -413,6 +422,7 @@ def main(argv=None):
     p.add_argument("--graph", action="store_true", help="run each scenario through the node graph too")
     p.add_argument("--no-maps", action="store_true", help="write the claims report without computing the regime maps")
     p.add_argument("--workers", type=int, help="processes for the claims and maps (default: one per core)")
+    _scheduler_option(p)
     p.set_defaults(func=_paper)
     from .tuning import Protocol
     p = sub.add_parser("benchmark", help="every estimator x controller (x servo) on every paper scenario, each gain "
@@ -426,6 +436,7 @@ def main(argv=None):
                    help=f"noise-seed and model-mismatch draws per tuned combination (default {Protocol.draws})")
     p.add_argument("--out", default="reports", help="folder for benchmark.md, .csv and the figures (default: reports/)")
     p.add_argument("--workers", type=int, help="processes (default: one per core)")
+    _scheduler_option(p)
     p.set_defaults(func=_benchmark)
     args = parser.parse_args(argv)
     try:

@@ -14,8 +14,6 @@ import copy
 import csv
 import itertools
 import math
-import os
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -211,18 +209,19 @@ def _chunks(experiments: list, workers: int, batch: int) -> list:
 
 
 def score_experiments(experiments: list, workers: int | None = None, progress: bool = False, batch: int = BATCH,
-                      from_time: float = 0.0, desc: str = "sweep") -> list:
+                      from_time: float = 0.0, desc: str = "sweep", scheduler: str | None = None) -> list:
     """(scores or None, why it ran alone, why it has no scores) for each experiment, in order: the
-    in-process simulation on a process pool, vectorised where it can be."""
+    in-process simulation on a process pool (or the Dask cluster at ``scheduler``,
+    :func:`contouring_ros.executors.pool`), vectorised where it can be."""
     from tqdm import tqdm
-    workers = workers or os.cpu_count() or 1
-    chunks = _chunks(experiments, workers, batch)
+    from .executors import pool as executor
     out = [None] * len(experiments)
-    with ProcessPoolExecutor(max_workers=workers) as pool, \
+    with executor(workers, scheduler) as (pool, workers), \
             tqdm(total=len(experiments), desc=desc, disable=not progress, leave=False) as bar:
+        chunks = _chunks(experiments, workers, batch)
         jobs = pool.map(_score_chunk, [[experiments[i] for i in chunk] for chunk in chunks],
                         [from_time] * len(chunks))
-        for chunk, (scores, alone, failures) in zip(chunks, jobs):
+        for chunk, (scores, alone, failures) in zip(chunks, jobs, strict=True):
             for i, s, why, failure in zip(chunk, scores, alone, failures):
                 out[i] = (s, why, failure)
             bar.update(len(chunk))
@@ -234,12 +233,13 @@ def _rank(row: SweepRow):
 
 
 def run_sweep(text: str, grid: dict, workers: int | None = None, progress: bool = False, batch: int = BATCH,
-              from_time: float = 0.0) -> list:
+              from_time: float = 0.0, scheduler: str | None = None) -> list:
     """Score every combination (validated first), ranked by MCE then TACE, diverged runs last; at most
-    ``batch`` combinations per vectorised batch (1: each alone); ``from_time`` as in
+    ``batch`` combinations per vectorised batch (1: each alone); ``scheduler``: a Dask scheduler's address
+    (:mod:`contouring_ros.executors`); ``from_time`` as in
     :func:`contouring_ros.scoring.score_run`."""
     combos = combinations(text, grid)
-    results = score_experiments([e for _, e in combos], workers, progress, batch, from_time)
+    results = score_experiments([e for _, e in combos], workers, progress, batch, from_time, scheduler=scheduler)
     rows = [SweepRow(settings, *result) for (settings, _), result in zip(combos, results)]
     return sorted(rows, key=_rank)
 

@@ -3,8 +3,9 @@ import numpy as np
 import pytest
 import yaml
 
-from contouring_ros.config import build_loop, parse_experiment
-from contouring_ros.core.batch import NotBatchable, batchable, simulate_batch, stack
+from contouring_ros.config import CONTROLLERS, build_loop, parse_experiment
+from contouring_ros.core.batch import NotBatchable, _stacked, batch_problem, batchable, simulate_batch, stack
+from contouring_ros.core.contouring import NoCoupling
 from contouring_ros.core.curves import Circle, Parabola
 from contouring_ros.core.pid import DiscretePID
 from contouring_ros.core.simulation import simulate
@@ -16,13 +17,13 @@ def _loops(text, specs):
     return [build_loop(experiment) for _, experiment in combinations(text, parse_grid(specs))]
 
 
-def _assert_equal_runs(batch, singles):
+def _assert_equal_runs(batch, singles, tolerance=1e-9):
     # the same operations on the same float64 values; a vectorised sum (the ESO's matrix products) may round
     # differently, and the closed loop carries that rounding on (through a CCC's derivative gain): equal to
     # 1e-9 of each signal's size
     for run, alone in zip(batch, singles):
         for name, value in vars(alone).items():
-            assert np.max(np.abs(getattr(run, name) - value)) <= 1e-9 * np.max(np.abs(value)), name
+            assert np.max(np.abs(getattr(run, name) - value)) <= tolerance * np.max(np.abs(value)), name
 
 
 def _with_estimator(path, **estimator):
@@ -60,6 +61,164 @@ def test_batch_equals_each_experiment_alone(text, specs):
     loops = _loops(text, specs)
     assert batchable(loops)
     _assert_equal_runs(simulate_batch(loops), [simulate(loop) for loop in _loops(text, specs)])
+
+
+def _settings(name, duration, grid):
+    return shortened(CONFIG / name, duration), grid
+
+
+# the task-frame PD (natural-local and first-order approximations, 2 and 3 axes), the natural-local and
+# foot-point search estimates, the TVT and adaptive TNB controllers: each batch member equals its run alone to
+# 1e-12 of each signal's size (the frames, products and sums are formed in the scalar path's order; only the
+# curves' trigonometric functions may round an array differently from one float)
+@pytest.mark.parametrize("text, grid", [
+    _settings("paper003_ellipse_natural_local_fn80.yaml", 0.3, {"ccc.f_n": [60.0, 80.0], "ccc.f_t": [40.0, 50.0],
+                                                                 "curve.b": [0.01, 0.012]}),
+    _settings("paper003_helix_natural_local_f15_10.yaml", 0.3, {"ccc.f_n": [12.0, 15.0], "ccc.f_b": [10.0, 12.0],
+                                                                 "curve.c": [0.01, 0.02]}),
+    _settings("paper003_figure_eight_first_order_fn80.yaml", 0.3, {
+        "ccc.f_n": [60.0, 80.0], "ccc.damping": [[200.0, 230.0], [180.0, 200.0]], "ccc.zeta": [0.8, 1.0]}),
+    _settings("paper003_helix_first_order_f15_10.yaml", 0.3, {"ccc.f_n": [12.0, 15.0], "curve.length": [8.0, 10.0]}),
+    # the realistic machine of the benchmark: encoder, noise of its own seed per run, a sample of delay
+    _settings("paper003_mech_helix_natural_local_f15_10.yaml", 0.3, {
+        "x/plant.measurement_noise": [1e-7], "x/plant.noise_seed": [1, 2], "x/plant.encoder_resolution": [1e-7],
+        "y/plant.command_delay": [1], "ccc.f_n": [12.0, 15.0]}),
+    _settings("paper001_caseII_adaptive_tnb.yaml", 0.3, {
+        "ccc.alpha": [30.0, 40.0], "ccc.mass0": [[3075.37344, 1144.0], [3000.0, 1100.0]],
+        "ccc.coupling": [[11493.98, 84867.6], [5000.0, 40000.0]]}),
+    _settings("paper001_mech_mismatch_adaptive_tnb.yaml", 0.3, {"ccc.alpha": [30.0, 40.0],
+                                                                "x/plant.mass": [3000.0, 3200.0]}),
+    _settings("paper002_butterfly_c3_tvt.yaml", 0.4, {"ccc.kc": [100.0, 140.0], "ccc.min_feedrate": [1e-3, 2e-3],
+                                                      "contour_estimator.max_iterations": [2, 10]}),
+    _settings("paper002_butterfly_c4_foot_point_ccc.yaml", 0.4, {"ccc.kp": [100.0, 140.0],
+                                                                 "contour_estimator.tolerance": [1e-6, 1e-8]}),
+    _settings("paper002_mech_feedlag_c3_tvt.yaml", 0.4, {"ccc.kc": [100.0, 140.0], "x/plant.time_constant": [0.02, 0.03]}),
+], ids=["natural-local-ellipse", "natural-local-helix", "first-order-figure-eight", "first-order-helix",
+        "natural-local-helix-realistic-machine", "adaptive-tnb", "adaptive-tnb-mismatch", "tvt-foot-point",
+        "foot-point-ccc", "tvt-feed-lag"])
+def test_batch_of_the_frenet_frame_and_foot_point_classes_equals_each_run_alone(text, grid):
+    def loops():
+        return [build_loop(experiment) for _, experiment in combinations(text, grid)]
+    batch = loops()
+    assert len(batch) > 2 and batchable(batch)
+    _assert_equal_runs(simulate_batch(batch), [simulate(loop) for loop in loops()], tolerance=1e-12)
+
+
+def _on_spline():
+    # a spline through points of the default parabola, driven by the feedrate schedule
+    data = yaml.safe_load(shortened(DEFAULT, 0.4))
+    x = np.linspace(-0.02, 0.02, 9)
+    data["/**"]["ros__parameters"]["curve"] = {"type": "spline", "x": x.tolist(), "y": (50.0 * x * x).tolist()}
+    data["/**"]["ros__parameters"]["schedule"] = {"type": "feedrate", "feedrate": 0.02, "acceleration": 0.5}
+    return yaml.safe_dump(data)
+
+
+def _with_random_disturbance():
+    data = yaml.safe_load(shortened(DEFAULT, 0.3))
+    data["/x/plant"]["ros__parameters"]["disturbance"] = {"type": "random", "std": 1e-4, "seed": 1}
+    return yaml.safe_dump(data)
+
+
+# the tool path of a part program with its jerk-limited feed plan (shared across the batch), a spline, a random
+# disturbance of its own seed per run: each member equals its run alone to 1e-12
+@pytest.mark.parametrize("text, grid", [
+    (shortened(CONFIG / "gcode_example_part.yaml", 1.0), {"ccc.kp": [1.0, 2.0], "contour_estimator.k_prime": [400.0, 500.0]}),
+    (_on_spline(), {"ccc.kp": [0.5, 4.0], "x/servo.a": [10.0, 12.5]}),
+    (_with_random_disturbance(), {"x/plant.disturbance.seed": [1, 2, 3], "x/plant.disturbance.std": [1e-4, 2e-4]}),
+], ids=["gcode-feed-plan", "spline", "random-disturbance"])
+def test_batch_of_tool_paths_splines_and_random_disturbances_equals_each_run_alone(text, grid):
+    def loops():
+        return [build_loop(experiment) for _, experiment in combinations(text, grid)]
+    batch = loops()
+    assert batchable(batch)
+    _assert_equal_runs(simulate_batch(batch), [simulate(loop) for loop in loops()], tolerance=1e-12)
+
+
+def test_tool_paths_and_feed_plans_batch_only_when_they_are_the_same():
+    text = _on_spline()
+    assert not batchable(_loops(text, ["curve.closed=false,true"]))
+    part = shortened(CONFIG / "gcode_example_part.yaml", 0.2)
+    assert batch_problem(_loops(part, ["schedule.jerk=10,20"])) == "FeedPlan.limits must be the same across a batch"
+
+
+def test_every_scenario_file_can_run_as_a_batch():
+    # every class a scenario of config/ is built of has a batch path: sweeps, maps and the benchmark's tuning
+    # run none of them one by one for want of one
+    from contouring_ros.config import load_experiment
+    problems = {}
+    for path in sorted(CONFIG.glob("*.yaml")):
+        experiment = load_experiment(path)
+        problem = batch_problem([build_loop(experiment), build_loop(experiment)])
+        if problem:
+            problems[path.name] = problem
+    assert problems == {}
+
+
+def test_foot_point_search_batch_counts_each_members_backsteps_and_caps_as_alone():
+    text, grid = _settings("paper002_butterfly_c4_foot_point_ccc.yaml", 0.3,
+                           {"contour_estimator.max_iterations": [1, 2, 10], "contour_estimator.tolerance": [1e-6, 1e-9]})
+    alone = [build_loop(experiment) for _, experiment in combinations(text, grid)]
+    for loop in alone:
+        simulate(loop)
+    batch = [build_loop(experiment) for _, experiment in combinations(text, grid)]
+    curve, schedule, plants, servos, estimator, controller = _stacked(batch)
+    from contouring_ros.core.interpolation import reference
+    caps = [loop.estimator.cap_reached for loop in alone]
+    assert min(caps) == 0 < max(caps)            # some members hit their cap, some never
+    # the stacked estimator steps each member's own position from its own previous foot point
+    position = np.array([[0.021, 0.001]] * len(batch))
+    ref = reference(curve, schedule, np.full((len(batch), 1), 0.0))
+    import dataclasses
+    ref = dataclasses.replace(ref, position=ref.position[:, 0])
+    estimate = estimator.step_batch(ref, position)
+    for j, loop in enumerate(batch):
+        one = loop.estimator.step(reference(loop.curve, loop.schedule, 0.0), position[j])
+        assert estimate.theta[j, 0] == one.theta and estimator.iterations[j, 0] == loop.estimator.iterations
+        np.testing.assert_array_equal(estimate.vector[j], one.vector)
+        assert estimator.cap_reached[j, 0] == loop.estimator.cap_reached
+
+
+def test_natural_local_and_foot_point_batches_give_the_exact_distance_to_a_line():
+    # on a straight line the natural local cubic is the line itself (kappa = 0) and the foot point search
+    # lands on the true foot point: both estimates are the exact distance, for every member
+    from contouring_ros.core.curves import Line
+    from contouring_ros.core.estimators import FootPointSearchEstimator, NaturalLocalEstimator
+    from contouring_ros.core.interpolation import Reference
+    lines = [Line([0.0, 0.0, 0.0], [0.1, 0.05, 0.02]), Line([0.0, 0.0, 0.0], [0.02, 0.1, -0.03])]
+    rng = np.random.default_rng(0)
+    theta = np.array([[0.03], [0.06]])
+    offsets = rng.normal(scale=1e-3, size=(2, 3))
+    foot = np.stack([line.point(float(t)) for line, t in zip(lines, theta[:, 0])])
+    direction = np.stack([line.direction for line in lines])
+    normal = offsets - np.sum(offsets * direction, axis=1, keepdims=True) * direction     # off the line
+    along = np.array([[2e-3], [-1e-3]])
+    position = foot + normal + along * direction
+    curve = stack(lines)
+    ref = Reference(theta=theta, theta_dot=np.zeros((2, 1)), theta_ddot=np.zeros((2, 1)), position=foot,
+                    velocity=np.zeros((2, 3)), acceleration=np.zeros((2, 3)))
+    for estimator in (stack([NaturalLocalEstimator(line) for line in lines]),
+                      stack([FootPointSearchEstimator(line) for line in lines])):
+        estimate = estimator.step_batch(ref, position)
+        np.testing.assert_allclose(estimate.vector, -normal, atol=1e-15)
+        np.testing.assert_allclose(estimate.signed, np.linalg.norm(normal, axis=1), rtol=1e-12)
+        np.testing.assert_allclose(estimate.theta, theta + along, rtol=1e-12)
+    assert curve.direction.shape == (2, 3)
+
+
+def test_frenet_frame_of_a_batch_equals_each_parameters_frame():
+    from contouring_ros.core.curves import Helix
+    from contouring_ros.core.geometry import frenet_frame
+    helices = [Helix(0.02, 0.01, 0.005, 3.0, 10.0), Helix(0.03, 0.01, -0.002, 2.0, 8.0)]
+    theta, rate, acc = np.array([[0.4], [2.5]]), np.array([[1.0], [0.5]]), np.array([[0.0], [0.2]])
+    frame = frenet_frame(stack(helices), theta, rate, acc)
+    for j, helix in enumerate(helices):
+        one = frenet_frame(helix, theta[j, 0], rate[j, 0], acc[j, 0])
+        for name, value in vars(one).items():
+            # the rotation's acceleration takes d kappa / dt by a central difference over 1e-5 of the
+            # parameter range, which magnifies a last-bit difference of cos on an array and on one float
+            tolerance = 1e-10 if name == "rotation_acceleration" else 1e-13
+            np.testing.assert_allclose(np.asarray(getattr(frame, name))[j].reshape(np.shape(value)), value,
+                                       rtol=tolerance, atol=tolerance * np.max(np.abs(value)), err_msg=name)
 
 
 def test_branch_check_restarts_only_the_runs_that_need_it():
@@ -104,12 +263,26 @@ def test_feedrate_profiles_batch_only_when_they_are_the_same():
     assert not batchable(_loops(text, ["schedule.feedrate=0.05,0.1"]))
 
 
-def test_loops_of_a_class_without_batch_path_are_not_batchable():
-    text = shortened(CONFIG / "paper001_caseI_adaptive_tnb.yaml", 0.2)   # the adaptive TNB CCC has none
-    assert not batchable(_loops(text, ["x/servo.kd=7e5,8e5"]))
+class _Unbatched(NoCoupling):
+    """A controller of one's own (as a plugin's) that does not say it has a batch path."""
+
+    batchable = False
 
 
-def test_sweep_vectorises_what_it_can_and_runs_the_rest_alone():
+@pytest.fixture
+def unbatched_controller():
+    """The controller type ``unbatched`` (a :class:`_Unbatched`) registered for one test."""
+    CONTROLLERS.register("unbatched", {}, lambda s, c: _Unbatched(c.n_axes))
+    yield yaml.safe_dump({**yaml.safe_load(shortened(DEFAULT, 0.2)), "/ccc": {"ros__parameters": {"type": "unbatched"}}})
+    del CONTROLLERS._entries["unbatched"]
+
+
+def test_loops_of_a_class_without_batch_path_are_not_batchable(unbatched_controller):
+    loops = _loops(unbatched_controller, ["x/servo.a=10,12.5"])
+    assert batch_problem(loops) == "_Unbatched has no batch path" and not batchable(loops)
+
+
+def test_sweep_vectorises_each_structure():
     text = shortened(DEFAULT, 0.3)
     # with and without the disturbance observer: two structures, each its own vectorised batch
     rows = run_sweep(text, parse_grid(["ccc.kp=0.5,1,2,4", "x/servo.observer=true,false"]), workers=1)
@@ -120,10 +293,12 @@ def test_sweep_vectorises_what_it_can_and_runs_the_rest_alone():
         data["/x/servo"]["ros__parameters"]["observer"] = row.settings["x/servo.observer"]
         loop = build_loop(parse_experiment(yaml.safe_dump(data), "one"))
         np.testing.assert_allclose(row.scores.mce, _mce(loop), rtol=1e-9)
-    rows = run_sweep(shortened(CONFIG / "paper001_caseI_adaptive_tnb.yaml", 0.2),
-                     parse_grid(["x/servo.kd=7e5,8e5,9e5,1e6"]), workers=1)
+
+
+def test_sweep_runs_alone_what_has_no_batch_path_and_says_why(unbatched_controller):
+    rows = run_sweep(unbatched_controller, parse_grid(["x/servo.a=10,11,12.5,15"]), workers=1)
     assert not any(row.vectorised for row in rows)
-    assert {row.alone for row in rows} == {"AdaptiveTNBCCC has no batch path"}     # said, for the CLI to print
+    assert {row.alone for row in rows} == {"_Unbatched has no batch path"}     # said, for the CLI to print
 
 
 def _mce(loop):

@@ -212,3 +212,45 @@ def test_quick_robustness_agrees_with_the_margins_and_the_ms_bound_refuses_befor
     tuned = tuning.tune(data, sections, ("kp",), {}, math.inf, family.from_time,
                         Protocol(evaluations=2, popsize=2, draws=1, backoff=0))
     assert tuned.evaluations[0].outcome.failure.startswith("refused: ")
+
+
+def test_runs_together_equal_the_runs_one_by_one():
+    """run_outcomes batches the runs of one structure (sweep.simulate_experiments): same figures as alone."""
+    families = {f.name: f for f in scenario_families()}
+    family = families["paper000_h50"]
+    data = family.data[family.proposed]
+    machine = tuning.machine_settings(data, "realistic", (0.05, 0.05))
+    settings = [dict(machine, **c) for c in tuning.perturbations(data, 0.2)[:3]]
+    together = tuning.run_outcomes(data, {}, settings, family.from_time, "test")
+    alone = [tuning.run_outcomes(data, {}, [s], family.from_time, "test")[0] for s in settings]
+    assert len({round(o.tace, 15) for o in together}) == 3           # the perturbations differ
+    for a, b in zip(together, alone):
+        assert a.ok and b.ok
+        for name in ("tace", "mce", "noise", "saturated", "effort"):
+            assert getattr(a, name) == pytest.approx(getattr(b, name), rel=1e-9, abs=1e-15)
+
+
+def _small_tune(**options):
+    families = select_families(scenario_families(), [SMALL])
+    family = families[0]
+    data = family.data[family.proposed]
+    combo = next(c for c in plan(family)[0] if c.estimator == "natural_local")
+    return tuning.tune(data, combo.sections, combo.gain_keys, {}, math.inf, family.from_time,
+                       Protocol(evaluations=8, popsize=4, draws=1, backoff=0, **options.pop("protocol", {})),
+                       "test", **options)
+
+
+def test_the_robustness_floor_and_the_checks_after_the_search():
+    # the paper's own design degrading as much is enough: with no limit every point is robust and the tuned
+    # point is the admissible one of lowest TACE, also where it only beat the best by less than robust_step
+    tuned = _small_tune(robust_floor=math.inf, protocol={"robust_step": 0.5})
+    admissible = [e for e in tuned.evaluations if e.admissible]
+    assert tuned.ok and tuned.nominal.tace == min(e.outcome.tace for e in admissible)
+    assert all(math.isnan(e.worst) or e.worst >= 0 for e in tuned.evaluations)
+    # no point robust (its worst case within 0.001x its own error): said so, and the point given is the
+    # checked one whose worst case is the lowest
+    tuned = _small_tune(protocol={"robust_factor": 1e-3})
+    assert tuned.status.startswith("not robust") and not tuned.ok
+    checked = [e for e in tuned.evaluations if math.isfinite(e.worst)]
+    best = min(checked, key=lambda e: e.worst)
+    assert tuned.gains == best.gains and tuned.robust_worst == pytest.approx(best.worst / best.outcome.tace)

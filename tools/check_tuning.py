@@ -27,12 +27,12 @@ def _retune(name: str, label: str, factor: float):
     combos, _ = benchmark.plan(family)
     combo = next(c for c in combos if c.label == label)
     data = family.data[family.proposed]
-    reference = benchmark._reference_job(data, family.from_time, name)
     protocol = Protocol()
+    reference = benchmark._reference_job(data, family.from_time, name, protocol)
     limit = protocol.noise_factor * reference.published.noise
     checked = Protocol(evaluations=int(protocol.evaluations * factor))
     tuned = tune(data, combo.sections, combo.gain_keys, reference.machine, limit, family.from_time, checked,
-                 f"{name} {label}", optimiser=nelder_mead_restarts)
+                 f"{name} {label}", optimiser=nelder_mead_restarts, robust_floor=reference.worst)
     return tuned
 
 

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import inspect
 import numbers
 
 import numpy as np
@@ -42,6 +43,24 @@ def _same(values) -> bool:
     return True
 
 
+def _equal(a, b) -> bool:
+    """Whether two values are equal all the way down (arrays by value, containers and plain objects by
+    their contents): for the attributes a class shares across a batch."""
+    if a is b:
+        return True
+    if type(a) is not type(b):
+        return False
+    if isinstance(a, np.ndarray):
+        return a.shape == b.shape and np.array_equal(a, b)
+    if isinstance(a, (list, tuple)):
+        return len(a) == len(b) and all(_equal(x, y) for x, y in zip(a, b))
+    if isinstance(a, dict):
+        return a.keys() == b.keys() and all(_equal(a[k], b[k]) for k in a)
+    if hasattr(a, "__dict__") and not inspect.isroutine(a):
+        return _equal(vars(a), vars(b))
+    return bool(a == b)
+
+
 def _stack_value(name, values):
     if _same(values):
         return values[0]
@@ -66,7 +85,9 @@ def stack(objects: list):
     attributes are kept as they are (so a limit of 0 that no experiment sets stays a plain 0).
 
     A class can name attributes that its batch path needs equal across the batch (``batch_shared``, e.g. a
-    schedule's profile table).
+    schedule's profile table, a tool path's segments; compared by value all the way down) and attributes
+    computed from those alone (``batch_kept``, e.g. a feed plan's trajectories): both are taken from the
+    first object as they are.
 
     Raises
     ------
@@ -80,12 +101,15 @@ def stack(objects: list):
         raise NotBatchable(f"{cls.__name__} has no batch path")
     if any(type(o) is not cls for o in objects):
         raise NotBatchable(f"the batch mixes {cls.__name__} with other classes")
-    for name in getattr(cls, "batch_shared", ()):
-        if not _same([vars(o)[name] for o in objects]):
+    shared = tuple(getattr(cls, "batch_shared", ()))
+    for name in shared:
+        if not all(_equal(vars(o).get(name), vars(first).get(name)) for o in objects[1:]):
             raise NotBatchable(f"{cls.__name__}.{name} must be the same across a batch")
+    kept = shared + tuple(getattr(cls, "batch_kept", ()))
     out = copy.copy(first)
     for name in vars(first):
-        setattr(out, name, _stack_value(f"{cls.__name__}.{name}", [vars(o)[name] for o in objects]))
+        if name not in kept:
+            setattr(out, name, _stack_value(f"{cls.__name__}.{name}", [vars(o)[name] for o in objects]))
     return out
 
 

@@ -9,7 +9,8 @@ from __future__ import annotations
 import numpy as np
 
 from .curves import Curve
-from .geometry import frenet_generator, frenet_frame, left_normal, matmul, matvec, unit_tangent
+from .geometry import (frenet_generator, frenet_frame, left_normal, matmul, matmul_rows, matvec, matvec_rows,
+                       unit_tangent)
 from .plants import coulomb_friction
 from .pid import DiscretePID
 
@@ -117,9 +118,13 @@ class TaskFramePD:
     :func:`~contouring_ros.core.estimators.first_order_terms`): the controller acts on the errors that
     estimator reports. M, B, K and F_c are the controller's (identified) model of the axes. The output is
     every axis' whole command: pair it with :class:`~contouring_ros.core.servo.DirectServo`.
+
+    On a batch (positions (B, n), reference theta (B, 1); :mod:`contouring_ros.core.batch`) the same
+    formulas run on each member, with the frames of :func:`~contouring_ros.core.geometry.frenet_frame`.
     """
 
     needs_state = True
+    batchable = True
 
     def __init__(self, curve: Curve, approximation, mass, damping, gain, bandwidths, zeta: float = 1.0,
                  coulomb_positive=None, coulomb_negative=None):
@@ -138,6 +143,8 @@ class TaskFramePD:
         self.kp, self.kd = omega**2, 2.0 * float(zeta) * omega
 
     def step(self, estimate, reference=None, position=None, velocity=None) -> np.ndarray:
+        if np.ndim(position) == 2:
+            return self._step_batch(reference, position, velocity)
         frame = frenet_frame(self.curve, float(reference.theta), float(reference.theta_dot),
                              float(reference.theta_ddot))
         r, r_dot, r_ddot = frame.rotation, frame.rotation_rate, frame.rotation_acceleration
@@ -159,6 +166,29 @@ class TaskFramePD:
             np.asarray(velocity, dtype=float), self.coulomb_positive, self.coulomb_negative)])
         return u_z / self.gain + friction + feedforward
 
+    def _step_batch(self, reference, position, velocity) -> np.ndarray:
+        """:meth:`step` (eq. 19-25) for a batch: the same terms, (B, n) vectors and (B, n, n) matrices."""
+        frame = frenet_frame(self.curve, reference.theta, reference.theta_dot, reference.theta_ddot)
+        r, r_dot, r_ddot = frame.rotation, frame.rotation_rate, frame.rotation_acceleration
+        b, n = position.shape
+        r_t = np.swapaxes(r, -1, -2)
+        f = matvec_rows(r_t, position - reference.position)
+        f_dot = matvec_rows(r_t, velocity - reference.velocity - matvec_rows(r_dot, f))
+        h, dh, ddh = self.approximation(frame.curvature, frame.torsion, f[:, 0:1], n)
+        z1 = np.concatenate([f[:, 0:1], f[:, 1:] - h], axis=-1)
+        z2 = np.concatenate([f_dot[:, 0:1], f_dot[:, 1:] - dh * f_dot[:, 0:1]], axis=-1)
+        slope = np.broadcast_to(np.eye(n), (b, n, n)).copy()
+        slope[:, 1:, 0] = dh
+        curvature_term = np.concatenate([np.zeros((b, 1)), ddh * f_dot[:, 0:1] ** 2], axis=-1)
+        m, c = self.mass[..., :, None], self.damping[..., :, None]
+        m_f, c_f, k_f = m * r, 2.0 * m * r_dot + c * r, m * r_ddot + c * r_dot
+        v = -self.kp * z1 - self.kd * z2
+        u_z = matvec_rows(m_f, matvec_rows(slope, v) + curvature_term) + matvec_rows(c_f, f_dot) \
+            + matvec_rows(k_f, f)
+        feedforward = (self.mass * reference.acceleration + self.damping * reference.velocity) / self.gain
+        friction = coulomb_friction(np.asarray(velocity, dtype=float), self.coulomb_positive, self.coulomb_negative)
+        return u_z / self.gain + friction + feedforward
+
 
 class AdaptiveTNBCCC:
     """Adaptive nonlinear contour coupling control in the tangential/normal/binormal frame (paper 001
@@ -175,9 +205,13 @@ class AdaptiveTNBCCC:
     paper's experiment. The estimates of the diagonal inertia and friction follow eq. 26,
     theta^' = Gamma Y_d^T r, which in world coordinates is m^_i' = Gamma_m,i x_d,i'' r_i and
     b^_i' = Gamma_b,i x_d,i' r_i; they are integrated by a forward rectangle at each step.
+
+    On a batch (positions (B, n), reference theta (B, 1); :mod:`contouring_ros.core.batch`) the same
+    formulas run on each member and the estimates become (B, n).
     """
 
     needs_state = True
+    batchable = True
 
     def __init__(self, curve: Curve, coupling, alpha: float, gamma_mass, gamma_damping, mass0, damping0,
                  sample_time: float):
@@ -192,13 +226,19 @@ class AdaptiveTNBCCC:
         self.sample_time = float(sample_time)
 
     def step(self, estimate, reference=None, position=None, velocity=None) -> np.ndarray:
-        frame = frenet_frame(self.curve, float(reference.theta), float(reference.theta_dot),
-                             float(reference.theta_ddot))
-        r = frame.rotation
-        n = r.shape[0]
         error = reference.position - np.asarray(position, dtype=float)
         error_rate = reference.velocity - np.asarray(velocity, dtype=float)
-        coupled = frame.speed * matvec(matmul(matmul(r, frenet_generator(n, frame.curvature, frame.torsion)), r.T), error)
+        if np.ndim(position) == 2:         # a batch: frames (B, n, n)
+            frame = frenet_frame(self.curve, reference.theta, reference.theta_dot, reference.theta_ddot)
+            r = frame.rotation
+            generator = frenet_generator(r.shape[-1], frame.curvature, frame.torsion)
+            coupled = frame.speed * matvec_rows(matmul_rows(matmul_rows(r, generator), np.swapaxes(r, -1, -2)), error)
+        else:
+            frame = frenet_frame(self.curve, float(reference.theta), float(reference.theta_dot),
+                                 float(reference.theta_ddot))
+            r = frame.rotation
+            coupled = frame.speed * matvec(matmul(matmul(r, frenet_generator(r.shape[0], frame.curvature,
+                                                                             frame.torsion)), r.T), error)
         filtered = coupled + error_rate + self.alpha * error
         correction = self.coupling * coupled + self.mass * reference.acceleration + self.damping * reference.velocity
         self.mass = self.mass + self.sample_time * self.gamma_mass * reference.acceleration * filtered
@@ -226,9 +266,13 @@ class TangentialVelocityCCC:
     unwrapped from the schedule's start (each step's change taken within half a period), so past
     ``theta_end`` the commanded feedrate is 0 and the axes stop at the end of the path instead of
     starting a second lap from the profile's start.
+
+    On a batch (estimate theta (B, 1), vectors (B, n); :mod:`contouring_ros.core.batch`) the same formulas
+    run on each member.
     """
 
     needs_state = True
+    batchable = True
 
     def __init__(self, curve: Curve, schedule, kc: float, min_feedrate: float = 0.0):
         self.curve, self.schedule, self.kc = curve, schedule, float(kc)
@@ -237,6 +281,8 @@ class TangentialVelocityCCC:
         self.theta = float(schedule.theta_start)      # the foot point's parameter, unwrapped
 
     def step(self, estimate, reference=None, position=None, velocity=None) -> np.ndarray:
+        if np.ndim(estimate.theta):
+            return self._step_batch(estimate)
         theta = float(estimate.theta)
         tangent = unit_tangent(self.curve, theta)
         if self.curve.closed:
@@ -248,3 +294,16 @@ class TangentialVelocityCCC:
         if theta < self.theta_end:
             feedrate = max(feedrate, self.min_feedrate)
         return feedrate * tangent + self.kc * np.asarray(estimate.vector, dtype=float)
+
+    def _step_batch(self, estimate) -> np.ndarray:
+        """:meth:`step` for a batch: foot points theta (B, 1), error vectors (B, n)."""
+        theta = np.asarray(estimate.theta, dtype=float)
+        tangent = unit_tangent(self.curve, theta)[:, 0, :]
+        if self.curve.closed:
+            lo, hi = self.curve.domain
+            period = hi - lo
+            self.theta = self.theta + (np.mod(theta - self.theta + 0.5 * period, period) - 0.5 * period)
+            theta = self.theta
+        feedrate = self.schedule.feedrate_at(self.curve, theta)
+        feedrate = np.where(theta < self.theta_end, np.maximum(feedrate, self.min_feedrate), feedrate)
+        return feedrate * tangent + self.kc * estimate.vector

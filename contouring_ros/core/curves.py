@@ -301,6 +301,11 @@ class SplineCurve(Curve):
         Periodic spline (the last point is joined back to the first).
     """
 
+    #: columns() works on a batch of parameters when every experiment of the batch has the same spline
+    #: (:mod:`contouring_ros.core.batch`)
+    batchable = True
+    batch_shared = ("_splines",)
+
     def __init__(self, points, closed: bool = False):
         from scipy.interpolate import make_interp_spline
         points = np.asarray(points, dtype=float)
@@ -377,6 +382,11 @@ class ToolPath(Curve):
     curvature jumps where moves meet, as on a machine. ``blocks`` lists the stretches between block
     boundaries (:class:`PathBlock`) for feed planning.
     """
+
+    #: columns() works on a batch of parameters when every experiment of the batch has the same path
+    #: (:mod:`contouring_ros.core.batch`)
+    batchable = True
+    batch_shared = ("segments", "blocks", "program")
 
     dimension = 2
     dwell = 0.0            # [s] G4 before the first motion
@@ -540,12 +550,16 @@ class ToolPath(Curve):
         if np.ndim(t) == 0:
             return [tuple(float(v) for v in row) for row in self._one(float(t))]
         shape, flat = np.shape(t), np.ravel(np.asarray(t, dtype=float))
-        index = np.clip(np.searchsorted(self._starts, flat, side="right") - 1, 0, len(self.segments) - 1)
-        out = [np.empty((flat.size, self.dimension)) for _ in range(4)]
-        for i in np.unique(index):       # each segment's points at once
-            inside = index == i
-            for j, rows in enumerate(self._segment_array(int(i), flat[inside] - self._starts[i])):
-                out[j][inside] = rows
+        index = np.minimum(np.maximum(np.searchsorted(self._starts, flat, side="right") - 1, 0), len(self.segments) - 1)
+        first = int(index[0])
+        if (index == first).all():       # all on one segment (a batch's members mostly are): no masks
+            out = self._segment_array(first, flat - self._starts[first])
+        else:
+            out = [np.empty((flat.size, self.dimension)) for _ in range(4)]
+            for i in np.unique(index):       # each segment's points at once
+                inside = index == i
+                for j, rows in enumerate(self._segment_array(int(i), flat[inside] - self._starts[i])):
+                    out[j][inside] = rows
         return [tuple(out[j][:, c].reshape(shape) for c in range(self.dimension)) for j in range(4)]
 
     def _segment_array(self, i: int, u: np.ndarray) -> list:

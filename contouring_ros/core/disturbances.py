@@ -58,11 +58,18 @@ class RandomDisturbance:
     D is called, so the node graph and the in-process simulation see the same sequence.
     """
 
+    #: a batch (:mod:`contouring_ros.core.batch`) draws each member's sample from its own seed; numbers that
+    #: differ across it are (B, 1) columns
+    batchable = True
+
     def __init__(self, std: float, seed: int = 0, offset: float = 0.0):
         self.std, self.seed, self.offset = float(std), int(seed), float(offset)
 
     def __call__(self, t: float) -> float:
-        if self.std == 0.0:
-            return self.offset
         key = int(round(t * 1e9))
+        if np.ndim(self.seed):           # a batch of seeds (B, 1): one generator each, as alone
+            samples = [np.random.default_rng([int(seed), key]).standard_normal() for seed in self.seed[:, 0]]
+            return self.offset + self.std * np.array(samples)[:, None]
+        if np.ndim(self.std) == 0 and self.std == 0.0:
+            return self.offset
         return self.offset + self.std * float(np.random.default_rng([self.seed, key]).standard_normal())

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .curves import Curve
-from .geometry import dot, frenet_axes, left_normal, matvec, norm, signed_error
+from .geometry import dot, dot_rows, frenet_axes, left_normal, matvec, matvec_rows, norm, signed_error
 
 __all__ = ["ContourEstimate", "TangentLineEstimator", "NewtonEstimator", "BranchCheck", "LocalApproximationEstimator",
            "NaturalLocalEstimator", "OsculatingCircleEstimator", "FootPointSearchEstimator", "first_order_terms",
@@ -361,14 +361,23 @@ class NewtonEstimator:
 
 def first_order_terms(kappa: float, tau: float, t: float, n: int) -> tuple:
     """The tangent line in Frenet coordinates (paper 003 eq. 11): h(t) = 0, so the estimated contour error is
-    the normal (and binormal) part of the tracking error. Returns (h, dh/dt, d2h/dt2), each of length n - 1."""
-    zero = np.zeros(n - 1)
+    the normal (and binormal) part of the tracking error. Returns (h, dh/dt, d2h/dt2), each of length n - 1
+    (for a batch, t (B, 1): each (B, n - 1))."""
+    zero = np.zeros(np.shape(t)[:-1] + (n - 1,)) if np.ndim(t) else np.zeros(n - 1)
     return zero, zero, zero
 
 
 def natural_local_terms(kappa: float, tau: float, t: float, n: int) -> tuple:
     """The natural local (cubic) approximation in Frenet coordinates (paper 003 eq. 10, 13-14):
-    n = kappa t^2 / 2 and, in 3-D, b = kappa tau t^3 / 6. Returns (h, dh/dt, d2h/dt2) at t."""
+    n = kappa t^2 / 2 and, in 3-D, b = kappa tau t^3 / 6. Returns (h, dh/dt, d2h/dt2) at t (for a batch,
+    kappa, tau and t (B, 1): each (B, n - 1), the same formulas elementwise)."""
+    if np.ndim(t):
+        kappa, tau, t = np.broadcast_arrays(kappa, tau, t)
+        if n == 2:
+            return 0.5 * kappa * t * t, kappa * t, kappa
+        return (np.concatenate([0.5 * kappa * t * t, kappa * tau * t**3 / 6.0], axis=-1),
+                np.concatenate([kappa * t, 0.5 * kappa * tau * t * t], axis=-1),
+                np.concatenate([kappa, kappa * tau * t], axis=-1))
     if n == 2:
         return np.array([0.5 * kappa * t * t]), np.array([kappa * t]), np.array([kappa])
     return (np.array([0.5 * kappa * t * t, kappa * tau * t**3 / 6.0]),
@@ -388,12 +397,21 @@ class LocalApproximationEstimator:
     normal part, identical to :class:`TangentLineEstimator`) or :func:`natural_local_terms` (paper 003).
     """
 
+    #: has a batch path, :meth:`step_batch` (:mod:`contouring_ros.core.batch`)
+    batchable = True
+
     def __init__(self, curve: Curve, approximation=None):
         self.curve = curve
         self.approximation = approximation or natural_local_terms
 
     def task_errors(self, reference, position) -> tuple:
-        """(f, z, R, kappa, tau, |R'|): Frenet coordinates of the position, the estimated errors z and the frame."""
+        """(f, z, R, kappa, tau, |R'|): Frenet coordinates of the position, the estimated errors z and the frame
+        (for a batch of positions (B, n): f (B, n), z (B, n - 1), R (B, n, n), the scalars (B, 1))."""
+        if np.ndim(position) == 2:
+            rotation, kappa, tau, speed = frenet_axes(self.curve, reference.theta)
+            f = matvec_rows(np.swapaxes(rotation, -1, -2), position - reference.position)
+            h, _, _ = self.approximation(kappa, tau, f[:, 0:1], rotation.shape[-1])
+            return f, f[:, 1:] - h, rotation, kappa, tau, speed
         rotation, kappa, tau, speed = frenet_axes(self.curve, reference.theta)
         f = matvec(rotation.T, np.asarray(position, dtype=float) - reference.position)
         h, _, _ = self.approximation(kappa, tau, f[0], rotation.shape[0])
@@ -404,6 +422,14 @@ class LocalApproximationEstimator:
         vector = -matvec(rotation[:, 1:], z)
         return ContourEstimate(theta=float(reference.theta) + float(f[0]) / speed, vector=vector,
                                signed=float(signed_error(vector, rotation[:, 0])))
+
+    def step_batch(self, reference, position) -> ContourEstimate:
+        """:meth:`step` for a batch: reference arrays (B, n) and theta (B, 1), positions (B, n); the same
+        formulas on each member (frames of :func:`~contouring_ros.core.geometry.frenet_axes`)."""
+        f, z, rotation, _, _, speed = self.task_errors(reference, position)
+        vector = -matvec_rows(rotation[:, :, 1:], z)
+        return ContourEstimate(theta=reference.theta + f[:, 0:1] / speed, vector=vector,
+                               signed=signed_error(vector, rotation[:, :, 0]))
 
 
 class NaturalLocalEstimator(LocalApproximationEstimator):
@@ -461,7 +487,7 @@ class OsculatingCircleEstimator:
         with np.errstate(divide="ignore", invalid="ignore"):
             centre = reference.position + left_normal(d1 / speed) / kappa
             radial = position - centre
-            distance = np.hypot(radial[:, 0:1], radial[:, 1:2])
+            distance = np.sqrt(dot_rows(radial, radial))[:, None]
             vector = centre + radial / (distance * np.abs(kappa)) - position
             start = reference.position - centre
             angle = np.arctan2(start[:, 0:1] * radial[:, 1:2] - start[:, 1:2] * radial[:, 0:1],
@@ -492,7 +518,12 @@ class FootPointSearchEstimator:
         Backsteps of the last step.
     cap_reached : int
         Steps that made ``max_iterations`` backsteps and still missed the tolerance.
+
+    On a batch (:meth:`step_batch`) the two counts are arrays (B, 1), one per member.
     """
+
+    #: has a batch path, :meth:`step_batch` (:mod:`contouring_ros.core.batch`)
+    batchable = True
 
     def __init__(self, curve: Curve, max_iterations: int = 10, tolerance: float = 1e-6):
         self.curve = curve
@@ -524,3 +555,34 @@ class FootPointSearchEstimator:
         self.theta = theta
         vector = d[0] - point + along * tangent
         return ContourEstimate(theta=theta, vector=vector, signed=float(signed_error(vector, tangent)))
+
+    def step_batch(self, reference, position) -> ContourEstimate:
+        """:meth:`step` for a batch: reference theta (B, 1), positions (B, n). The members backstep together,
+        one array operation per backstep; each stops at its own tolerance, cap or end of the contour and then
+        keeps its foot point while the rest go on, as it would alone."""
+        curve = self.curve
+        b = position.shape[0]
+        theta = np.broadcast_to(reference.theta if self.theta is None else self.theta, (b, 1)).astype(float)
+        iterations = np.zeros((b, 1), dtype=int)
+        capped = np.zeros((b, 1), dtype=bool)
+        running = np.ones((b, 1), dtype=bool)
+        while True:
+            d = _batch_derivatives(curve, theta, 1)
+            speed = np.sqrt(dot_rows(d[1], d[1]))[:, None]
+            tangent = d[1] / speed
+            along = dot_rows(position - d[0], tangent)[:, None]
+            running &= ~(np.abs(along) < self.tolerance)
+            cap = running & (iterations >= self.max_iterations)
+            capped |= cap
+            running &= ~cap
+            new = curve.wrap(theta + along / speed)
+            if not curve.closed:
+                running &= new != theta       # clipped at an end: the end is the foot point
+            if not running.any():
+                break
+            theta = np.where(running, new, theta)
+            iterations += running
+        self.theta, self.iterations = theta, iterations
+        self.cap_reached = self.cap_reached + capped
+        vector = d[0] - position + along * tangent
+        return ContourEstimate(theta=theta, vector=vector, signed=signed_error(vector, tangent))

@@ -28,6 +28,7 @@ parameter is s itself: theta = s, theta_dot = v (the feed), theta_ddot = dv/dt.
 """
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import dataclass
 
@@ -246,7 +247,11 @@ class FeedPlan:
         Each exact stop between blocks: the time the feed reaches 0 there and the arc length of the corner.
     """
 
-    batchable = False
+    #: runs on a batch of times (:mod:`contouring_ros.core.batch`) when every experiment of the batch has the
+    #: same plan (its spans' trajectories and the tables follow from the shared limits, spans and times)
+    batchable = True
+    batch_shared = ("limits", "_span", "_span_times", "_block_first", "stops", "_starts", "_feed")
+    batch_kept = ("_cached", "_table", "_times")
 
     def __init__(self, path: ToolPath, acceleration: float, jerk: float, feedrate: float | None = None,
                  rapid_feedrate: float | None = None, normal_acceleration: float = 0.0, axis_feedrate=None,
@@ -337,6 +342,15 @@ class FeedPlan:
         self._cached = (i, trajectory)
         return trajectory
 
+    def __deepcopy__(self, memo):
+        """A deep copy sharing the last planned trajectory (read only once planned; Ruckig's cannot be copied)."""
+        out = copy.copy(self)
+        memo[id(self)] = out
+        for name, value in vars(self).items():
+            if name != "_cached":
+                setattr(out, name, copy.deepcopy(value, memo))
+        return out
+
     def _one(self, t: float):
         if t >= self.duration:
             return self.theta_end, 0.0, 0.0
@@ -359,7 +373,8 @@ class FeedPlan:
         """theta (= arc length), theta_dot (feed), theta_ddot at time(s) t."""
         if np.ndim(t) == 0:
             return self._one(float(t))
-        rows = np.array([self._one(float(x)) for x in np.ravel(t)]).reshape(np.shape(t) + (3,))
+        times, where = np.unique(np.ravel(t), return_inverse=True)      # a batch's steps share one time
+        rows = np.array([self._one(float(x)) for x in times])[where].reshape(np.shape(t) + (3,))
         return rows[..., 0], rows[..., 1], rows[..., 2]
 
     def time_at(self, theta: float) -> float:

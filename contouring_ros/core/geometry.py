@@ -15,7 +15,7 @@ import numpy as np
 from .curves import Curve
 
 __all__ = ["unit_tangent", "left_normal", "curvature", "signed_error", "FrenetFrame", "frenet_axes", "frenet_frame", "frenet_generator",
-           "FootPoints", "ExactContourError", "dot", "norm", "matvec", "matmul"]
+           "FootPoints", "ExactContourError", "dot", "norm", "matvec", "matmul", "dot_rows", "matvec_rows", "matmul_rows"]
 
 
 # Products of short vectors and small matrices on the published (one-step, scalar) path. ``a @ b``,
@@ -48,6 +48,34 @@ def matmul(a, b) -> np.ndarray:
     """a b for small matrices (rows of a . columns of b, see :func:`dot`)."""
     columns = np.asarray(b, dtype=float).T
     return np.array([[dot(row, column) for column in columns] for row in np.asarray(a, dtype=float)])
+
+
+# Their batch forms (:mod:`contouring_ros.core.batch`): the same products summed in the same order, one per
+# member of a leading batch axis, so that a batch member's numbers are those of the scalar path.
+
+def dot_rows(a, b) -> np.ndarray:
+    """:func:`dot` along the last axis of arrays (broadcast over the leading ones): shape without that axis."""
+    total = a[..., 0] * b[..., 0]
+    for k in range(1, np.shape(a)[-1]):
+        total = total + a[..., k] * b[..., k]
+    return total
+
+
+def matvec_rows(m, v) -> np.ndarray:
+    """:func:`matvec` of a batch: m (..., r, c), v (..., c) -> (..., r)."""
+    out = np.empty(np.broadcast_shapes(np.shape(m)[:-1], np.shape(v)[:-1] + (1,)))
+    for i in range(out.shape[-1]):
+        out[..., i] = dot_rows(m[..., i, :], v)
+    return out
+
+
+def matmul_rows(a, b) -> np.ndarray:
+    """:func:`matmul` of a batch: a (..., r, k), b (..., k, c) -> (..., r, c)."""
+    out = np.empty(np.broadcast_shapes(np.shape(a)[:-2], np.shape(b)[:-2]) + (np.shape(a)[-2], np.shape(b)[-1]))
+    for i in range(out.shape[-2]):
+        for j in range(out.shape[-1]):
+            out[..., i, j] = dot_rows(a[..., i, :], b[..., :, j])
+    return out
 
 
 def unit_tangent(curve: Curve, theta) -> np.ndarray:
@@ -99,7 +127,12 @@ def frenet_axes(curve: Curve, theta: float) -> tuple:
     Planar contours use the 2-D frame [alpha, left normal] and the signed ("relative") curvature of
     paper 003 eq. 27, so the frame never flips where the curve changes its bending direction; tau = 0.
     On a straight 3-D stretch (R' x R'' = 0) beta is any fixed normal and kappa = tau = 0.
+
+    For a batch of parameters theta (B, 1): R (B, n, n) and kappa, tau, |R'| (B, 1), the same formulas
+    elementwise.
     """
+    if np.ndim(theta):
+        return _frenet_axes_rows(curve, theta)
     d = curve.derivatives(float(theta), order=3)
     d1, d2, d3 = d[1], d[2], d[3]
     speed = norm(d1)
@@ -121,6 +154,34 @@ def frenet_axes(curve: Curve, theta: float) -> tuple:
             dot(cross, d3) / cross_norm**2, speed)
 
 
+def _frenet_axes_rows(curve: Curve, theta) -> tuple:
+    """:func:`frenet_axes` at a batch of parameters theta (B, 1)."""
+    d = curve.derivatives(np.asarray(theta, dtype=float), order=3)[:, :, 0, :]
+    d1, d2, d3 = d[1], d[2], d[3]
+    speed = np.sqrt(dot_rows(d1, d1))[:, None]
+    alpha = d1 / speed
+    if curve.dimension == 2:
+        kappa = (d1[:, 0:1] * d2[:, 1:2] - d1[:, 1:2] * d2[:, 0:1]) / speed**3
+        return np.stack([alpha, left_normal(alpha)], axis=-1), kappa, np.zeros_like(kappa), speed
+    if curve.dimension != 3:
+        raise ValueError("the Frenet frame is defined for planar and spatial (2-D and 3-D) contours")
+    cross = np.cross(d1, d2)
+    cross_norm = np.sqrt(dot_rows(cross, cross))[:, None]
+    straight = cross_norm <= 1e-12 * speed**3
+    with np.errstate(divide="ignore", invalid="ignore"):
+        gamma = cross / cross_norm
+        rotation = np.stack([alpha, np.cross(gamma, alpha), gamma], axis=-1)
+        kappa, tau = cross_norm / speed**3, dot_rows(cross, d3)[:, None] / cross_norm**2
+    if straight.any():
+        helper = np.eye(3)[np.argmin(np.abs(alpha), axis=-1)]
+        beta = np.cross(np.cross(alpha, helper), alpha)
+        beta = beta / np.sqrt(dot_rows(beta, beta))[:, None]
+        fixed = np.stack([alpha, beta, np.cross(alpha, beta)], axis=-1)
+        rotation = np.where(straight[:, :, None], fixed, rotation)
+        kappa, tau = np.where(straight, 0.0, kappa), np.where(straight, 0.0, tau)
+    return rotation, kappa, tau, speed
+
+
 @dataclass(frozen=True)
 class FrenetFrame:
     """The Frenet frame at the reference point w_d(t) and how it moves (paper 003 eq. 2-5, 19-20).
@@ -136,6 +197,8 @@ class FrenetFrame:
     rotation_rate, rotation_acceleration : ndarray (n, n)
         dR/dt = -v R G and d2R/dt2 = -(dv/dt R G + v dR/dt G + v R dG/dt) with
         G = [[0, kappa, 0], [-kappa, 0, tau], [0, -tau, 0]] (the planar block in 2-D).
+
+    For a batch the matrices are (B, n, n) and the scalars (B, 1).
     """
 
     rotation: np.ndarray
@@ -147,7 +210,15 @@ class FrenetFrame:
 
 
 def frenet_generator(n: int, kappa: float, tau: float) -> np.ndarray:
-    """G = [[0, kappa, 0], [-kappa, 0, tau], [0, -tau, 0]] (its planar block for n = 2): dR/dt = -v R G."""
+    """G = [[0, kappa, 0], [-kappa, 0, tau], [0, -tau, 0]] (its planar block for n = 2): dR/dt = -v R G.
+    For a batch, kappa and tau (B, 1): G (B, n, n)."""
+    if np.ndim(kappa) or np.ndim(tau):
+        kappa, tau = (column[:, 0] for column in np.broadcast_arrays(kappa, tau))
+        g = np.zeros(kappa.shape + (n, n))
+        g[:, 0, 1], g[:, 1, 0] = kappa, -kappa
+        if n == 3:
+            g[:, 1, 2], g[:, 2, 1] = tau, -tau
+        return g
     g = np.zeros((n, n))
     g[0, 1], g[1, 0] = kappa, -kappa
     if n == 3:
@@ -163,7 +234,12 @@ def frenet_frame(curve: Curve, theta: float, theta_dot: float, theta_ddot: float
     difference of kappa(theta) and tau(theta) over +-``relative_step`` of the parameter range (tau' would
     need a fourth derivative of the curve; both are exact for the circle and the helix, whose kappa and
     tau are constant).
+
+    For a batch, theta, theta_dot and theta_ddot (B, 1) (:mod:`contouring_ros.core.batch`): the same
+    formulas on each member.
     """
+    if np.ndim(theta):
+        return _frenet_frame_rows(curve, theta, theta_dot, theta_ddot, relative_step)
     rotation, kappa, tau, speed_theta = frenet_axes(curve, theta)
     n = rotation.shape[0]
     d = curve.derivatives(float(theta), order=2)
@@ -177,6 +253,26 @@ def frenet_frame(curve: Curve, theta: float, theta_dot: float, theta_ddot: float
                                (tau_plus - tau_minus) / (2 * h) * theta_dot)
     rate = matmul(-speed * rotation, g)
     acceleration = -(matmul(speed_rate * rotation, g) + matmul(speed * rate, g) + matmul(speed * rotation, g_rate))
+    return FrenetFrame(rotation, kappa, tau, speed, rate, acceleration)
+
+
+def _frenet_frame_rows(curve: Curve, theta, theta_dot, theta_ddot, relative_step: float) -> FrenetFrame:
+    """:func:`frenet_frame` at a batch of parameters theta (B, 1)."""
+    theta = np.asarray(theta, dtype=float)
+    rotation, kappa, tau, speed_theta = _frenet_axes_rows(curve, theta)
+    n = rotation.shape[-1]
+    d = curve.derivatives(theta, order=2)[:, :, 0, :]
+    speed = speed_theta * theta_dot
+    speed_rate = dot_rows(d[1], d[2])[:, None] / speed_theta * theta_dot**2 + speed_theta * theta_ddot
+    h = relative_step * np.maximum(np.abs(curve.domain[1] - curve.domain[0]), 1e-9)
+    _, kappa_plus, tau_plus, _ = _frenet_axes_rows(curve, theta + h)
+    _, kappa_minus, tau_minus, _ = _frenet_axes_rows(curve, theta - h)
+    g = frenet_generator(n, kappa, tau)
+    g_rate = frenet_generator(n, (kappa_plus - kappa_minus) / (2 * h) * theta_dot,
+                               (tau_plus - tau_minus) / (2 * h) * theta_dot)
+    v, v_rate = speed[:, :, None], speed_rate[:, :, None]
+    rate = matmul_rows(-v * rotation, g)
+    acceleration = -(matmul_rows(v_rate * rotation, g) + matmul_rows(v * rate, g) + matmul_rows(v * rotation, g_rate))
     return FrenetFrame(rotation, kappa, tau, speed, rate, acceleration)
 
 

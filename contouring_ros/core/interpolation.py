@@ -46,7 +46,7 @@ class UniformSchedule:
 
     def feedrate_at(self, curve: Curve, theta):
         """The feedrate |R'(theta)| theta_dot where the curve parameter is theta (0 outside the range)."""
-        lo, hi = sorted((self.theta_start, self.theta_end))
+        lo, hi = np.minimum(self.theta_start, self.theta_end), np.maximum(self.theta_start, self.theta_end)
         inside = (np.asarray(theta) >= lo) & (np.asarray(theta) <= hi)
         return np.where(inside, np.linalg.norm(curve.derivatives(theta, order=1)[1], axis=-1) * abs(self.rate), 0.0)
 
