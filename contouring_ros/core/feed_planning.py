@@ -210,6 +210,9 @@ def block_limits(path: ToolPath, acceleration: float, jerk: float, feedrate: flo
 #: a span's profile is planned over this fraction of its length less, so that none overshoots its end
 SPARE = 1e-9
 
+#: the trajectories of this many spans are kept once planned (the latest ones asked for)
+CACHED_SPANS = 8
+
 
 class FeedPlan:
     """theta(t) along a tool path: the look-ahead, jerk-limited feed plan of the module docstring.
@@ -321,10 +324,11 @@ class FeedPlan:
         self._times = None
 
     def _profile(self, i: int):
-        """Span i's Ruckig trajectory (the last one asked for is kept: the reference walks the spans in order)."""
-        cached = getattr(self, "_cached", None)
-        if cached is not None and cached[0] == i:
-            return cached[1]
+        """Span i's Ruckig trajectory (the last few asked for are kept: the reference walks the spans in order,
+        a batch's members waiting at exact stops of their own a few spans apart)."""
+        cached = vars(self).setdefault("_cached", {})
+        if i in cached:
+            return cached[i]
         from ruckig import InputParameter, Result, Ruckig, Trajectory
         _, start, length, cap, acc, jerk, v, _ = self._span
         inp = InputParameter(1)
@@ -339,7 +343,9 @@ class FeedPlan:
         extrema = trajectory.position_extrema[0]
         if extrema.min < -1e-12 or extrema.max > length[i] * (1.0 + 1e-9) + 1e-12:
             raise ValueError(f"line {line}: the planned profile would reverse along the path")
-        self._cached = (i, trajectory)
+        if len(cached) >= CACHED_SPANS:
+            del cached[next(iter(cached))]
+        cached[i] = trajectory
         return trajectory
 
     def __deepcopy__(self, memo):
@@ -347,8 +353,7 @@ class FeedPlan:
         out = copy.copy(self)
         memo[id(self)] = out
         for name, value in vars(self).items():
-            if name != "_cached":
-                setattr(out, name, copy.deepcopy(value, memo))
+            setattr(out, name, dict(value) if name == "_cached" else copy.deepcopy(value, memo))
         return out
 
     def _one(self, t: float):
