@@ -7,7 +7,9 @@
    1 um to 1 mm (the curve's blend_tolerance), and the MCE of the cutting moves of each run.
 2. A 50 mm square at F3000 then an arc on the axes of paper 000 (b) (ISMC) and of the example part (PID +
    feedforward): the MCE of the cutting moves with the in-position check off (in_position 0) and on (10 um),
-   the waits at the four exact stops and the time the reference reaches the program's end.
+   the largest contour error after each corner, the waits at the four exact stops and the time the reference
+   reaches the program's end; on the ISMC axes also without paper 000's disturbance estimate (eq. 24-26),
+   whose filtered velocity derivative reads the plan's jerk as a load, and with jerk 0.5 m/s^3.
 """
 from __future__ import annotations
 
@@ -22,24 +24,29 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from contouring_ros.blocks import cutting_scores  # noqa: E402
+from contouring_ros.blocks import block_results, cutting_scores  # noqa: E402
 from contouring_ros.config import build_loop, load_experiment  # noqa: E402
 from contouring_ros.core.simulation import simulate  # noqa: E402
 
 CONFIG = ROOT / "config"
 
 
-def experiment(directory: Path, base: str, program: str, curve_keys: str = "", shared: str = "") -> Path:
+def experiment(directory: Path, base: str, program: str, curve_keys: str = "", shared: str = "",
+               jerk: float = 10.0, observer: bool = True) -> Path:
     """The experiment ``base`` (a scenario of config/) with the part program ``program`` as its reference,
-    planned with the example part's bounds; ``curve_keys`` and ``shared`` are added to the curve and /**."""
-    name = f"{base}_{abs(hash((program, curve_keys, shared)))}"
+    planned with the example part's bounds (acceleration 1 m/s^2, ``jerk`` [m/s^3], default 10);
+    ``curve_keys`` and ``shared`` are added to the curve and /**; ``observer`` False takes the disturbance
+    estimate (paper 000 eq. 24-26) off ISMC servos."""
+    name = f"{base}_{abs(hash((program, curve_keys, shared, jerk, observer)))}"
     (directory / f"{name}.ngc").write_text(program)
     text = (CONFIG / f"{base}.yaml").read_text()
     three = '"z"' in text
     start = ", start: [0.0, 0.0, 1.0e-9]" if three else ""          # a planar program on three axes
     text = re.sub(r"curve: \{[^}]*\}", f"curve: {{type: gcode, file: {name}.ngc{start}{curve_keys}}}", text)
-    text = re.sub(r"schedule: \{[^}]*\}", "schedule: {type: feedrate, acceleration: 1.0, jerk: 10.0, "
+    text = re.sub(r"schedule: \{[^}]*\}", f"schedule: {{type: feedrate, acceleration: 1.0, jerk: {jerk}, "
                                           "rapid_feedrate: 0.05}", text)
+    if not observer:
+        text = text.replace("observer: true", "observer: false")
     text = re.sub(r"    duration: [0-9.]+\n", "", text)
     text = text.replace("    sample_time:", f"{shared}    sample_time:", 1)
     path = directory / f"{name}.yaml"
@@ -71,18 +78,27 @@ def chord_circle(directory: Path):
 
 def square(directory: Path):
     program = "G21 G90 G17\nG1 X50 Y0 F3000\nY50\nX0\nY0\nG2 X20 Y0 R10\nM30\n"
-    print("a 50 mm square at F3000 then an arc (acceleration 1, jerk 10), exact stop at the corners:")
-    for base, axes in (("paper000_b_ismc_h50_newton", "ISMC, paper 000 (b)"),
-                       ("gcode_example_part", "PID + feedforward, the example part")):
-        for window in (0.0, 1e-5):
-            loop = build_loop(load_experiment(experiment(directory, base, program, "",
-                                                         f"    in_position: [{window}]\n")))
-            result = simulate(loop)
-            scores = cutting_scores(loop.curve, result)
-            waits = [steps for _, steps in loop.clock.waits] if loop.clock is not None else []
-            print(f"  {axes}, in_position {window * 1e6:g} um: cutting-move MCE {scores.mce * 1e6:.1f} um, TACE "
-                  f"{scores.tace * 1e6:.2f} um; waits {waits} steps; the program ends at {end_time(result, loop):.3f} s "
-                  f"(planned {loop.schedule.duration:.3f} s)", flush=True)
+    print("a 50 mm square at F3000 then an arc (acceleration 1, jerk 10 unless said), exact stop at the corners "
+          "(corners: the largest contour error of the blocks after the corners at (50, 0), (50, 50), (0, 50)):")
+    ismc, pidff = "ISMC, paper 000 (b)", "PID + feedforward, the example part"
+    runs = [("paper000_b_ismc_h50_newton", ismc, 0.0, 10.0, True),
+            ("paper000_b_ismc_h50_newton", ismc, 1e-5, 10.0, True),
+            ("paper000_b_ismc_h50_newton", ismc + " without the disturbance estimate (eq. 24-26)", 1e-5, 10.0,
+             False),
+            ("paper000_b_ismc_h50_newton", ismc + ", jerk 0.5", 1e-5, 0.5, True),
+            ("gcode_example_part", pidff, 0.0, 10.0, True),
+            ("gcode_example_part", pidff, 1e-5, 10.0, True)]
+    for base, axes, window, jerk, observer in runs:
+        loop = build_loop(load_experiment(experiment(directory, base, program, "",
+                                                     f"    in_position: [{window}]\n", jerk, observer)))
+        result = simulate(loop)
+        scores = cutting_scores(loop.curve, result)
+        corners = [row.max_contour_error * 1e6 for row in block_results(loop.curve, result, loop.schedule)[1:4]]
+        waits = [steps for _, steps in loop.clock.waits] if loop.clock is not None else []
+        print(f"  {axes}, in_position {window * 1e6:g} um: cutting-move MCE {scores.mce * 1e6:.1f} um, TACE "
+              f"{scores.tace * 1e6:.2f} um; corners {'/'.join(f'{c:.1f}' for c in corners)} um; waits {waits} "
+              f"steps; the program ends at {end_time(result, loop):.3f} s (planned {loop.schedule.duration:.3f} s)",
+              flush=True)
 
 
 if __name__ == "__main__":
