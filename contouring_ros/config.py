@@ -997,11 +997,22 @@ def _check_text(where, key, text: str):
         _fail(where, key, f"control characters (NUL, line breaks ...) are not allowed, got {_show(text)}")
 
 
+# keys renamed between versions: old name -> (new name, what changed); an experiment file that still uses the
+# old name is told the new one (where the section has it) instead of "unknown key"
+RENAMED_KEYS = {
+    "iterations": ("max_iterations", "the Newton estimator iterates each step until it is within `tolerance`, "
+                                     "at most max_iterations times"),
+}
+
+
 def _mapping(where, prefix, specs: dict, given: dict, skip=()) -> dict:
     """Validate a mapping against ``specs``: unknown keys, missing required keys, each value."""
     out = {}
     for key in given:
         if key not in specs and key not in skip:
+            renamed = RENAMED_KEYS.get(key)
+            if renamed is not None and renamed[0] in specs:
+                _fail(where, f"{prefix}{key}", f"`{key}` is now `{renamed[0]}` ({renamed[1]}): rename the key")
             known = ", ".join(sorted(specs)) or "none"
             _fail(where, f"{prefix}{key}", f"unknown key (expected one of: {known})")
     for key, spec in specs.items():
@@ -1062,6 +1073,28 @@ def _validate_layout(where, out: dict):
                                f"{out['layout']})")
 
 
+def _check_curve_points(where, section: dict, curve) -> None:
+    """Each point of a curve section (``center``, ``start``, ``end``) has one coordinate per dimension of the
+    curve, and the curve evaluates at its start, middle and end to finite points of that dimension (a circle
+    whose centre has 3 coordinates on a planar curve failed in every node, at its first step)."""
+    dimension = curve.dimension
+    for key in ("center", "start", "end"):
+        value = section.get(key)
+        if section["type"] != "gcode" and isinstance(value, (list, tuple)) and len(value) != dimension:
+            _fail(where, f"curve.{key}", f"expected {dimension} coordinates (the {section['type']} curve is "
+                                         f"{dimension}-dimensional), got {len(value)}")
+    low, high = curve.domain
+    try:
+        for theta in (low, 0.5 * (low + high), high):
+            values = np.asarray(curve.derivatives(float(theta), 3), dtype=float)
+            if values.shape != (4, dimension) or not np.all(np.isfinite(values)):
+                raise ValueError(f"at theta = {theta:g} it gives {values.shape[-1] if values.ndim else 0} "
+                                 f"coordinates{'' if np.all(np.isfinite(values)) else ', not all finite'}, "
+                                 f"expected {dimension}")
+    except (ArithmeticError, ValueError, TypeError, IndexError) as error:
+        _fail(where, "curve", f"cannot evaluate the curve ({type(error).__name__}: {error})")
+
+
 def _validate_globals(where, given: dict) -> dict:
     out = _mapping(where, "", GLOBALS, given)
     axes = out["axes"]
@@ -1084,6 +1117,7 @@ def _validate_globals(where, given: dict) -> dict:
             out["curve"]["file"] = curve.source      # absolute: every node reads the same file
     except (ArithmeticError, ValueError, MemoryError, np.linalg.LinAlgError) as error:
         _fail(where, "curve", f"cannot build the curve ({type(error).__name__}: {error})")
+    _check_curve_points(where, out["curve"], curve)
     if dimension != len(axes):
         _fail(where, "axes", f"{len(axes)} axes given but the {out['curve']['type']} curve has {dimension} "
                              "coordinates")
