@@ -56,7 +56,7 @@ def _warn(run):
 
 
 def _run(args):
-    from .errors import BagError, RunError
+    from .errors import BagError, Interrupted, RunError
     from .runner import run_graph
     from .scoring import format_scores, score_bag
     config = _experiment_path(args.config)
@@ -68,7 +68,8 @@ def _run(args):
                         layout=layout, groups=args.group,
                         namespace=args.namespace, domain_id=args.domain, shared_domain=args.domain is not None)
     except RunError as error:
-        print(f"error: {error}", file=sys.stderr)
+        interrupted = isinstance(error, Interrupted)
+        print(f"{'' if interrupted else 'error: '}{error}", file=sys.stderr)
         if error.bag is not None and Path(error.bag).is_file():
             try:
                 scores, run = score_bag(error.bag)
@@ -78,7 +79,7 @@ def _run(args):
                 _warn(run)
                 print(f"partial bag: {error.bag} ({run.complete_steps} complete steps)")
                 print(format_scores([(config.stem, scores)], run.axes))
-        raise SystemExit(1)
+        raise SystemExit(error.code if interrupted else 1)
     scores, run = score_bag(bag)
     _warn(run)
     print(f"bag: {bag}")

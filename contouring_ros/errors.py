@@ -1,7 +1,7 @@
 """Errors that reach the user as one line."""
 from __future__ import annotations
 
-__all__ = ["ContouringError", "ConfigError", "RunError", "BagError", "ScoreError", "Diverged"]
+__all__ = ["ContouringError", "ConfigError", "RunError", "Interrupted", "BagError", "ScoreError", "Diverged"]
 
 
 class ContouringError(Exception):
@@ -21,6 +21,15 @@ class RunError(ContouringError):
     def __init__(self, message: str, bag=None):
         super().__init__(message)
         self.bag = bag
+
+
+class Interrupted(RunError):
+    """SIGINT or SIGTERM stopped a run; the message says what exists (the bag, or no bag yet). ``code`` is
+    the exit status the command ends with: 130 for SIGINT, 143 for SIGTERM."""
+
+    def __init__(self, message: str, bag=None, code: int = 130):
+        super().__init__(message, bag)
+        self.code = code
 
 
 class BagError(ContouringError):

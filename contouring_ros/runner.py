@@ -22,7 +22,7 @@ from pathlib import Path
 from . import graph
 from .graph import parse_groups
 from .config import Experiment, controller_uses_state, load_experiment, namespaced_parameter_file, split_groups
-from .errors import RunError
+from .errors import Interrupted, RunError
 
 __all__ = ["NodeProcess", "DomainLease", "graph_commands", "grouped_commands", "parse_groups", "write_parameter_file",
            "private_environment", "run_graph", "default_bag_path"]
@@ -431,9 +431,15 @@ def run_graph(experiment_path, bag=None, *, timeout: float | None = None, domain
                     on_started(nodes)
                 _watch(nodes, timeout, started, say)
             except (KeyboardInterrupt, _Terminated) as interrupt:
-                what = "SIGTERM" if isinstance(interrupt, _Terminated) else "SIGINT"
-                raise RunError(f"interrupted by {what}: stopped every node; the bag {bag} holds the steps "
-                               "recorded so far", bag=bag) from None
+                terminated = isinstance(interrupt, _Terminated)
+                _stop(nodes)          # every node gone (the recorder has closed the bag) before we say what exists
+                what = "SIGTERM" if terminated else "SIGINT"
+                if bag.is_file() and bag.stat().st_size > 0:
+                    state = f"the bag {bag} holds the steps recorded so far"
+                else:
+                    state = f"no bag yet (the recorder had not opened {bag})"
+                raise Interrupted(f"interrupted by {what}: stopped every node; {state}",
+                                  bag=bag if bag.is_file() else None, code=143 if terminated else 130) from None
             except RunError as error:
                 raise RunError(str(error), bag=bag) from None
             finally:

@@ -15,6 +15,7 @@ import gc
 import importlib
 import os
 import sys
+import threading
 import time
 
 import numpy as np
@@ -210,6 +211,8 @@ class LockstepNode:
             if self._realtime and self.experiment.start_time > 0.0 else None
         self.node.get_logger().info(f"waiting up to {timeout:g} s (graph_timeout) for the rest of the graph")
         while True:
+            if not rclpy.ok(context=self.node.context):      # SIGINT/SIGTERM while waiting: stop now
+                raise ExternalShutdownException()
             missing = [f"subscribers of {topic} ({', '.join(self._topics[topic].subscribers)})"
                        for topic, pub in self._outputs.items()
                        if pub.get_subscription_count() < len(self._topics[topic].subscribers)]
@@ -221,8 +224,6 @@ class LockstepNode:
             if time.monotonic() > deadline:
                 raise RunError(f"{self.name}: the graph did not come up within {timeout:g} s (graph_timeout; "
                                f"still waiting for {missing[0]})")
-            if not rclpy.ok(context=self.node.context):      # SIGINT/SIGTERM while waiting: stop now
-                raise ExternalShutdownException()
             if run_end is not None and time.time() > run_end:
                 raise RunError(f"{self.name}: the graph was not up by the realtime run's last tick (still waiting "
                                f"for {missing[0]}): the machine was too busy to start the graph in time")
@@ -291,7 +292,7 @@ class LockstepNode:
         (``on_invalid_input: stop``) or go on without it (``hold``)."""
         self.rejected[topic] = self.rejected.get(topic, 0) + 1
         self.strangers += k is None
-        where = f"step {self.next_step if k is None else k}"
+        where = f"step {self.current_step() if k is None else k}"
         count = self.rejected[topic]
         if count <= REPORT_LIMIT:     # bounded: a flood of junk cannot flood /diagnostics (counted in finish)
             more = f" (further rejections on {topic} are only counted)" if count == REPORT_LIMIT else ""
@@ -380,6 +381,11 @@ class LockstepNode:
         if level >= DiagnosticStatus.WARN:
             self.node.get_logger().warning(message)
 
+    def current_step(self) -> int:
+        """The step this node works on (the steps before it are done): what its progress, its end-of-run
+        count and its refusals of strangers name."""
+        return self.next_step
+
     def missing_inputs(self) -> list:
         have = self._pending.get(self.next_step, {})
         return [topic for topic, *_ in self._inputs if topic not in have]
@@ -399,7 +405,7 @@ class LockstepNode:
             self.serve_requests()
             if time.monotonic() >= next_log + PROGRESS_PERIOD:
                 next_log = time.monotonic()
-                self.node.get_logger().info(f"step {self.next_step} of {self.n_steps}")
+                self.node.get_logger().info(f"step {self.current_step()} of {self.n_steps}")
             if not rclpy.ok(context=self.node.context):
                 raise ExternalShutdownException()
             if take_progress():
@@ -517,13 +523,14 @@ class LockstepNode:
         A subscriber that left is no longer waited for (it leaves only after its last step). The
         acknowledgements follow the writers' heartbeats, every 20 ms with the package's Fast DDS profile.
         """
-        self.node.get_logger().info(f"completed {self.next_step} steps")
+        steps = self.current_step()
+        self.node.get_logger().info(f"completed {steps} steps")
         skipped = getattr(self, "skipped_ticks", 0)
-        message = f"completed {self.next_step} steps"
+        message = f"completed {steps} steps"
         if skipped:
             message += (f"; skipped {skipped} ticks that started more than max_lag "
                         f"({self.experiment.max_lag * 1e3:g} ms) late (on_overrun: skip)")
-        counts = {"steps": self.next_step, **self.counters(), **self.realtime_counters(),
+        counts = {"steps": steps, **self.counters(), **self.realtime_counters(),
                   **{f"rejected {topic}": count for topic, count in self.rejected.items()}}
         self.report(DiagnosticStatus.OK if not self.rejected and not skipped else DiagnosticStatus.WARN,
                     message, counts)
@@ -644,29 +651,56 @@ def wait_until(deadline: float, wait_set, handles, take, context, spin: float = 
             raise ExternalShutdownException()
 
 
+def track_sigterm() -> list:
+    """A list that receives SIGTERM's number when one arrives (installed before rclpy.init: rclpy's SIGTERM
+    handler shuts the context down and then calls this one), so that the exit code can tell it from SIGINT."""
+    import signal
+    terminated = []
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGTERM, lambda signum, frame: terminated.append(signum))
+    return terminated
+
+
+def interrupted_code(error: BaseException, terminated: list) -> int | None:
+    """143 (SIGTERM) or 130 (SIGINT) when ``error`` is how an interruption ended a node's process (whatever
+    the interrupted call raised once rclpy's handler had shut the context down: KeyboardInterrupt,
+    ExternalShutdownException, an RCLError of a publisher whose context is gone), else None."""
+    if terminated or isinstance(error, (KeyboardInterrupt, ExternalShutdownException)) or not rclpy.ok():
+        return 143 if terminated else 130
+    return None
+
+
 def run_node(node_class, args=None) -> int:
     """Entry point shared by every node's main(): init, spin to the end, clean shutdown.
 
-    Returns the process exit code: 0 when the run completed, 1 on an error (reported in one line),
-    130 when interrupted.
+    Returns the process exit code: 0 when the run completed, 1 on an error (reported in one line), 130 when
+    interrupted by SIGINT and 143 by SIGTERM, in any state (waiting for the graph, stepping, finishing),
+    without a traceback.
     """
-    rclpy.init(args=args)
+    terminated = track_sigterm()
     node = None
     code = 0
     try:
+        rclpy.init(args=args)
         node = node_class(args)
         if node.experiment.timing == "realtime" and node.role != "recorder":
             node.spin_realtime()
         else:
             node.spin()
         node.finish()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        code = 130
-    except ContouringError as error:
-        print(f"error: {error}", file=sys.stderr)
-        code = 1
+    except BaseException as error:   # every way out becomes an exit code; only a bug keeps its traceback
+        code = interrupted_code(error, terminated)
+        if code is None and isinstance(error, ContouringError):
+            print(f"error: {error}", file=sys.stderr)
+            code = 1
+        elif code is None:
+            raise
     finally:
-        if node is not None:
-            node.destroy()
+        try:
+            if node is not None:
+                node.destroy()
+        except Exception:          # a node whose context a signal shut down: what matters (the bag) is closed
+            if code == 0:
+                raise
         rclpy.try_shutdown()
     return code

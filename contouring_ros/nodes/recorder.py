@@ -97,6 +97,13 @@ class RecorderNode(LockstepNode):
     def admitted(self, topic, data):
         self.file_message(topic, data)
 
+    def current_step(self) -> int:
+        """The steps recorded in full: every lockstep topic has its message of each step before this one (in
+        realtime timing, where a step may be missing, has recorded a step at least this late)."""
+        if self.experiment.timing == "realtime":
+            return min(self._last_step[topic] for topic in self.lockstep_topics) + 1
+        return min(self.counts[topic] for topic in self.lockstep_topics)
+
     def counters(self):
         return {"messages recorded": sum(self.counts.values()), "messages refused": self.strangers}
 
