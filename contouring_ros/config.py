@@ -1293,7 +1293,20 @@ def experiment_for_node(parameters: dict, node: str, role: str, where: str | Non
     where = where or f"node {node}"
     nested = section_from_parameters({k: v for k, v in parameters.items() if k not in ROS_BUILTIN_PARAMETERS})
     globals_ = _validate_globals(where, {k: v for k, v in nested.items() if k in GLOBALS})
-    section = _validate_role(where, node, role, {k: v for k, v in nested.items() if k not in GLOBALS}, globals_)
+    own = {k: v for k, v in nested.items() if k not in GLOBALS}
+    try:
+        section = _validate_role(where, node, role, own, globals_)
+    except ConfigError as error:
+        from .graph import graph_namespace
+        namespace = graph_namespace(node, role in ("plant", "servo"))
+        if namespace == "/" or "missing required key" not in str(error):
+            raise
+        plain = node[len(namespace):]
+        raise ConfigError(f"{error} (hint: this node runs under the namespace {namespace}, and the ROS parameter "
+                          f"parser gives it the file's section \"{node}\" only: a file whose sections name {plain} "
+                          f"fits the graph without a namespace; write the sections with it, e.g. with "
+                          f"contouring_ros.config.namespaced_parameter_file(text, \"{namespace}\"), as contouring-ros "
+                          f"run --namespace does)") from None
     parts = node.strip("/").split("/")
     axis = parts[-2] if len(parts) > 1 else ""       # a per-axis node's namespace ends in its axis
     return Experiment(

@@ -94,3 +94,30 @@ def test_a_bad_namespace_is_refused_in_one_line():
     assert result.returncode == 1
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and "namespace 'm-1'" in lines[0] and "Traceback" not in result.stderr
+
+
+def _flat(mapping, prefix=""):
+    out = {}
+    for key, value in mapping.items():
+        if isinstance(value, dict):
+            out.update(_flat(value, f"{prefix}{key}."))
+        else:
+            out[f"{prefix}{key}"] = value
+    return out
+
+
+def test_a_plain_parameter_file_under_a_namespace_gets_a_hint():
+    """A node under /m1 started with the plain file (sections /x/servo ...) receives the shared keys only:
+    its missing key is named with the namespace as the cause (was: '/m1/x/servo.law: missing required key')."""
+    import yaml
+    from contouring_ros.config import experiment_for_node
+    from contouring_ros.errors import ConfigError
+    shared = _flat(yaml.safe_load(DEFAULT.read_text())["/**"]["ros__parameters"])
+    with pytest.raises(ConfigError) as info:
+        experiment_for_node(shared, "/m1/x/servo", "servo")
+    message = str(info.value)
+    assert "missing required key" in message and "under the namespace /m1" in message and "/x/servo" in message
+    assert "namespaced_parameter_file" in message and "\n" not in message
+    with pytest.raises(ConfigError) as info:          # no namespace: no hint
+        experiment_for_node(shared, "/x/servo", "servo")
+    assert "hint" not in str(info.value)
