@@ -60,6 +60,12 @@ def _run(args):
     from .runner import run_graph
     from .scoring import format_scores, score_bag
     config = _experiment_path(args.config)
+    settings_directory = None
+    if args.set:        # the file with the settings applied, under the same name (the bag's default name)
+        import tempfile
+        from .sweep import settings_file
+        settings_directory = tempfile.TemporaryDirectory(prefix="contouring_ros_set_")
+        config = settings_file(config, args.set, settings_directory.name)
     try:
         if sum(map(bool, (args.composed, args.group, args.process))) > 1:
             raise ConfigError("--process, --composed and --group are three layouts: give one")
@@ -313,6 +319,9 @@ def main(argv=None):
                         "loop; repeat for more groups; every node in no group runs in its own process")
     p.add_argument("--namespace", default="/", metavar="NS",
                    help="run every node and topic under /NS (e.g. m1: /m1/x/plant publishes /m1/x/state)")
+    p.add_argument("--set", action="append", metavar="KEY=VALUE",
+                   help="change one key of the experiment for this run, with the sweep's key syntax (x/servo.kp=10, "
+                        "ccc.kp=2, curve.h=80); repeatable")
     p.add_argument("--domain", type=_domain_id, metavar="ID",
                    help="run on this ROS domain, shared with ROS tools and other runs there (give each graph its "
                         "own --namespace) instead of a private one")
