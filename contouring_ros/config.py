@@ -488,6 +488,9 @@ GLOBALS = {
     # whether the CCC subscribes to /reference and the states: contouring-ros run sets false where the
     # controller does not use them (3 fewer deliveries a step with 2 axes); true is always safe
     "ccc_takes_state": Param("bool", True),
+    # under a namespace: /clock and /diagnostics stay global (false: what use_sim_time nodes and diagnostic
+    # aggregators listen to) or take the namespace too (true: several graphs sharing a domain, each its clock)
+    "namespaced_clock": Param("bool", False),
 }
 # node section -> (key holding the type name, registry)
 ROLE_TYPES = {"plant": ("model", PLANTS), "servo": ("law", SERVOS),
@@ -611,6 +614,7 @@ class Experiment:
     layout: str = "process"
     groups: str = ""
     ccc_takes_state: bool = True
+    namespaced_clock: bool = False
     plants: dict = field(default_factory=dict)     # axis -> plant section
     servos: dict = field(default_factory=dict)     # axis -> servo section
     estimator: dict = field(default_factory=dict)

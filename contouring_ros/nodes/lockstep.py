@@ -168,7 +168,7 @@ class LockstepNode:
 
     def wire_name(self, topic: str) -> str:
         """The name on the wire of the graph's ``topic`` (/x/state is /m1/x/state under /m1)."""
-        return graph.resolve(self.graph_namespace, topic)
+        return graph.resolve(self.graph_namespace, topic, self.experiment.namespaced_clock)
 
     def decoded_key(self, topic: str) -> str:
         """The key of ``topic``'s messages among those decoded in this process (:data:`_DECODED`): its name on
@@ -258,8 +258,12 @@ class LockstepNode:
         """
         expected = self._sequence.get(topic)
         if expected is not None and sequence is not None and sequence != expected:
+            shared = topic in graph.GLOBAL_TOPICS and self.graph_namespace != "/" and \
+                not self.experiment.namespaced_clock
             return (f"a message from an unexpected publisher (publication sequence number {sequence}, expected "
-                    f"{expected} from the topic's one publisher {self._topics[topic].publisher})")
+                    f"{expected} from the topic's one publisher {self._topics[topic].publisher})"
+                    + (f"; {topic} is global under a namespace: graphs sharing a domain need namespaced_clock: true"
+                       if shared else ""))
         if len(data) < _MIN_STAMPED:
             return f"a {len(data)}-byte payload cannot be decoded (no header stamp)"
         stamp = cdr.stamp_ns(data)
