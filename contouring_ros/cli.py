@@ -40,6 +40,17 @@ def _seconds(text: str) -> float:
     return value
 
 
+def _rate(text: str) -> float:
+    """A playback rate: 0 (as fast as possible) or a finite positive factor (argparse type)."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not 0.0 <= value < float("inf"):
+        raise argparse.ArgumentTypeError(f"expected 0 (as fast as possible) or a positive factor, got {text!r}")
+    return value
+
+
 def _domain_id(text: str) -> int:
     try:
         value = int(text)
@@ -346,7 +357,7 @@ def main(argv=None):
     p.add_argument("bag")
     p.add_argument("--estimator", action="append", help="NAME[:key=value,...], repeatable (e.g. newton:k_prime=800)")
     p.add_argument("--play", action="store_true", help="republish the bag on ROS topics with /clock")
-    p.add_argument("--rate", type=float, default=1.0, help="with --play: speed factor, 0 = as fast as possible")
+    p.add_argument("--rate", type=_rate, default=1.0, help="with --play: speed factor, 0 = as fast as possible")
     p.add_argument("--loop", action="store_true",
                    help="with --play: play again and again until Ctrl-C (/clock restarts with the bag each pass)")
     p.add_argument("--start", type=_seconds, default=0.0, metavar="T",

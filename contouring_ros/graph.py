@@ -69,7 +69,16 @@ def normalize_namespace(namespace: str | None) -> str:
         if not _NAMESPACE_TOKEN.fullmatch(token):
             raise ValueError(f"namespace {namespace!r}: {token!r} is not a ROS name part (a letter or '_', "
                              "then letters, digits and '_', parts separated by one '/')")
-    return "/" + "/".join(tokens)
+        if "__" in token:
+            raise ValueError(f"namespace {namespace!r}: {token!r} holds '__', which ROS keeps for its own names")
+    out = "/" + "/".join(tokens)
+    if len(out) > MAX_NAMESPACE:
+        raise ValueError(f"namespace of {len(out)} characters: at most {MAX_NAMESPACE} (ROS limits a topic name's "
+                         "length, and the graph's topics add up to 41 characters to it)")
+    return out
+
+
+MAX_NAMESPACE = 160   # characters of a graph namespace: /<ns>/<axis of 32>/command stays within ROS's name limit
 
 
 GLOBAL_TOPICS = (CLOCK, DIAGNOSTICS)   # global under any namespace, as ROS tools expect (use_sim_time nodes

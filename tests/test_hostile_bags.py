@@ -263,3 +263,11 @@ def test_every_bag_command_answers_crafted_bags_in_one_line(base, tmp_path, caps
     assert cli.main([command, path, *extra]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith(f"error: {path}: its /reference names the joints"), err
+
+
+@pytest.mark.parametrize("rate", ["nan", "inf", "-1", "fast"])
+def test_a_rate_that_is_no_rate_is_refused_before_anything_plays(base, capsys, rate):
+    with pytest.raises(SystemExit) as info:             # was: --rate nan taken as 0
+        cli.main(["replay", str(base[0]), "--play", "--rate", rate])
+    assert info.value.code == 2 and "--rate: expected 0 (as fast as possible) or a positive factor" in \
+        capsys.readouterr().err

@@ -28,6 +28,13 @@ def test_a_name_ros_refuses_is_refused_naming_the_part(bad):
         graph.normalize_namespace(bad)
 
 
+@pytest.mark.parametrize("bad, fragment", [("m__1", "holds '__'"), ("a" * 230, "at most 160"),
+                                           ("/".join(["ab"] * 100), "at most 160")])
+def test_a_namespace_ros_would_refuse_late_is_refused_at_once(bad, fragment):
+    with pytest.raises(ValueError, match=fragment):
+        graph.normalize_namespace(bad)
+
+
 def test_topics_and_nodes_resolve_under_the_graph_namespace():
     assert graph.resolve("/m1", "/x/state") == "/m1/x/state"
     assert graph.resolve("/", "/x/state") == "/x/state"
