@@ -262,6 +262,7 @@ _MAX_CHUNK_RECORDS = 1 << 20       # records of one chunk at most
 _MAX_SUMMARY = 64 << 20            # bytes of the summary section at most (else chunks are found by scanning)
 _INFLATION, _INFLATION_FLOOR = 64, 256 << 20   # decompressed bytes of a whole bag: at most max(64 x its size, 256 MiB)
 _MESSAGE_HEAD = struct.Struct("<HIQQ")         # channel id, sequence, log time, publish time
+_MAX_TOPICS = 4096                 # JointState and JointTrajectory topics read at most (a graph of 8 axes has 19)
 _OP_FOOTER, _OP_SCHEMA, _OP_CHANNEL, _OP_MESSAGE, _OP_CHUNK, _OP_CHUNK_INDEX, _OP_METADATA, _OP_DATA_END = \
     0x02, 0x03, 0x04, 0x05, 0x06, 0x08, 0x0C, 0x0F
 
@@ -787,6 +788,12 @@ def _read_run(path: Path, keep_payloads: bool, experiment_text: str | None, prog
         elif isinstance(record, Channel):
             type_name = schemas[record.schema_id].name if record.schema_id in schemas else None
             if type_name in _KEPT_TYPES and not record.topic.endswith(graph.DIAGNOSTICS):
+                if record.topic not in kept and len(kept) >= _MAX_TOPICS:
+                    if len(kept) == _MAX_TOPICS:
+                        warnings.append(f"{path}: more than {_MAX_TOPICS} JointState and JointTrajectory topics; "
+                                        f"from {record.topic} on, the others are left out")
+                        kept[None] = None
+                    continue
                 columns = kept.setdefault(record.topic, _TopicColumns(record.topic, type_name))
                 if columns.type_name == type_name:    # a second channel of the topic with another type: not read
                     keepers[record.id] = columns
@@ -807,6 +814,11 @@ def _read_run(path: Path, keep_payloads: bool, experiment_text: str | None, prog
     if not experiment_text:
         raise BagError(f"{path}: the bag holds no experiment ('{EXPERIMENT_METADATA}' metadata); give the "
                        "experiment file that produced it")
+    kept.pop(None, None)
+    from .config import MAX_FILE_BYTES
+    if len(experiment_text) > MAX_FILE_BYTES:
+        raise BagError(f"{path}: its experiment ('{EXPERIMENT_METADATA}' metadata) is {len(experiment_text)} "
+                       f"characters; an experiment file has at most {MAX_FILE_BYTES}")
     experiment = _bag_experiment(path, experiment_text, warnings)
     sample_time = _checked_sample_time(path, stored_sample_time, experiment, warnings)
     # a graph run under a namespace (/m1/reference ...): its topics by the graph's own names

@@ -271,3 +271,14 @@ def test_a_rate_that_is_no_rate_is_refused_before_anything_plays(base, capsys, r
         cli.main(["replay", str(base[0]), "--play", "--rate", rate])
     assert info.value.code == 2 and "--rate: expected 0 (as fast as possible) or a positive factor" in \
         capsys.readouterr().err
+
+
+def test_thousands_of_stray_topics_and_a_huge_stored_experiment_are_bounded(base, tmp_path):
+    state = cdr.encode_joint_state(0, 0, ["a"], [1.0])
+    stray = [(f"/stray/t{i}", "sensor_msgs/msg/JointState", 0, state) for i in range(5000)]
+    run = read_run(_rewrite(base, tmp_path, extra=stray))
+    assert run.complete_steps == base[4]
+    assert any("more than 4096 JointState and JointTrajectory topics" in w for w in run.warnings)
+    text = read_metadata(base[0])[bagmod.EXPERIMENT_METADATA]["yaml"]
+    with pytest.raises(BagError, match="an experiment file has at most 1048576"):
+        read_run(_rewrite(base, tmp_path, metadata={"yaml": text + "#" * (2 << 20)}))
