@@ -196,13 +196,13 @@ def main(argv=None) -> int:
                         "grouped layout; default every node)")
     parser.add_argument("--namespace", default="/", help="the graph's namespace (default: the root)")
     args = parser.parse_args(sys.argv[1:] if argv is None else argv)
-    from .nodes.lockstep import interrupted_code, track_sigterm
-    terminated = track_sigterm()
+    from .nodes.lockstep import interrupted_code, track_signals
+    received = track_signals()
     try:
         run_composed(args.experiment, args.bag, args.executor, args.start_time,
                      args.nodes.split(",") if args.nodes else None, args.namespace)
     except BaseException as error:     # 130 (SIGINT) or 143 (SIGTERM) in any state, one line for an error
-        code = interrupted_code(error, terminated)
+        code = interrupted_code(error, received)
         if code is None and isinstance(error, ContouringError):
             print(f"error: {error}", file=sys.stderr)
             return 1

@@ -655,22 +655,36 @@ def wait_until(deadline: float, wait_set, handles, take, context, spin: float = 
             raise ExternalShutdownException()
 
 
-def track_sigterm() -> list:
-    """A list that receives SIGTERM's number when one arrives (installed before rclpy.init: rclpy's SIGTERM
-    handler shuts the context down and then calls this one), so that the exit code can tell it from SIGINT."""
+def track_signals() -> list:
+    """A list that receives the number of each SIGINT and SIGTERM that arrives (the handlers are installed
+    before rclpy.init: rclpy's own handlers shut the context down and then call these), so that the exit
+    code can tell an interruption, and which, from an error. SIGINT still raises KeyboardInterrupt."""
     import signal
-    terminated = []
+    received = []
+
+    def on_sigint(signum, frame):
+        received.append(signum)
+        raise KeyboardInterrupt
+
     if threading.current_thread() is threading.main_thread():
-        signal.signal(signal.SIGTERM, lambda signum, frame: terminated.append(signum))
-    return terminated
+        signal.signal(signal.SIGTERM, lambda signum, frame: received.append(signum))
+        signal.signal(signal.SIGINT, on_sigint)
+    return received
 
 
-def interrupted_code(error: BaseException, terminated: list) -> int | None:
+def interrupted_code(error: BaseException, received: list) -> int | None:
     """143 (SIGTERM) or 130 (SIGINT) when ``error`` is how an interruption ended a node's process (whatever
     the interrupted call raised once rclpy's handler had shut the context down: KeyboardInterrupt,
     ExternalShutdownException, an RCLError of a publisher whose context is gone), else None."""
-    if terminated or isinstance(error, (KeyboardInterrupt, ExternalShutdownException)) or not rclpy.ok():
-        return 143 if terminated else 130
+    import signal
+    if not received and not isinstance(error, ContouringError):
+        time.sleep(0.01)          # a signal whose Python handler has not run yet runs now (sleep lets it in)
+    if signal.SIGTERM in received:
+        return 143
+    if received or isinstance(error, (KeyboardInterrupt, ExternalShutdownException)):
+        return 130
+    if not isinstance(error, ContouringError) and not rclpy.ok():
+        return 130                # the context is gone: a signal's handler shut it down
     return None
 
 
@@ -681,7 +695,7 @@ def run_node(node_class, args=None) -> int:
     interrupted by SIGINT and 143 by SIGTERM, in any state (waiting for the graph, stepping, finishing),
     without a traceback.
     """
-    terminated = track_sigterm()
+    received = track_signals()
     node = None
     code = 0
     try:
@@ -693,7 +707,7 @@ def run_node(node_class, args=None) -> int:
             node.spin()
         node.finish()
     except BaseException as error:   # every way out becomes an exit code; only a bug keeps its traceback
-        code = interrupted_code(error, terminated)
+        code = interrupted_code(error, received)
         if code is None and isinstance(error, ContouringError):
             print(f"error: {error}", file=sys.stderr)
             code = 1
