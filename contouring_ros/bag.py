@@ -534,10 +534,12 @@ def _iter_records(path, warnings: list, progress: bool = False, damaged: list | 
                     problem = str(error)
                 body = None
             elif problem is None and opcode == _OP_MESSAGE:
-                try:
-                    records = [Message.read(ReadDataStream(BytesIO(body)), length)]
-                except Exception as error:
-                    problem = f"a message cannot be read ({type(error).__name__})"
+                if length < _MESSAGE_HEAD.size:
+                    problem = "a message record too short"
+                else:
+                    channel_id, sequence, log_time, publish_time = _MESSAGE_HEAD.unpack_from(body, 0)
+                    records = [Message(channel_id=channel_id, sequence=sequence, log_time=log_time,
+                                       publish_time=publish_time, data=body[_MESSAGE_HEAD.size:])]
             elif problem is None and opcode in readers:
                 try:
                     records = [readers[opcode](ReadDataStream(BytesIO(body)))]
