@@ -66,6 +66,14 @@ class NodeProcess:
         errors = [line for line in lines if line.startswith("error:")]
         return (errors or lines or [""])[-1]
 
+    def exited_early(self) -> bool:
+        """Exited 0 without saying it completed its steps (every node logs "completed N steps" as it
+        finishes): a node that left the run mid-way (os._exit(0) in a plugin, say)."""
+        if self.log is None or self.process is None or self.process.poll() != 0:
+            return False
+        self.log.seek(0)
+        return b"completed " not in self.log.read()
+
 
 def default_bag_path(experiment: Experiment, directory="bags") -> Path:
     """``directory``/<experiment name>_<time>.mcap, always a file directly inside ``directory``: the name
@@ -462,6 +470,11 @@ def _watch(nodes, timeout, started, say):
     recorder_done = None
     while True:
         codes = {node.name: node.process.poll() for node in nodes}
+        early = [node for node in nodes if codes[node.name] == 0 and node.exited_early()]
+        if early:           # the others would stall for want of its messages: name it, not them
+            time.sleep(0.2)
+            raise RunError("; ".join(f"node {node.name} exited with code 0 before completing its steps (its last "
+                                     f"line: {node.last_error_line() or 'none'})" for node in early))
         if any(code not in (None, 0) for code in codes.values()):
             first = {name for name, code in codes.items() if code not in (None, 0)}
             time.sleep(0.2)     # let the other nodes report too, then name the root cause first: a node

@@ -184,6 +184,12 @@ class Exiting(Hostile):
         sys.exit(0)
 
 
+class Vanishing(Hostile):
+    def hostile(self, estimate):
+        import os
+        os._exit(0)
+
+
 class Infinite(Hostile):
     def hostile(self, estimate):
         return type(estimate)(theta=math.inf, vector=estimate.vector, signed=estimate.signed)
@@ -203,7 +209,8 @@ def hostile_site(tmp_path_factory):
     (project / "hostile_plugin.py").write_text(HOSTILE_PLUGIN)
     (project / "exits_at_import.py").write_text("import sys\nsys.exit(0)\n")
     points = {"raising": "hostile_plugin:Raising", "exiting": "hostile_plugin:Exiting",
-              "infinite": "hostile_plugin:Infinite", "not_a_number": "hostile_plugin:NotANumber",
+              "infinite": "hostile_plugin:Infinite", "vanishing": "hostile_plugin:Vanishing",
+              "not_a_number": "hostile_plugin:NotANumber",
               "exits_at_import": "exits_at_import:Whatever"}
     (project / "pyproject.toml").write_text('[project]\nname = "hostile-plugin"\nversion = "1.0"\n'
                                             '[project.entry-points."contouring_ros.estimators"]\n'
@@ -251,3 +258,14 @@ def test_a_plugin_calling_sys_exit_makes_run_fail_naming_it(hostile_site, tmp_pa
     assert done.returncode != 0, (done.stdout, done.stderr)
     assert "Traceback" not in done.stderr
     assert f"plugin {name!r}" in done.stderr and fragment in done.stderr, done.stderr
+
+
+def test_a_node_that_exits_0_mid_run_is_named_as_having_exited(hostile_site, tmp_path):
+    experiment = tmp_path / "vanishing.yaml"
+    experiment.write_text(with_estimator(shortened(DEFAULT, 0.05), "  ros__parameters:\n    type: vanishing\n"))
+    done = cli(hostile_site, tmp_path, "run", str(experiment), "--bag", str(tmp_path / "run.mcap"), "--process")
+    assert done.returncode != 0, (done.stdout, done.stderr)
+    assert "Traceback" not in done.stderr
+    error = [line for line in done.stderr.splitlines() if line.startswith("error:")]
+    assert error and "node /contour_estimator exited with code 0 before completing its steps" in error[0], done.stderr
+    assert "stalled" not in error[0] and "/x/servo" not in error[0], error[0]
