@@ -109,6 +109,7 @@ class LockstepNode:
         self._sequence = {}        # topic -> publication sequence number expected of its one publisher
         self._last_step = {}       # topic -> step of the last message admitted
         self.strangers = 0         # messages refused before filing (wrong publisher, stamp, size)
+        self.second_publisher = {}  # topic -> the step when a second writer's message was first seen
         self._diagnostics = self.node.create_publisher(DiagnosticArray, self.wire_name(graph.DIAGNOSTICS),
                                                        DIAGNOSTICS_QOS)
         self.next_step = 0
@@ -261,7 +262,8 @@ class LockstepNode:
             shared = topic in graph.GLOBAL_TOPICS and self.graph_namespace != "/" and \
                 not self.experiment.namespaced_clock
             return (f"a message from an unexpected publisher (publication sequence number {sequence}, expected "
-                    f"{expected} from the topic's one publisher {self._topics[topic].publisher})"
+                    f"{expected} from the topic's one publisher {self._topics[topic].publisher}; a second publisher "
+                    f"wrote on {topic}: which messages are whose cannot be told with certainty)"
                     + (f"; {topic} is global under a namespace: graphs sharing a domain need namespaced_clock: true"
                        if shared else ""))
         if len(data) < _MIN_STAMPED:
@@ -297,6 +299,8 @@ class LockstepNode:
         self.rejected[topic] = self.rejected.get(topic, 0) + 1
         self.strangers += k is None
         where = f"step {self.current_step() if k is None else k}"
+        if k is None and problem.startswith("a message from an unexpected publisher"):
+            self.second_publisher.setdefault(topic, where)
         count = self.rejected[topic]
         if count <= REPORT_LIMIT:     # bounded: a flood of junk cannot flood /diagnostics (counted in finish)
             more = f" (further rejections on {topic} are only counted)" if count == REPORT_LIMIT else ""
@@ -543,6 +547,25 @@ class LockstepNode:
             while time.monotonic() < deadline:
                 if pub.get_subscription_count() == 0 or pub.wait_for_all_acked(Duration(nanoseconds=20_000_000)):
                     break
+        self.check_single_publishers()
+
+    def check_single_publishers(self):
+        """Under ``on_invalid_input: hold``: a run whose node saw a second publisher on a graph topic (a
+        message breaking the one writer's sequence numbers, or two writers matched at the end) does not end
+        0. Message info carries no writer identity here: a stranger's message numbered as the graph's
+        writer would number it cannot be told apart from the genuine one, so the steps may hold a stranger's
+        message (the genuine one then refused); ``stop`` ends the run at the first such message."""
+        seen = dict(self.second_publisher)
+        for topic, sub, _, _ in self._inputs:
+            if self._topics[topic].every_step and topic not in seen and sub.get_publisher_count() > 1:
+                seen[topic] = f"the end ({sub.get_publisher_count()} publishers matched)"
+        if seen:
+            topic, where = next(iter(seen.items()))
+            raise RunError(f"{self.name}: a second publisher of {topic} appeared ({where}; "
+                           f"{self._topics[topic].publisher} is its only publisher in the graph): its messages "
+                           "cannot be told apart from the graph's with certainty, so the run's results are not "
+                           "trusted (on_invalid_input: hold); run on a domain of its own"
+                           + (f" (also on {', '.join(list(seen)[1:])})" if len(seen) > 1 else ""))
 
     def destroy(self):
         self.node.destroy_node()
