@@ -128,6 +128,35 @@ def _feedrate_schedule(section, context):
         raise ConfigError(f"{context.where}: schedule: {error}") from None
 
 
+SLOW_NOTE_AFTER, SLOW_NOTE_EVERY = 3.0, 15.0     # s before the first note on stderr, then between notes
+
+
+class note_while_slow:
+    """Context manager: while its block runs longer than SLOW_NOTE_AFTER seconds, a line on stderr every
+    SLOW_NOTE_EVERY seconds says ``what`` is still under way (on a terminal or not: a log shows it too)."""
+
+    def __init__(self, what: str):
+        self.what = what
+
+    def __enter__(self):
+        import threading
+        import time
+        self.done, started = threading.Event(), time.monotonic()
+
+        def watch():
+            wait = SLOW_NOTE_AFTER
+            while not self.done.wait(wait):
+                print(f"note: {self.what}: still under way after {time.monotonic() - started:.0f} s",
+                      file=sys.stderr, flush=True)
+                wait = SLOW_NOTE_EVERY
+        threading.Thread(target=watch, daemon=True).start()
+        return self
+
+    def __exit__(self, *exc):
+        self.done.set()
+        return False
+
+
 def _feed_plan(where, curve, program, jerk, arguments, plan):
     if not isinstance(curve, curves.ToolPath):
         _fail(where, "schedule.jerk", "the jerk-limited feed plan runs along a tool path (curve type toolpath or "
@@ -149,9 +178,12 @@ def _feed_plan(where, curve, program, jerk, arguments, plan):
     if plan["tracking_lag"] is not None and not plan["contour_tolerance"]:
         _fail(where, "schedule.tracking_lag", "used only with a contour_tolerance")
     try:
-        return FeedPlan(curve, arguments["acceleration"], jerk, arguments["feedrate"], plan["rapid_feedrate"] or None,
-                        arguments["normal_acceleration"], plan["axis_feedrate"], plan["axis_acceleration"],
-                        plan["axis_jerk"], plan["contour_tolerance"], plan["tracking_lag"], plan["exact_stop_dwell"])
+        with note_while_slow(f"{_printable(where)}: planning the feed along the tool path (a small jerk or "
+                             "contour_tolerance plans many steps)"):
+            return FeedPlan(curve, arguments["acceleration"], jerk, arguments["feedrate"], plan["rapid_feedrate"] or None,
+                            arguments["normal_acceleration"], plan["axis_feedrate"], plan["axis_acceleration"],
+                            plan["axis_jerk"], plan["contour_tolerance"], plan["tracking_lag"],
+                            plan["exact_stop_dwell"])
     except ValueError as error:
         raise ConfigError(f"{_printable(where)}: schedule: {_printable(error, 400)}") from None
 

@@ -389,3 +389,28 @@ def test_the_newton_estimate_follows_the_path_round_exact_stop_corners():
     assert deviation(experiment) < 20e-6
     estimator = dict(experiment.estimator, branch_check_samples=0)
     assert deviation(dataclasses.replace(experiment, estimator=estimator)) > 100e-6
+
+
+def test_a_long_planning_says_so_on_stderr_also_off_a_terminal(tmp_path, monkeypatch, capsys):
+    import time
+
+    from contouring_ros import config
+
+    class SlowPlan:
+        def __init__(self, *args):
+            time.sleep(0.5)
+            raise ValueError("stopped here")
+
+    monkeypatch.setattr(config, "FeedPlan", SlowPlan)
+    monkeypatch.setattr(config, "SLOW_NOTE_AFTER", 0.1)
+    monkeypatch.setattr(config, "SLOW_NOTE_EVERY", 10.0)
+    text = EXPERIMENT.replace("{{type: gcode, file: {file}}}",
+                              '{{type: toolpath, start: [0.0, 0.0], moves: ["G1 X0.01 Y0", "G1 X0.02 Y0"]}}')
+    path = tmp_path / "slow.yaml"
+    path.write_text(text.format(file="", kp=20.0, schedule="{type: feedrate, feedrate: 0.02, acceleration: 1.0, "
+                                                           "jerk: 1.0e-9}"))
+    with pytest.raises(ConfigError, match="stopped here"):
+        load_experiment(path)
+    err = capsys.readouterr().err
+    assert "note: " in err and "planning the feed along the tool path" in err and "still under way after" in err
+    assert err.count("note: ") == 1
