@@ -3,6 +3,7 @@ score, compare, export, plot and replay its bags; sweep its keys; measure the pa
 every estimator and controller on every paper scenario."""
 from __future__ import annotations
 
+import contextlib
 import argparse
 import json
 import os
@@ -117,14 +118,16 @@ LONG_RUN_STEPS = 20_000       # simulate shows a progress bar beyond this many s
 
 
 def _simulate(args):
-    from .config import build_loop, load_experiment
+    from .config import build_loop, load_experiment, note_while_slow
     from .core.simulation import simulate
     from .scoring import format_scores, score_run, tolerance_line
     from .errors import Diverged
     experiment = load_experiment(_experiment_path(args.config))
     loop = build_loop(experiment)
     try:
-        result = simulate(loop, progress=loop.n_steps > LONG_RUN_STEPS and sys.stderr.isatty())
+        terminal = sys.stderr.isatty()             # a progress bar there; a note now and then off one
+        with contextlib.nullcontext() if terminal else note_while_slow(f"simulating {loop.n_steps} steps"):
+            result = simulate(loop, progress=loop.n_steps > LONG_RUN_STEPS and sys.stderr.isatty())
     except Diverged as error:
         print(f"error: {error}", file=sys.stderr)
         if len(error.result.time):

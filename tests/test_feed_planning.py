@@ -414,3 +414,12 @@ def test_a_long_planning_says_so_on_stderr_also_off_a_terminal(tmp_path, monkeyp
     err = capsys.readouterr().err
     assert "note: " in err and "planning the feed along the tool path" in err and "still under way after" in err
     assert err.count("note: ") == 1
+
+
+def test_a_long_simulation_off_a_terminal_says_it_is_under_way(monkeypatch, capsys):
+    from contouring_ros import cli, config
+    monkeypatch.setattr(config, "SLOW_NOTE_AFTER", 0.0)
+    monkeypatch.setattr(config, "SLOW_NOTE_EVERY", 10.0)
+    assert cli.main(["simulate", str(CONFIG_DIR / "paper000_b_ismc_h50_newton.yaml")]) == 0
+    err = capsys.readouterr().err
+    assert "note: simulating " in err and "steps: still under way after" in err
