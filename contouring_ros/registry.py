@@ -233,21 +233,39 @@ class Role(Mapping):
 _STEPPED = ("servo", "estimator", "controller")
 
 
+_GUARDED: dict = {}      # (plugin class, where) -> its guarded subclass
+
+
 def _guarded(built, where: str) -> None:
-    """Replace ``built.step`` (on the instance only: its type, attributes and results stay the plugin's) by
-    a call that counts the steps (one call per control step, in the simulation and in the node alike) and
-    turns an exception, SystemExit included, or an output that is not finite into a RunError naming
-    ``where`` and the step."""
+    """Give ``built`` a subclass of its class (same name, a new ``step`` only) whose ``step`` counts the
+    steps (one call per control step, in the simulation and in the node alike) and turns an exception,
+    SystemExit included, or an output that is not finite into a RunError naming ``where`` and the step.
+    Its attributes and results stay the plugin's, and copies of it stay guarded."""
+    cls = type(built)
+    guarded = _GUARDED.get((cls, where))
+    if guarded is None:
+        guarded = type(cls.__name__, (cls,), {"__slots__": (), "__module__": cls.__module__,
+                                              "__qualname__": cls.__qualname__, "step": _checked_step(cls, where)})
+        _GUARDED[(cls, where)] = guarded
+    try:
+        built.__class__ = guarded
+    except TypeError:            # a class whose instances cannot change class: left unguarded
+        pass
+
+
+def _checked_step(cls, where: str):
     import numpy as np
 
     from .errors import RunError
-    step, calls = built.step, [0]
+    step = cls.step
 
-    def checked(*args, **kwargs):
-        k = calls[0]
-        calls[0] += 1
+    def checked(self, *args, **kwargs):
+        state = getattr(self, "__dict__", None)
+        k = state.get("_plugin_steps", 0) if state is not None else 0
+        if state is not None:
+            state["_plugin_steps"] = k + 1
         try:
-            out = step(*args, **kwargs)
+            out = step(self, *args, **kwargs)
         except (Exception, SystemExit) as error:
             if isinstance(error, ContouringError):
                 raise
@@ -266,7 +284,7 @@ def _guarded(built, where: str) -> None:
                                f"({' '.join(str(value).split())[:80]})")
         return out
 
-    built.step = checked
+    return checked
 
 
 _ALL_POINTS = None
