@@ -20,7 +20,7 @@ from .config import ESTIMATORS, _check_entry, _typed, build_curve, build_estimat
 from .core.curves import ToolPath
 from .core.geometry import ExactContourError
 from .core.interpolation import Reference
-from .errors import ConfigError, ContouringError
+from .errors import ConfigError, ContouringError, OutputError, write_atomically
 from .scoring import _ROWS, curve_of, format_scores
 
 __all__ = ["compare_table", "parse_estimator_spec", "EstimatorReplay", "replay_estimators", "run_names",
@@ -678,12 +678,13 @@ def write_figures(runs: list, directory, magnification: float | None = None, dra
     """Write :func:`figures` (or ``drawn``, those figures already drawn) as PNG files into ``directory``;
     returns their paths."""
     directory = Path(directory)
-    directory.mkdir(parents=True, exist_ok=True)
+    if directory.exists() and not directory.is_dir():
+        raise OutputError(f"{directory}: a file of that name exists; the figures are written into a folder "
+                          "(name another with --out)")
     paths = []
     for name, fig in (drawn if drawn is not None else figures(runs, magnification)).items():
-        path = directory / f"{name}.png"
-        path.write_bytes(_png(fig))
-        paths.append(path)
+        png = _png(fig)
+        paths.append(write_atomically(directory / f"{name}.png", lambda tmp: tmp.write_bytes(png)))
     return paths
 
 
@@ -869,7 +870,4 @@ def html_report(runs: list, scores: list, path, magnification: float | None = No
             f"<style>{_STYLE}</style></head><body><h1>{html.escape(title)}</h1>"
             f"{_html_runs(traces, runs)}{_html_scores(traces, scores)}{_html_ratios(traces, scores, baseline)}"
             f"{_html_blocks(traces)}{_html_figures(drawn)}{_html_experiments(traces)}</body></html>")
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(page)
-    return path
+    return write_atomically(path, lambda tmp: tmp.write_text(page))

@@ -3,6 +3,7 @@ score, compare, export, plot and replay its bags; sweep its keys; measure the pa
 every estimator and controller on every paper scenario."""
 from __future__ import annotations
 
+import contextlib
 import argparse
 import json
 import os
@@ -40,6 +41,17 @@ def _seconds(text: str) -> float:
     return value
 
 
+def _rate(text: str) -> float:
+    """A playback rate: 0 (as fast as possible) or a finite positive factor (argparse type)."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not 0.0 <= value < float("inf"):
+        raise argparse.ArgumentTypeError(f"expected 0 (as fast as possible) or a positive factor, got {text!r}")
+    return value
+
+
 def _domain_id(text: str) -> int:
     try:
         value = int(text)
@@ -56,10 +68,16 @@ def _warn(run):
 
 
 def _run(args):
-    from .errors import BagError, RunError
+    from .errors import BagError, Interrupted, RunError
     from .runner import run_graph
     from .scoring import format_scores, score_bag
     config = _experiment_path(args.config)
+    settings_directory = None
+    if args.set:        # the file with the settings applied, under the same name (the bag's default name)
+        import tempfile
+        from .sweep import settings_file
+        settings_directory = tempfile.TemporaryDirectory(prefix="contouring_ros_set_")
+        config = settings_file(config, args.set, settings_directory.name)
     try:
         if sum(map(bool, (args.composed, args.group, args.process))) > 1:
             raise ConfigError("--process, --composed and --group are three layouts: give one")
@@ -71,7 +89,8 @@ def _run(args):
                         layout=layout, groups=args.group,
                         namespace=args.namespace, domain_id=args.domain, shared_domain=args.domain is not None)
     except RunError as error:
-        print(f"error: {error}", file=sys.stderr)
+        interrupted = isinstance(error, Interrupted)
+        print(f"{'' if interrupted else 'error: '}{error}", file=sys.stderr)
         if error.bag is not None and Path(error.bag).is_file():
             try:
                 scores, run = score_bag(error.bag)
@@ -81,7 +100,7 @@ def _run(args):
                 _warn(run)
                 print(f"partial bag: {error.bag} ({run.complete_steps} complete steps)")
                 print(format_scores([(config.stem, scores)], run.axes))
-        raise SystemExit(1)
+        raise SystemExit(error.code if interrupted else 1)
     scores, run = score_bag(bag)
     _warn(run)
     print(f"bag: {bag}")
@@ -101,7 +120,7 @@ LONG_RUN_STEPS = 20_000       # simulate shows a progress bar beyond this many s
 
 
 def _simulate(args):
-    from .config import build_loop, load_experiment
+    from .config import build_loop, load_experiment, note_while_slow
     from .core.simulation import simulate
     from .scoring import cutting_lines, format_scores, score_run
     from .errors import Diverged
@@ -111,7 +130,9 @@ def _simulate(args):
     for warning in program_warnings(loop.curve):
         print(f"warning: {warning}", file=sys.stderr)
     try:
-        result = simulate(loop, progress=loop.n_steps > LONG_RUN_STEPS and sys.stderr.isatty())
+        terminal = sys.stderr.isatty()             # a progress bar there; a note now and then off one
+        with contextlib.nullcontext() if terminal else note_while_slow(f"simulating {loop.n_steps} steps"):
+            result = simulate(loop, progress=loop.n_steps > LONG_RUN_STEPS and sys.stderr.isatty())
     except Diverged as error:
         print(f"error: {error}", file=sys.stderr)
         if len(error.result.time):
@@ -348,6 +369,9 @@ def main(argv=None):
                         "loop; repeat for more groups; every node in no group runs in its own process")
     p.add_argument("--namespace", default="/", metavar="NS",
                    help="run every node and topic under /NS (e.g. m1: /m1/x/plant publishes /m1/x/state)")
+    p.add_argument("--set", action="append", metavar="KEY=VALUE",
+                   help="change one key of the experiment for this run, with the sweep's key syntax (x/servo.kp=10, "
+                        "ccc.kp=2, curve.h=80); repeatable")
     p.add_argument("--domain", type=_domain_id, metavar="ID",
                    help="run on this ROS domain, shared with ROS tools and other runs there (give each graph its "
                         "own --namespace) instead of a private one")
@@ -377,7 +401,7 @@ def main(argv=None):
     p.add_argument("bag")
     p.add_argument("--estimator", action="append", help="NAME[:key=value,...], repeatable (e.g. newton:k_prime=800)")
     p.add_argument("--play", action="store_true", help="republish the bag on ROS topics with /clock")
-    p.add_argument("--rate", type=float, default=1.0, help="with --play: speed factor, 0 = as fast as possible")
+    p.add_argument("--rate", type=_rate, default=1.0, help="with --play: speed factor, 0 = as fast as possible")
     p.add_argument("--loop", action="store_true",
                    help="with --play: play again and again until Ctrl-C (/clock restarts with the bag each pass)")
     p.add_argument("--start", type=_seconds, default=0.0, metavar="T",

@@ -129,6 +129,35 @@ def _feedrate_schedule(section, context):
         raise ConfigError(f"{context.where}: schedule: {error}") from None
 
 
+SLOW_NOTE_AFTER, SLOW_NOTE_EVERY = 3.0, 15.0     # s before the first note on stderr, then between notes
+
+
+class note_while_slow:
+    """Context manager: while its block runs longer than SLOW_NOTE_AFTER seconds, a line on stderr every
+    SLOW_NOTE_EVERY seconds says ``what`` is still under way (on a terminal or not: a log shows it too)."""
+
+    def __init__(self, what: str):
+        self.what = what
+
+    def __enter__(self):
+        import threading
+        import time
+        self.done, started = threading.Event(), time.monotonic()
+
+        def watch():
+            wait = SLOW_NOTE_AFTER
+            while not self.done.wait(wait):
+                print(f"note: {self.what}: still under way after {time.monotonic() - started:.0f} s",
+                      file=sys.stderr, flush=True)
+                wait = SLOW_NOTE_EVERY
+        threading.Thread(target=watch, daemon=True).start()
+        return self
+
+    def __exit__(self, *exc):
+        self.done.set()
+        return False
+
+
 def _feed_plan(where, curve, program, jerk, arguments, plan):
     if not isinstance(curve, curves.ToolPath):
         _fail(where, "schedule.jerk", "the jerk-limited feed plan runs along a tool path (curve type toolpath or "
@@ -150,10 +179,12 @@ def _feed_plan(where, curve, program, jerk, arguments, plan):
     if plan["tracking_lag"] is not None and not plan["contour_tolerance"]:
         _fail(where, "schedule.tracking_lag", "used only with a contour_tolerance")
     try:
-        return FeedPlan(curve, arguments["acceleration"], jerk, arguments["feedrate"], plan["rapid_feedrate"] or None,
-                        arguments["normal_acceleration"], plan["axis_feedrate"], plan["axis_acceleration"],
-                        plan["axis_jerk"], plan["contour_tolerance"], plan["tracking_lag"], plan["exact_stop_dwell"],
-                        plan["feed_override"] / 100.0)
+        with note_while_slow(f"{_printable(where)}: planning the feed along the tool path (a small jerk or "
+                             "contour_tolerance plans many steps)"):
+            return FeedPlan(curve, arguments["acceleration"], jerk, arguments["feedrate"], plan["rapid_feedrate"] or None,
+                            arguments["normal_acceleration"], plan["axis_feedrate"], plan["axis_acceleration"],
+                            plan["axis_jerk"], plan["contour_tolerance"], plan["tracking_lag"],
+                            plan["exact_stop_dwell"], plan["feed_override"] / 100.0)
     except ValueError as error:
         raise ConfigError(f"{_printable(where)}: schedule: {_printable(error, 400)}") from None
 
@@ -506,6 +537,9 @@ GLOBALS = {
     # m, one value or one per axis: the drives' in-position window; on a tool path an exact stop waits until
     # every axis' following error is within it (0: no wait, the plan's own time)
     "in_position": Param("floats", [1e-5]),
+    # under a namespace: /clock and /diagnostics stay global (false: what use_sim_time nodes and diagnostic
+    # aggregators listen to) or take the namespace too (true: several graphs sharing a domain, each its clock)
+    "namespaced_clock": Param("bool", False),
 }
 # node section -> (key holding the type name, registry)
 ROLE_TYPES = {"plant": ("model", PLANTS), "servo": ("law", SERVOS),
@@ -633,6 +667,7 @@ class Experiment:
     groups: str = ""
     ccc_takes_state: bool = True
     in_position: tuple = (1e-5,)                   # m, one or one per axis (0: exact stops do not wait)
+    namespaced_clock: bool = False
     plants: dict = field(default_factory=dict)     # axis -> plant section
     servos: dict = field(default_factory=dict)     # axis -> servo section
     estimator: dict = field(default_factory=dict)
@@ -1019,11 +1054,22 @@ def _check_text(where, key, text: str):
         _fail(where, key, f"control characters (NUL, line breaks ...) are not allowed, got {_show(text)}")
 
 
+# keys renamed between versions: old name -> (new name, what changed); an experiment file that still uses the
+# old name is told the new one (where the section has it) instead of "unknown key"
+RENAMED_KEYS = {
+    "iterations": ("max_iterations", "the Newton estimator iterates each step until it is within `tolerance`, "
+                                     "at most max_iterations times"),
+}
+
+
 def _mapping(where, prefix, specs: dict, given: dict, skip=()) -> dict:
     """Validate a mapping against ``specs``: unknown keys, missing required keys, each value."""
     out = {}
     for key in given:
         if key not in specs and key not in skip:
+            renamed = RENAMED_KEYS.get(key)
+            if renamed is not None and renamed[0] in specs:
+                _fail(where, f"{prefix}{key}", f"`{key}` is now `{renamed[0]}` ({renamed[1]}): rename the key")
             known = ", ".join(sorted(specs)) or "none"
             _fail(where, f"{prefix}{key}", f"unknown key (expected one of: {known})")
     for key, spec in specs.items():
@@ -1084,6 +1130,28 @@ def _validate_layout(where, out: dict):
                                f"{out['layout']})")
 
 
+def _check_curve_points(where, section: dict, curve) -> None:
+    """Each point of a curve section (``center``, ``start``, ``end``) has one coordinate per dimension of the
+    curve, and the curve evaluates at its start, middle and end to finite points of that dimension (a circle
+    whose centre has 3 coordinates on a planar curve failed in every node, at its first step)."""
+    dimension = curve.dimension
+    for key in ("center", "start", "end"):
+        value = section.get(key)
+        if section["type"] != "gcode" and isinstance(value, (list, tuple)) and len(value) != dimension:
+            _fail(where, f"curve.{key}", f"expected {dimension} coordinates (the {section['type']} curve is "
+                                         f"{dimension}-dimensional), got {len(value)}")
+    low, high = curve.domain
+    try:
+        for theta in (low, 0.5 * (low + high), high):
+            values = np.asarray(curve.derivatives(float(theta), 3), dtype=float)
+            if values.shape != (4, dimension) or not np.all(np.isfinite(values)):
+                raise ValueError(f"at theta = {theta:g} it gives {values.shape[-1] if values.ndim else 0} "
+                                 f"coordinates{'' if np.all(np.isfinite(values)) else ', not all finite'}, "
+                                 f"expected {dimension}")
+    except (ArithmeticError, ValueError, TypeError, IndexError) as error:
+        _fail(where, "curve", f"cannot evaluate the curve ({type(error).__name__}: {error})")
+
+
 def _validate_globals(where, given: dict) -> dict:
     out = _mapping(where, "", GLOBALS, given)
     axes = out["axes"]
@@ -1106,6 +1174,7 @@ def _validate_globals(where, given: dict) -> dict:
             out["curve"]["file"] = curve.source      # absolute: every node reads the same file
     except (ArithmeticError, ValueError, MemoryError, np.linalg.LinAlgError) as error:
         _fail(where, "curve", f"cannot build the curve ({type(error).__name__}: {error})")
+    _check_curve_points(where, out["curve"], curve)
     if dimension != len(axes):
         _fail(where, "axes", f"{len(axes)} axes given but the {out['curve']['type']} curve has {dimension} "
                              "coordinates")
@@ -1288,7 +1357,20 @@ def experiment_for_node(parameters: dict, node: str, role: str, where: str | Non
     where = where or f"node {node}"
     nested = section_from_parameters({k: v for k, v in parameters.items() if k not in ROS_BUILTIN_PARAMETERS})
     globals_ = _validate_globals(where, {k: v for k, v in nested.items() if k in GLOBALS})
-    section = _validate_role(where, node, role, {k: v for k, v in nested.items() if k not in GLOBALS}, globals_)
+    own = {k: v for k, v in nested.items() if k not in GLOBALS}
+    try:
+        section = _validate_role(where, node, role, own, globals_)
+    except ConfigError as error:
+        from .graph import graph_namespace
+        namespace = graph_namespace(node, role in ("plant", "servo"))
+        if namespace == "/" or "missing required key" not in str(error):
+            raise
+        plain = node[len(namespace):]
+        raise ConfigError(f"{error} (hint: this node runs under the namespace {namespace}, and the ROS parameter "
+                          f"parser gives it the file's section \"{node}\" only: a file whose sections name {plain} "
+                          f"fits the graph without a namespace; write the sections with it, e.g. with "
+                          f"contouring_ros.config.namespaced_parameter_file(text, \"{namespace}\"), as contouring-ros "
+                          f"run --namespace does)") from None
     parts = node.strip("/").split("/")
     axis = parts[-2] if len(parts) > 1 else ""       # a per-axis node's namespace ends in its axis
     return Experiment(

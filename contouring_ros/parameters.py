@@ -31,6 +31,7 @@ DESCRIPTIONS = {
         "timing": "lockstep (as fast as the graph goes) or realtime (one step a period of wall time)",
         "start_time": "realtime: Unix time of tick 0 [s since 1970]",
         "ccc_takes_state": "the CCC node subscribes to the reference and the axis states",
+        "namespaced_clock": "under a namespace, /clock and /diagnostics take it too (else they stay global)",
         "layout": "where contouring-ros run puts the nodes: a process each, all in one, or the processes of groups",
         "groups": "grouped layout: the nodes of each process, e.g. 'x/plant,x/servo; y/plant,y/servo'",
         "in_position": f"drives' in-position window, one or one per axis: exact stops wait for it, 0: no wait {_M}"},

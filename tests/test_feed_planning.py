@@ -521,3 +521,37 @@ def test_blending_and_junction_speeds_hold_for_turns_too_small_for_cosines():
     t1 = np.array([math.cos(phi), math.sin(phi)])
     radius = 1e-5 * math.cos(phi / 2) / (2 * math.sin(phi / 4) ** 2)     # 1 - cos(phi / 2), without cancelling
     assert junction_speed([1.0, 0.0], t1, 1e-5, 1.0, 1e9) == pytest.approx(math.sqrt(radius), rel=1e-6)
+
+
+def test_a_long_planning_says_so_on_stderr_also_off_a_terminal(tmp_path, monkeypatch, capsys):
+    import time
+
+    from contouring_ros import config
+
+    class SlowPlan:
+        def __init__(self, *args):
+            time.sleep(0.5)
+            raise ValueError("stopped here")
+
+    monkeypatch.setattr(config, "FeedPlan", SlowPlan)
+    monkeypatch.setattr(config, "SLOW_NOTE_AFTER", 0.1)
+    monkeypatch.setattr(config, "SLOW_NOTE_EVERY", 10.0)
+    text = EXPERIMENT.replace("{{type: gcode, file: {file}}}",
+                              '{{type: toolpath, start: [0.0, 0.0], moves: ["G1 X0.01 Y0", "G1 X0.02 Y0"]}}')
+    path = tmp_path / "slow.yaml"
+    path.write_text(text.format(file="", kp=20.0, schedule="{type: feedrate, feedrate: 0.02, acceleration: 1.0, "
+                                                           "jerk: 1.0e-9}"))
+    with pytest.raises(ConfigError, match="stopped here"):
+        load_experiment(path)
+    err = capsys.readouterr().err
+    assert "note: " in err and "planning the feed along the tool path" in err and "still under way after" in err
+    assert err.count("note: ") == 1
+
+
+def test_a_long_simulation_off_a_terminal_says_it_is_under_way(monkeypatch, capsys):
+    from contouring_ros import cli, config
+    monkeypatch.setattr(config, "SLOW_NOTE_AFTER", 0.0)
+    monkeypatch.setattr(config, "SLOW_NOTE_EVERY", 10.0)
+    assert cli.main(["simulate", str(CONFIG_DIR / "paper000_b_ismc_h50_newton.yaml")]) == 0
+    err = capsys.readouterr().err
+    assert "note: simulating " in err and "steps: still under way after" in err

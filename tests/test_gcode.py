@@ -243,3 +243,35 @@ def test_dimension_two_for_planar_programs_three_where_z_is_used():
 def test_inline_moves_refuse_words_they_do_not_read(move, word):
     with pytest.raises(ValueError, match=f"move 1 .*: {word} is not read in inline moves"):
         ToolPath([0.0, 0.0], [move])
+
+
+@pytest.mark.parametrize("text, line", [
+    ("G1 X1 F60\nG1 X" + "9" * 400 + " F60", 2),                     # reads as infinity
+    ("G1 X1 F60\nG2 X0 Y0 I" + "9" * 400 + " J0", 2),                 # an arc of infinite radius
+    ("G1 X1 F60\n\nG2 X1 Y2 R" + "9" * 309 + ".5", 3),
+    ("N" + "9" * 400 + " G1 X1 F60", 1),
+    ("G1 X1 F" + "9" * 400, 1),
+    ("G1 X1e5 F60", 1),                                               # not a number word at all
+])
+def test_numbers_out_of_range_are_refused_naming_the_line(text, line):
+    with pytest.raises(ProgramError) as error:
+        ToolPath.from_program(parse_program(text))
+    message = str(error.value)
+    assert message.startswith(f"line {line}: ") and "\n" not in message and len(message) < 200
+
+
+def test_a_move_whose_length_or_radius_is_not_finite_is_refused_naming_its_line():
+    from contouring_ros.core.gcode import Block, Program
+    big = np.array([1e200, 1e200, 0.0])
+    arc = Block("arc", big, big.copy(), 0.01, 7, np.array([-1e200, -1e200, 0.0]), (0, 1, 2), False)
+    with pytest.raises(ValueError, match=r"^line 7: .*not a finite number"):
+        ToolPath.from_program(Program([arc], 2, True))
+    line = Block("line", np.zeros(3), np.array([1e308, 1e308, 0.0]), 0.01, 4)
+    with pytest.raises(ValueError, match=r"^line 4: .*not a finite number"):
+        ToolPath.from_program(Program([line], 2, True))
+
+
+@pytest.mark.parametrize("move", ["G1 Xnan Y0", "G1 Xinf Y0", "G2 X0 Y0 I1e400 J0", "G1 X1e300 Y0", "G1 X1e7 Y0"])
+def test_inline_moves_take_only_finite_numbers(move):
+    with pytest.raises(ValueError, match=r"^move 1 .*finite"):
+        ToolPath([0.0, 0.0], [move])

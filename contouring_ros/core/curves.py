@@ -404,6 +404,8 @@ class ToolPath(Curve):
                 values = {w[0].upper(): float(w[1:]) for w in words[1:]}
             except ValueError:
                 raise ValueError(f"move {number} {move!r}: expected words like X0.05") from None
+            if not all(math.isfinite(v) and abs(v) <= 1e6 for v in values.values()):
+                raise ValueError(f"move {number} {move!r}: every number must be finite and at most 1e+06 m in size")
             allowed = "XY" if code in ("G1", "G01") else "XYIJ"
             extra = [w for w in words[1:] if w[0].upper() not in allowed]
             if extra and code in ("G1", "G01", "G2", "G02", "G3", "G03"):
@@ -487,9 +489,16 @@ class ToolPath(Curve):
             base[normal] = block.start[normal]
             items.append([("helix", base[:d], (e1[:d], e2[:d], w[:d], rho), radius, a0, turn), length, "arc",
                           block.feed, block.line, tolerance, block.dwell])
+        for item in items:            # every derived length and radius finite (a NaN passes the guard below)
+            _, origin, direction, radius, *_ = item[0]
+            numbers = [item[1], radius, *np.ravel(origin), *np.ravel(direction[:3] if item[0][0] == "helix"
+                                                                    else direction)]
+            if not all(math.isfinite(float(v)) for v in numbers):
+                raise ValueError(f"line {item[4]}: the move's length or radius is not a finite number "
+                                 "(coordinates or offsets too large)")
         items = _blend(items)
         total = sum(item[1] for item in items)
-        if total > MAX_PATH_LENGTH:
+        if not math.isfinite(total) or total > MAX_PATH_LENGTH:
             raise ValueError(f"the path is {total:.4g} m long (at most {MAX_PATH_LENGTH:g} m): check the units "
                              "(G1 X50 is 50 mm under G21, the default, and 50 inch = 1.27 m under G20)")
         self.segments = [item[0] for item in items]

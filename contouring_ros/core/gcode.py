@@ -66,6 +66,9 @@ _REFUSED = {**{f"G{c}": "cutter radius compensation" for c in ("41", "41.1", "42
 _WORD = re.compile(r"([A-Za-z])\s*([+-]?(?:\d+\.?\d*|\.\d+))")
 
 
+MAX_NUMBER = 1e9          # a word's value at most this in size (a coordinate of 1e9 mm is already 1000 km)
+
+
 class ProgramError(ValueError):
     """A part program that cannot be read; the message names the line (and the word)."""
 
@@ -157,7 +160,12 @@ def _words(text: str, number: int) -> list:
         match = _WORD.match(body, at)
         if not match:
             raise ProgramError(f"line {number}: cannot read {body[at:].split()[0]!r} (expected words like X10.5)")
-        words.append((match.group(1).upper(), float(match.group(2)), match.group(0).replace(" ", "")))
+        value, word = float(match.group(2)), match.group(0).replace(" ", "")
+        if not math.isfinite(value) or (abs(value) > MAX_NUMBER and match.group(1).upper() != "N"):
+            shown = word if len(word) <= 24 else f"{word[:20]}... ({len(match.group(2))} characters)"
+            raise ProgramError(f"line {number}: {shown}: the number is out of range (at most {MAX_NUMBER:g} "
+                               "in size)")
+        words.append((match.group(1).upper(), value, word))
         at = match.end()
     return words
 
