@@ -18,7 +18,7 @@ from contouring_ros.core.simulation import simulate
 from contouring_ros.errors import RunError
 from contouring_ros.runner import DomainLease, run_graph
 from contouring_ros.scoring import score_bag, score_run
-from conftest import DEFAULT, ROOT, shortened, sigint_as_from_a_terminal
+from conftest import DEFAULT, ROOT, machine_pace, shortened, sigint_as_from_a_terminal
 
 graph = pytest.mark.graph
 
@@ -85,9 +85,12 @@ def test_frozen_node_gives_a_stall_error_naming_node_and_topic(tmp_path, write_e
     path = write_experiment(shortened(DEFAULT, 2.0).replace("    sample_time: 0.001\n",
                                                             "    sample_time: 0.001\n    stall_timeout: 2.0\n", 1))
     error, delay = _run_and_signal(path, tmp_path / "stall.mcap", "/x/servo", signal.SIGSTOP, 0.3)
-    # the nodes downstream of the frozen servo stall first: its plant (no /x/command), then the estimator
-    assert "stalled" in str(error) and ("/x/command" in str(error) or "/x/state" in str(error))
-    assert delay < 2.0 + 5.0 + 2.0   # stall timeout, then up to 5 s for the frozen node to take SIGKILL
+    # the nodes downstream of the frozen servo stall first: its plant (no /x/command), then the estimator (no
+    # /x/state); on a busy machine the CCC's consumers may report first (no /contour_error, /ccc/correction)
+    downstream = ("/x/command", "/x/state", "/contour_error", "/ccc/correction")
+    assert "stalled" in str(error) and any(topic in str(error) for topic in downstream), str(error)
+    # stall timeout, then up to 5 s for the frozen node to take SIGKILL, and the machine's pace
+    assert delay < 2.0 + 5.0 + 2.0 * machine_pace()
 
 
 @graph

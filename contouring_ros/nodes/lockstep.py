@@ -556,6 +556,8 @@ class LockstepNode:
         0. Message info carries no writer identity here: a stranger's message numbered as the graph's
         writer would number it cannot be told apart from the genuine one, so the steps may hold a stranger's
         message (the genuine one then refused); ``stop`` ends the run at the first such message."""
+        if self.experiment.on_invalid_input != "hold":
+            return
         seen = dict(self.second_publisher)
         for topic, sub, _, _ in self._inputs:
             if self._topics[topic].every_step and topic not in seen and sub.get_publisher_count() > 1:
