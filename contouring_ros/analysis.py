@@ -20,7 +20,7 @@ from .config import ESTIMATORS, _check_entry, _typed, build_curve, build_estimat
 from .core.curves import ToolPath
 from .core.geometry import ExactContourError
 from .core.interpolation import Reference
-from .errors import ConfigError, ContouringError
+from .errors import ConfigError, ContouringError, OutputError, write_atomically
 from .scoring import _ROWS, curve_of, format_scores
 
 __all__ = ["compare_table", "parse_estimator_spec", "EstimatorReplay", "replay_estimators", "run_names",
@@ -678,12 +678,13 @@ def write_figures(runs: list, directory, magnification: float | None = None, dra
     """Write :func:`figures` (or ``drawn``, those figures already drawn) as PNG files into ``directory``;
     returns their paths."""
     directory = Path(directory)
-    directory.mkdir(parents=True, exist_ok=True)
+    if directory.exists() and not directory.is_dir():
+        raise OutputError(f"{directory}: a file of that name exists; the figures are written into a folder "
+                          "(name another with --out)")
     paths = []
     for name, fig in (drawn if drawn is not None else figures(runs, magnification)).items():
-        path = directory / f"{name}.png"
-        path.write_bytes(_png(fig))
-        paths.append(path)
+        png = _png(fig)
+        paths.append(write_atomically(directory / f"{name}.png", lambda tmp: tmp.write_bytes(png)))
     return paths
 
 
@@ -828,11 +829,38 @@ def _html_experiments(traces) -> str:
         f"<pre>{html.escape(t.run.experiment_text)}</pre></details>" for t in traces)
 
 
+def _html_blocks(traces) -> str:
+    """For tool path runs: the scores of the cutting moves alone and the results per block
+    (:mod:`contouring_ros.blocks`)."""
+    from .blocks import block_cells, block_headings, block_results, cutting_scores
+    parts = []
+    for t in traces:
+        if t.curve is None or not hasattr(t.curve, "blocks") or t.experiment is None or t.diverged:
+            continue
+        try:
+            schedule = build_schedule(t.experiment, t.curve)
+        except ContouringError:
+            schedule = None
+        tolerance = t.experiment.schedule.get("contour_tolerance") or 0.0
+        rows = block_results(t.curve, t.run.result, schedule, tolerance)
+        cutting = cutting_scores(t.curve, t.run.result)
+        head = block_headings(t.axes)
+        body = "".join("<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in block_cells(r)) + "</tr>"
+                       for r in rows)
+        summary = "" if cutting is None else (
+            f"<p>Cutting moves (G1/G2/G3; start-up and rapids left out, {cutting.steps} steps): MCE "
+            f"{cutting.mce * 1e6:.4g} um, TACE {cutting.tace * 1e6:.4g} um, RMS {cutting.rms * 1e6:.4g} um.</p>")
+        parts.append(f"<h3>{html.escape(t.name)}</h3>{summary}<div class=\"scroll\"><table><tr>"
+                     + "".join(f"<th>{html.escape(h)}</th>" for h in head) + f"</tr>{body}</table></div>")
+    return "<h2>Per block</h2>" + "".join(parts) if parts else ""
+
+
 def html_report(runs: list, scores: list, path, magnification: float | None = None, baseline: int = 0,
                 drawn: dict | None = None) -> Path:
     """A self-contained HTML page of one run or a comparison: the runs, their scores and the ratios to the
-    ``baseline`` run as tables, every figure (embedded PNG; ``drawn``: the :func:`figures` of these runs,
-    when already drawn) and each run's experiment YAML (collapsible). ``scores`` holds a Scores or None
+    ``baseline`` run as tables, for tool path runs the scores of the cutting moves and the results per
+    block, every figure (embedded PNG; ``drawn``: the :func:`figures` of these runs, when already drawn)
+    and each run's experiment YAML (collapsible). ``scores`` holds a Scores or None
     (not scored) per run."""
     traces = _traces(runs)
     drawn = drawn if drawn is not None else _draw_all(traces, magnification)
@@ -841,8 +869,5 @@ def html_report(runs: list, scores: list, path, magnification: float | None = No
     page = (f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>"
             f"<style>{_STYLE}</style></head><body><h1>{html.escape(title)}</h1>"
             f"{_html_runs(traces, runs)}{_html_scores(traces, scores)}{_html_ratios(traces, scores, baseline)}"
-            f"{_html_figures(drawn)}{_html_experiments(traces)}</body></html>")
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(page)
-    return path
+            f"{_html_blocks(traces)}{_html_figures(drawn)}{_html_experiments(traces)}</body></html>")
+    return write_atomically(path, lambda tmp: tmp.write_text(page))

@@ -37,7 +37,7 @@ class Run:
     curve : Curve
         The reference contour.
     warnings : list of str
-        What a bag reader had to make do with (empty for a simulation).
+        What a bag reader had to make do with; for a simulation, the setup words its part program read.
     """
 
     experiment: object
@@ -97,11 +97,11 @@ def _with_settings(experiment, settings: dict | None):
 def simulate(experiment, settings: dict | None = None) -> Run:
     """Simulate an experiment in-process (the node graph gives the same numbers), with ``settings`` applied
     first (grid keys as in sweeps, e.g. {"ccc.kp": 2.0, "x/servo.a": 10}, or {"/ccc": {"type": "none"}})."""
-    from .config import build_loop
+    from .config import build_loop, program_warnings
     from .core.simulation import simulate as run
     experiment = _with_settings(load_experiment(experiment), settings)
     loop = build_loop(experiment)
-    return Run(experiment, run(loop), loop.curve)
+    return Run(experiment, run(loop), loop.curve, program_warnings(loop.curve))
 
 
 def read_bag(path, experiment=None) -> Run:

@@ -23,7 +23,7 @@ import numpy as np
 
 from . import cdr, graph
 from .core.simulation import SimulationResult, first_divergence, step_time
-from .errors import BagError
+from .errors import BagError, ContouringError
 
 __all__ = ["message_definition", "BagWriter", "RecordedRun", "read_run", "read_metadata", "node_reports", "write_simulation",
            "EXPERIMENT_METADATA", "RUN_METADATA"]
@@ -257,7 +257,12 @@ def _step_times(stamps_ns, sample_time) -> np.ndarray:
 _MAGIC = b"\x89MCAP0\r\n"
 _FOOTER_SIZE = 1 + 8 + 20          # opcode, length, summary_start, summary_offset_start, summary_crc
 _KNOWN_OPCODES = range(0x01, 0x10)
-_MAX_RECORD = 1 << 30              # bytes of one record (or a chunk's uncompressed records) at most
+_MAX_RECORD = 64 << 20             # bytes of one record (or a chunk's decompressed records) at most
+_MAX_CHUNK_RECORDS = 1 << 20       # records of one chunk at most
+_MAX_SUMMARY = 64 << 20            # bytes of the summary section at most (else chunks are found by scanning)
+_INFLATION, _INFLATION_FLOOR = 64, 256 << 20   # decompressed bytes of a whole bag: at most max(64 x its size, 256 MiB)
+_MESSAGE_HEAD = struct.Struct("<HIQQ")         # channel id, sequence, log time, publish time
+_MAX_TOPICS = 4096                 # JointState and JointTrajectory topics read at most (a graph of 8 axes has 19)
 _OP_FOOTER, _OP_SCHEMA, _OP_CHANNEL, _OP_MESSAGE, _OP_CHUNK, _OP_CHUNK_INDEX, _OP_METADATA, _OP_DATA_END = \
     0x02, 0x03, 0x04, 0x05, 0x06, 0x08, 0x0C, 0x0F
 
@@ -298,6 +303,10 @@ def _summary_chunks(stream, size: int, path, warnings: list):
         warnings.append(f"{path}: the footer is damaged (its summary offset {summary_start} is outside the "
                         "file); chunks are found by scanning")
         return False, None, []
+    if footer_at - summary_start > _MAX_SUMMARY:
+        warnings.append(f"{path}: the footer's summary section is {footer_at - summary_start} bytes, more than "
+                        f"{_MAX_SUMMARY >> 20} MiB; chunks are found by scanning")
+        return False, None, []
     stream.seek(summary_start)
     summary = stream.read(footer_at - summary_start)
     if summary_crc and zlib.crc32(tail[:1 + 8 + 16], zlib.crc32(summary)) != summary_crc:
@@ -321,28 +330,96 @@ def _summary_chunks(stream, size: int, path, warnings: list):
     return True, sorted(chunks), records
 
 
+def _decompressed(chunk) -> bytes:
+    """A chunk's records, decompressed with a bound on the real output: never more than the size the chunk
+    declares (itself at most _MAX_RECORD) plus one byte, whatever the compressed data says about its own
+    size. ValueError when the data holds more or less than declared."""
+    declared = chunk.uncompressed_size
+    if chunk.compression == "zstd":
+        import zstandard
+        reader = zstandard.ZstdDecompressor().stream_reader(chunk.data)
+        parts, got = [], 0
+        while got <= declared:
+            piece = reader.read(min(declared + 1 - got, 1 << 20))
+            if not piece:
+                break
+            parts.append(piece)
+            got += len(piece)
+        data = b"".join(parts)
+    elif chunk.compression == "lz4":
+        import lz4.frame
+        data = lz4.frame.LZ4FrameDecompressor().decompress(chunk.data, max_length=declared + 1)
+    else:
+        data = chunk.data
+    if len(data) != declared:
+        raise ValueError(f"it decompresses to more than the {declared} bytes it declares" if len(data) > declared
+                         else f"it decompresses to {len(data)} bytes, not the {declared} it declares")
+    return data
+
+
 def _chunk_records(body: bytes):
-    """The records of a chunk record's ``body`` (after opcode and length), its CRC checked; raises
-    ValueError with the reason when the chunk is damaged."""
+    """(chunk, records) of a chunk record's ``body`` (after opcode and length): the header and CRC checked
+    and the records decompressed (bounded, :func:`_decompressed`) before this returns; ``records`` is a
+    generator that raises ValueError with the reason at a record it cannot read. Raises ValueError with
+    the reason when the chunk is damaged."""
+    import zlib
     from io import BytesIO
     from mcap.data_stream import ReadDataStream
     from mcap.records import Chunk
-    from mcap.stream_reader import CRCValidationError, breakup_chunk
     try:
         chunk = Chunk.read(ReadDataStream(BytesIO(body)))
     except Exception as error:
         raise ValueError(f"its header cannot be read ({type(error).__name__})") from None
-    if chunk.compression not in ("", "zstd", "lz4") or chunk.uncompressed_size > _MAX_RECORD or \
-            chunk.message_start_time > chunk.message_end_time:
+    if chunk.compression not in ("", "zstd", "lz4") or chunk.message_start_time > chunk.message_end_time:
         raise ValueError("its header is damaged")
+    if chunk.uncompressed_size > _MAX_RECORD:
+        raise ValueError(f"it declares {chunk.uncompressed_size} bytes of records, more than the "
+                         f"{_MAX_RECORD >> 20} MiB a chunk may hold")
     try:
-        return chunk, breakup_chunk(chunk, validate_crc=True)
-    except CRCValidationError:
-        raise ValueError("CRC mismatch") from None
+        data = _decompressed(chunk)
+    except ValueError:
+        raise
     except Exception as error:
-        what = "it cannot be decompressed" if type(error).__module__.split(".")[0] in ("zstandard", "lz4") or \
-            "Zstd" in type(error).__name__ else "its records cannot be read"
-        raise ValueError(f"{what} ({type(error).__name__})") from None
+        raise ValueError(f"it cannot be decompressed ({type(error).__name__})") from None
+    if chunk.uncompressed_crc and zlib.crc32(data) != chunk.uncompressed_crc:
+        raise ValueError("CRC mismatch")
+    return chunk, _records_of(data)
+
+
+def _records_of(data: bytes):
+    """The schema, channel and message records of a chunk's decompressed ``data``, one at a time (a chunk
+    of a million tiny records is never held as a million objects). At most _MAX_CHUNK_RECORDS records; a
+    private record (opcode 0x80 and up) is skipped; anything else, or a record cut off, raises ValueError."""
+    from io import BytesIO
+    from mcap.data_stream import ReadDataStream
+    from mcap.records import Channel, Message, Schema
+    readers = {_OP_SCHEMA: Schema.read, _OP_CHANNEL: Channel.read}
+    unpack, at, size, count = _MESSAGE_HEAD.unpack_from, 0, len(data), 0
+    while at < size:
+        count += 1
+        if count > _MAX_CHUNK_RECORDS:
+            raise ValueError(f"it holds more than {_MAX_CHUNK_RECORDS} records")
+        if at + 9 > size:
+            raise ValueError("its last record is cut off")
+        opcode, length = data[at], int.from_bytes(data[at + 1:at + 9], "little")
+        end = at + 9 + length
+        if end > size:
+            raise ValueError("its records cannot be read (a record runs past the chunk's end)")
+        if opcode == _OP_MESSAGE:
+            if length < _MESSAGE_HEAD.size:
+                raise ValueError("its records cannot be read (a message record too short)")
+            channel_id, sequence, log_time, publish_time = unpack(data, at + 9)
+            yield Message(channel_id=channel_id, sequence=sequence, log_time=log_time, publish_time=publish_time,
+                          data=data[at + 9 + _MESSAGE_HEAD.size:end])
+        elif opcode in readers:
+            try:
+                record = readers[opcode](ReadDataStream(BytesIO(data[at + 9:end])))
+            except Exception as error:
+                raise ValueError(f"its records cannot be read ({type(error).__name__})") from None
+            yield record
+        elif opcode < 0x80:
+            raise ValueError(f"its records cannot be read (a record of opcode {opcode:#04x} in a chunk)")
+        at = end
 
 
 def _plausible_chunk(head: bytes, at: int, size: int) -> bool:
@@ -365,18 +442,31 @@ def _next_chunk(stream, after: int, size: int, chunks):
     """The offset of the first chunk that starts after byte ``after``: from the summary's index when there is
     one, else by scanning the bytes for a plausible chunk record; None when there is none."""
     if chunks is not None:
-        return next((offset for offset, *_ in chunks if offset > after), None)
+        later = [offset for offset, *_ in chunks if offset > after]
+        for offset in later:
+            stream.seek(offset)
+            if _plausible_chunk(stream.read(64), offset, size):
+                return offset
+        if not later:
+            return None
+        # the index names places where no chunk starts (it belongs to another file's layout): scan instead
     block, at = 1 << 20, after + 1
     while at < size:
         stream.seek(at)
         data = stream.read(block + 64)
-        found = data.find(bytes([_OP_CHUNK]))
-        while 0 <= found < block:
+        # candidates found by the regex engine (opcode, then a known compression name where a chunk has it),
+        # not byte by byte: a file full of 0x06 bytes is scanned as fast as any other
+        for match in _CHUNK_HEAD.finditer(data, 0, min(len(data), block + 49)):
+            found = match.start()
+            if found >= block:
+                break
             if _plausible_chunk(data[found:found + 64], at + found, size):
                 return at + found
-            found = data.find(bytes([_OP_CHUNK]), found + 1)
         at += block
     return None
+
+
+_CHUNK_HEAD = re.compile(rb"\x06(?=.{36}(?:\x00\x00\x00\x00|\x03\x00\x00\x00lz4|\x04\x00\x00\x00zstd))", re.DOTALL)
 
 
 def _iter_records(path, warnings: list, progress: bool = False, damaged: list | None = None):
@@ -406,6 +496,7 @@ def _iter_records(path, warnings: list, progress: bool = False, damaged: list | 
         indexed = {offset: (length, start, end) for offset, length, start, end in chunks or []}
         yield from known        # the summary's schemas and channels: a damaged first chunk loses none of them
         position, last_ns, ended = 8, None, None
+        inflated, budget = 0, max(_INFLATION * size, _INFLATION_FLOOR)
         while True:
             stream.seek(position)
             head = stream.read(9)
@@ -419,8 +510,10 @@ def _iter_records(path, warnings: list, progress: bool = False, damaged: list | 
             problem = None
             if opcode not in _KNOWN_OPCODES:
                 problem = f"no MCAP record starts there (opcode {opcode:#04x})"
-            elif end > size or length > _MAX_RECORD:
+            elif end > size:
                 problem = "its length runs past the end of the file"
+            elif length > _MAX_RECORD + (1 << 20):
+                problem = f"its length ({length} bytes) is more than a record may have ({_MAX_RECORD >> 20} MiB)"
             if problem is None and opcode == _OP_DATA_END:
                 break
             if problem is None and opcode == _OP_FOOTER:
@@ -428,44 +521,58 @@ def _iter_records(path, warnings: list, progress: bool = False, damaged: list | 
             body = stream.read(length) if problem is None and opcode in (_OP_CHUNK, _OP_MESSAGE, *readers) else b""
             records = []
             if problem is None and opcode == _OP_CHUNK:
+                declared = int.from_bytes(body[16:24], "little") if len(body) >= 24 else 0
+                inflated += declared if declared <= _MAX_RECORD else 0
+                if inflated > budget:
+                    raise BagError(f"{path}: its chunks declare more than {budget >> 20} MiB of records once "
+                                   f"decompressed ({_INFLATION} times the file's size, at least "
+                                   f"{_INFLATION_FLOOR >> 20} MiB; at the chunk at byte {position}): refused as a "
+                                   "decompression bomb")
                 try:
                     _, records = _chunk_records(body)
                 except ValueError as error:
                     problem = str(error)
+                body = None
             elif problem is None and opcode == _OP_MESSAGE:
-                try:
-                    records = [Message.read(ReadDataStream(BytesIO(body)), length)]
-                except Exception as error:
-                    problem = f"a message cannot be read ({type(error).__name__})"
+                if length < _MESSAGE_HEAD.size:
+                    problem = "a message record too short"
+                else:
+                    channel_id, sequence, log_time, publish_time = _MESSAGE_HEAD.unpack_from(body, 0)
+                    records = [Message(channel_id=channel_id, sequence=sequence, log_time=log_time,
+                                       publish_time=publish_time, data=body[_MESSAGE_HEAD.size:])]
             elif problem is None and opcode in readers:
                 try:
                     records = [readers[opcode](ReadDataStream(BytesIO(body)))]
                 except Exception as error:
                     problem = f"a record cannot be read ({type(error).__name__})"
-            if problem is not None:
-                resume = _next_chunk(stream, position, size, chunks)
-                if resume is None and chunks is None and end > size and not complete:
-                    ended = "early"      # the last record of a bag cut off while it was written
-                    break
-                start_ns, end_ns = indexed[position][1:] if position in indexed else (last_ns, None)
-                if resume is not None and end_ns is None:
-                    end_ns = indexed[resume][1] if resume in indexed else _chunk_start_ns(stream, resume)
-                kind = "chunk" if opcode == _OP_CHUNK or position in indexed else "record"
-                own.append(Damage(position, kind, problem, start_ns, end_ns, resume))
-                if damaged is None:
-                    warnings.append(_damage_warning(path, own[-1]))
-                if resume is None:
-                    ended = "damaged"
-                    break
-                bar.update(resume - position)
-                position = resume
-                continue
-            for record in records:
-                if isinstance(record, Message):
-                    last_ns = record.log_time if last_ns is None else max(last_ns, record.log_time)
-                yield record
-            bar.update(end - position)
-            position = end
+            if problem is None:
+                try:
+                    for record in records:
+                        if isinstance(record, Message):
+                            last_ns = record.log_time if last_ns is None else max(last_ns, record.log_time)
+                        yield record
+                except ValueError as error:      # a chunk's record that cannot be read: the rest of it is lost
+                    problem = str(error)
+                else:
+                    bar.update(end - position)
+                    position = end
+                    continue
+            resume = _next_chunk(stream, position, size, chunks)
+            if resume is None and chunks is None and end > size and not complete:
+                ended = "early"      # the last record of a bag cut off while it was written
+                break
+            start_ns, end_ns = indexed[position][1:] if position in indexed else (last_ns, None)
+            if resume is not None and end_ns is None:
+                end_ns = indexed[resume][1] if resume in indexed else _chunk_start_ns(stream, resume)
+            kind = "chunk" if opcode == _OP_CHUNK or position in indexed else "record"
+            own.append(Damage(position, kind, problem, start_ns, end_ns, resume))
+            if damaged is None:
+                warnings.append(_damage_warning(path, own[-1]))
+            if resume is None:
+                ended = "damaged"
+                break
+            bar.update(resume - position)
+            position = resume
     if ended == "early":
         warnings.append(f"{path}: the bag ends early (it has no summary: its writer was stopped); read up to its "
                         "last complete chunk")
@@ -506,17 +613,33 @@ class _TopicColumns:
         self.topic, self.type_name = topic, type_name
         self.size = self.width = None
         self.stamps, self.values = array("q"), array("d")
+        self.problem = None       # why this topic's messages stopped being read (a message that cannot be)
+        self.first = self.counts = None   # the first message read; its arrays' lengths
 
     def add(self, data: bytes):
-        if len(data) != self.size:
-            layout = cdr.array_layout(self.type_name, data)
-            width = sum(count for _, count in layout)
-            if self.width is not None and width != self.width:
-                raise BagError(f"{self.topic}: messages with {width} values after messages with {self.width}")
-            self.size, self.width, self.counts = len(data), width, [count for _, count in layout]
-            self.struct = cdr.values_struct(layout)
-        self.stamps.append(cdr.stamp_ns(data))
-        self.values.extend(self.struct.unpack_from(data, 0))
+        """Keep one message's numbers; a message that cannot be read (another layout, not CDR of the type)
+        sets ``problem`` and ends the topic's reading: read_run refuses the bag for it only when scoring needs
+        the topic, and otherwise warns (a stray topic never makes a bag unreadable)."""
+        if self.problem is not None:
+            return
+        try:
+            if len(data) != self.size:
+                layout = cdr.array_layout(self.type_name, data)
+                counts = [count for _, count in layout]
+                if self.width is not None and counts != self.counts:
+                    self.problem = f"a message with arrays of {counts} values after messages with {self.counts}"
+                    return
+                self.size, self.width, self.counts = len(data), sum(counts), counts
+                self.struct = cdr.values_struct(layout)
+            values = self.struct.unpack_from(data, 0)
+            stamp = cdr.stamp_ns(data)
+        except Exception as error:    # not a CDR message of its type
+            self.problem = f"a message that is not a {self.type_name} ({type(error).__name__})"
+            return
+        if self.first is None:
+            self.first = bytes(data)
+        self.stamps.append(stamp)
+        self.values.extend(values)
 
     def array(self, index: int, rows: np.ndarray) -> np.ndarray:
         """Field ``index`` (the index-th float array of the message) at the message rows ``rows``."""
@@ -536,69 +659,211 @@ def read_run(path, keep_payloads: bool = False, experiment_text: str | None = No
     Works on bags of the recorder, on rosbag2 MCAP bags with the same topics and types (pass the
     experiment's YAML as ``experiment_text`` when the bag does not hold it), and on bags whose writer died
     (see :func:`_iter_records`); what the reader had to make do with is in the result's ``warnings``.
+    Whatever the file holds, what cannot be read is a BagError (one line naming the bag and the problem)
+    or a warning, never another exception.
     """
-    from mcap.records import Channel, Metadata, Schema
     path = Path(path)
+    try:
+        return _read_run(path, keep_payloads, experiment_text, progress)
+    except (BagError, KeyboardInterrupt):
+        raise
+    except ContouringError as error:
+        raise BagError(f"{path}: {error}") from None
+    except Exception as error:  # crafted contents no check above foresaw: still one line, never a traceback
+        raise BagError(f"{path}: cannot read the bag ({type(error).__name__}: {error})") from None
+
+
+def _bag_experiment(path, experiment_text: str, warnings: list):
+    """The parsed experiment of a bag (None, with a warning, when it does not validate here: e.g. a part
+    program it names is not on this machine)."""
+    from .config import parse_experiment
+    from .errors import ConfigError
+    try:
+        return parse_experiment(experiment_text, "the bag's experiment")
+    except (ConfigError, ValueError, OSError) as error:
+        warnings.append(f"{path}: its experiment does not validate here ({error}); read without it")
+        return None
+
+
+def _checked_sample_time(path, stored, experiment, warnings: list) -> float:
+    """The sample time of a bag: the experiment's, and the metadata's (``stored``, a string or None) only as
+    long as it is a sample time the validator would take and agrees with the experiment's."""
+    from .config import BOUNDS
+    low, high = BOUNDS["GLOBALS"]["sample_time"]
+    value = None
+    if stored is not None:
+        try:
+            value = float(stored)
+        except ValueError:
+            value = float("nan")
+        if not low <= value <= high:
+            what = f"the bag's {EXPERIMENT_METADATA} sample_time {stored!r} is not a sample time ({low:g} to {high:g} s)"
+            if experiment is None:
+                raise BagError(f"{path}: {what}, and the experiment gives none")
+            warnings.append(f"{path}: {what}; the experiment's ({experiment.sample_time:g} s) is used")
+            value = None
+    if experiment is not None:
+        if value is not None and value != experiment.sample_time:
+            warnings.append(f"{path}: the bag's {EXPERIMENT_METADATA} sample_time {value:g} s differs from its "
+                            f"experiment's ({experiment.sample_time:g} s); the experiment's is used")
+        return experiment.sample_time
+    if value is None:
+        raise BagError(f"{path}: no sample time (neither the {EXPERIMENT_METADATA} metadata nor a valid experiment "
+                       "gives one)")
+    return value
+
+
+def _graph_namespace(path, kept: dict, warnings: list) -> str:
+    """The namespace of the graph a bag recorded: the one whose /reference has the most messages; another
+    topic ending in /reference is named in a warning and left out (a stray publisher never makes a bag
+    unreadable)."""
+    prefixes = {}
+    for name, columns in kept.items():
+        if name.endswith(graph.REFERENCE) and columns.type_name == "trajectory_msgs/msg/JointTrajectory":
+            prefixes[name[:-len(graph.REFERENCE)] or "/"] = len(columns.stamps)
+    if not prefixes:
+        return "/"
+    chosen = max(sorted(prefixes), key=lambda prefix: prefixes[prefix])
+    others = [prefix for prefix in sorted(prefixes) if prefix != chosen]
+    if others:
+        where = lambda prefix: (prefix.rstrip("/") + graph.REFERENCE)  # noqa: E731
+        warnings.append(f"{path}: {', '.join(f'{where(p)} ({prefixes[p]} messages)' for p in others)} left out: "
+                        f"the graph read is the one of {where(chosen)} ({prefixes[chosen]} messages)")
+    return chosen
+
+
+def _check_joint_names(path, joint_names, experiment, given: bool = False) -> list:
+    """The axes a bag's /reference names (its joint names but the last, which must be theta): refused in one
+    line when they are none, repeat one, are not axis names, or are not the experiment's axes."""
+    from .config import RESERVED_AXIS_NAMES, _AXIS_NAME
+    names = list(joint_names)
+    axes = names[:-1]
+    shown = ", ".join(repr(name) for name in names[:10]) + (", ..." if len(names) > 10 else "")
+    if not names or names[-1] != graph.THETA_NAME or not axes:
+        raise BagError(f"{path}: its {graph.REFERENCE} names the joints [{shown}]: expected one or more axes, then "
+                       f"'{graph.THETA_NAME}'")
+    if len(set(axes)) != len(axes):
+        twice = next(axis for axis in axes if axes.count(axis) > 1)
+        raise BagError(f"{path}: its {graph.REFERENCE} names the axis {twice!r} twice ([{shown}])")
+    for axis in axes:
+        if not isinstance(axis, str) or not _AXIS_NAME.match(axis) or "__" in axis or axis in RESERVED_AXIS_NAMES:
+            raise BagError(f"{path}: its {graph.REFERENCE} names {axis!r}, not an axis name ([{shown}])")
+    if experiment is not None and list(experiment.axes) != axes:
+        source = f"--experiment {experiment.name}" if given else "its experiment"
+        raise BagError(f"{path}: {source} has axes {', '.join(experiment.axes)}; the bag has {', '.join(axes)} (the "
+                       f"joints its {graph.REFERENCE} names)")
+    return axes
+
+
+def _on_grid(path, stamps: np.ndarray, sample_time: float, n_steps: int | None, warnings: list) -> np.ndarray:
+    """The complete steps' stamps that are steps of the experiment: t_k = k Ts with 0 <= k < n_steps (the
+    nodes refuse any other stamp, so no run records one); the others are left out, with a warning."""
+    ts_ns = int(round(sample_time * 1e9))
+    k = stamps // ts_ns
+    good = (stamps >= 0) & (stamps % ts_ns == 0)
+    if n_steps is not None:
+        good &= k < n_steps
+    if good.all():
+        return stamps
+    bad = stamps[~good]
+    end = f" (the experiment ends at t = {(n_steps - 1) * sample_time:g} s)" if n_steps is not None else ""
+    warnings.append(f"{path}: {len(bad)} step{'s' if len(bad) > 1 else ''} stamped off the experiment's steps "
+                    f"(t = {', '.join(f'{t * 1e-9:.6g}' for t in bad[:3])}{' ...' if len(bad) > 3 else ''} s; "
+                    f"steps are k x {sample_time:g} s){end}: left out")
+    return stamps[good]
+
+
+def _read_run(path: Path, keep_payloads: bool, experiment_text: str | None, progress: bool) -> RecordedRun:
+    from mcap.records import Channel, Metadata, Schema
     if not path.is_file():
         raise BagError(f"{path}: no such bag")
+    given = experiment_text is not None
     kept: dict = {}
     payloads: dict = {}
     warnings: list = []
     damaged: list = []            # Damage of each part of the file that could not be read
     schemas, keepers = {}, {}     # channel id -> _TopicColumns of the topics scoring needs
-    sample_time = joint_names = None
-    try:
-        for record in _iter_records(path, warnings, progress, damaged):
-            if isinstance(record, Schema):
-                schemas[record.id] = record
-            elif isinstance(record, Channel):
-                type_name = schemas[record.schema_id].name if record.schema_id in schemas else None
-                if type_name in _KEPT_TYPES and not record.topic.endswith(graph.DIAGNOSTICS):
-                    keepers[record.id] = kept.setdefault(record.topic, _TopicColumns(record.topic, type_name))
-            elif isinstance(record, Metadata):
-                if record.name == EXPERIMENT_METADATA:
-                    experiment_text = experiment_text or record.metadata.get("yaml")
-                    sample_time = float(record.metadata.get("sample_time", "nan"))
-            else:
-                columns = keepers.get(record.channel_id)
-                if columns is None:
+    stored_sample_time = None
+    for record in _iter_records(path, warnings, progress, damaged):
+        if isinstance(record, Schema):
+            schemas[record.id] = record
+        elif isinstance(record, Channel):
+            type_name = schemas[record.schema_id].name if record.schema_id in schemas else None
+            if type_name in _KEPT_TYPES and not record.topic.endswith(graph.DIAGNOSTICS):
+                if record.topic not in kept and len(kept) >= _MAX_TOPICS:
+                    if len(kept) == _MAX_TOPICS:
+                        warnings.append(f"{path}: more than {_MAX_TOPICS} JointState and JointTrajectory topics; "
+                                        f"from {record.topic} on, the others are left out")
+                        kept[None] = None
                     continue
-                columns.add(record.data)
-                if joint_names is None and columns.topic.endswith(graph.REFERENCE):
-                    joint_names = cdr.decode_joint_trajectory(record.data).joint_names
-                if keep_payloads:
-                    payloads.setdefault(columns.topic, []).append(bytes(record.data))
-    except BagError:
-        raise
-    except Exception as error:  # a damaged file that the chunk checks did not catch
-        raise BagError(f"{path}: cannot read the bag ({type(error).__name__}: {error})") from None
+                columns = kept.setdefault(record.topic, _TopicColumns(record.topic, type_name))
+                if columns.type_name == type_name:    # a second channel of the topic with another type: not read
+                    keepers[record.id] = columns
+        elif isinstance(record, Metadata):
+            if record.name == EXPERIMENT_METADATA:
+                experiment_text = experiment_text or record.metadata.get("yaml")
+                stored_sample_time = record.metadata.get("sample_time")
+        else:
+            columns = keepers.get(record.channel_id)
+            if columns is None:
+                continue
+            columns.add(record.data)
+            if keep_payloads:
+                payloads.setdefault(columns.topic, []).append(bytes(record.data))
     if damaged and not experiment_text:
         raise BagError(f"{path}: the bag is damaged ({damaged[0].reason} at byte {damaged[0].offset}) and holds no "
                        f"experiment ('{EXPERIMENT_METADATA}' metadata); give the experiment file that produced it")
     if not experiment_text:
         raise BagError(f"{path}: the bag holds no experiment ('{EXPERIMENT_METADATA}' metadata); give the "
                        "experiment file that produced it")
-    try:      # a graph run under a namespace (/m1/reference ...): its topics by the graph's own names
-        namespace = graph.namespace_of_topics(kept)
-    except ValueError as error:
-        raise BagError(f"{path}: {error}") from None
+    kept.pop(None, None)
+    from .config import MAX_FILE_BYTES
+    if len(experiment_text) > MAX_FILE_BYTES:
+        raise BagError(f"{path}: its experiment ('{EXPERIMENT_METADATA}' metadata) is {len(experiment_text)} "
+                       f"characters; an experiment file has at most {MAX_FILE_BYTES}")
+    experiment = _bag_experiment(path, experiment_text, warnings)
+    sample_time = _checked_sample_time(path, stored_sample_time, experiment, warnings)
+    # a graph run under a namespace (/m1/reference ...): its topics by the graph's own names
+    namespace = _graph_namespace(path, kept, warnings)
     if namespace != "/":
         kept = {name[len(namespace):]: columns for name, columns in kept.items() if name.startswith(namespace + "/")}
         payloads = {name[len(namespace):]: data for name, data in payloads.items() if name.startswith(namespace + "/")}
-    if graph.REFERENCE not in kept or joint_names is None:
+    reference = kept.get(graph.REFERENCE)
+    if reference is None or reference.type_name != "trajectory_msgs/msg/JointTrajectory" or \
+            (not len(reference.stamps) and reference.problem is None):
         raise BagError(f"{path}: the bag has no {graph.REFERENCE} messages")
-    axes = list(joint_names[:-1])
+    if reference.problem is not None and not len(reference.stamps):
+        raise BagError(f"{path}: {namespace.rstrip('/')}{graph.REFERENCE}: {reference.problem}")
+    axes = _check_joint_names(path, cdr.decode_joint_trajectory(reference.first).joint_names, experiment, given)
     needed = [graph.REFERENCE, graph.CONTOUR_ERROR, graph.CORRECTION] + \
         [graph.state_topic(a) for a in axes] + [graph.command_topic(a) for a in axes]
     for topic in needed:
         if topic not in kept:
             raise BagError(f"{path}: the bag has no {topic} messages")
+        expected = "trajectory_msgs/msg/JointTrajectory" if topic == graph.REFERENCE else "sensor_msgs/msg/JointState"
+        if kept[topic].type_name != expected:
+            raise BagError(f"{path}: {namespace.rstrip('/')}{topic} is a {kept[topic].type_name}, not a {expected}")
+        if kept[topic].problem is not None:
+            raise BagError(f"{path}: {namespace.rstrip('/')}{topic}: {kept[topic].problem}")
+    for topic, columns in kept.items():
+        if columns.problem is not None and topic not in needed:
+            warnings.append(f"{path}: {columns.topic} left out (not a topic of the graph's steps): {columns.problem}")
+    n = len(axes)     # the arrays each topic's messages must have (index -> values at least)
+    shapes = {graph.REFERENCE: {0: n + 1, 1: n + 1, 2: n + 1}, graph.CONTOUR_ERROR: {0: n + 2}, graph.CORRECTION: {2: n}}
+    for topic in needed:
+        columns = kept[topic]
+        shape = shapes.get(topic, {0: 1, 1: 1} if topic.endswith("/state") else {2: 1})
+        if columns.counts is not None and any(len(columns.counts) <= i or columns.counts[i] < count
+                                              for i, count in shape.items()):
+            raise BagError(f"{path}: {namespace.rstrip('/')}{topic}: messages with arrays of {columns.counts} values; "
+                           f"the graph's for axes {', '.join(axes)} have at least {shape} (array: values)")
     silent = [topic for topic in needed if not len(kept[topic].stamps)]
     if silent:
         raise BagError(f"{path}: no complete step: {', '.join(silent)} recorded no messages")
     stamps = np.asarray(kept[needed[0]].stamps)
     for topic in needed[1:]:
         stamps = np.intersect1d(stamps, np.asarray(kept[topic].stamps))
+    stamps = _on_grid(path, stamps, sample_time, experiment.n_steps if experiment is not None else None, warnings)
     if not len(stamps):
         raise BagError(f"{path}: no complete step (no stamp has a message on every one of {', '.join(needed)})")
     rows = {}
@@ -607,13 +872,10 @@ def read_run(path, keep_payloads: bool = False, experiment_text: str | None = No
         order = np.argsort(own, kind="stable")
         last = order[np.searchsorted(own[order], stamps, side="right") - 1]
         rows[topic] = last
-    if sample_time is None or not np.isfinite(sample_time):
-        sample_time = _sample_time_of(experiment_text)
     if damaged:
         last_ns = max(int(kept[topic].stamps[-1]) for topic in needed)
         warnings[:0] = [_damage_warning(path, damage, sample_time, _lost_steps(damage, stamps, sample_time, last_ns))
                         for damage in damaged]
-    n = len(axes)
 
     def column(topic, index, count=None):
         return kept[topic].array(index, rows[topic])[:, :count]
@@ -664,11 +926,6 @@ def _divergence_bound(experiment_text: str) -> float | None:
         return path_bound(curve, build_schedule(experiment, curve), experiment.divergence_factor)
     except (ContouringError, ValueError, ArithmeticError):
         return None
-
-
-def _sample_time_of(experiment_text: str) -> float | None:
-    from .config import parse_experiment
-    return parse_experiment(experiment_text, "stored experiment").sample_time
 
 
 def write_simulation(path, experiment, result) -> Path:

@@ -3,6 +3,7 @@ score, compare, export, plot and replay its bags; sweep its keys; measure the pa
 every estimator and controller on every paper scenario."""
 from __future__ import annotations
 
+import contextlib
 import argparse
 import json
 import os
@@ -40,6 +41,17 @@ def _seconds(text: str) -> float:
     return value
 
 
+def _rate(text: str) -> float:
+    """A playback rate: 0 (as fast as possible) or a finite positive factor (argparse type)."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not 0.0 <= value < float("inf"):
+        raise argparse.ArgumentTypeError(f"expected 0 (as fast as possible) or a positive factor, got {text!r}")
+    return value
+
+
 def _domain_id(text: str) -> int:
     try:
         value = int(text)
@@ -56,19 +68,29 @@ def _warn(run):
 
 
 def _run(args):
-    from .errors import BagError, RunError
+    from .errors import BagError, Interrupted, RunError
     from .runner import run_graph
     from .scoring import format_scores, score_bag
     config = _experiment_path(args.config)
+    settings_directory = None
+    if args.set:        # the file with the settings applied, under the same name (the bag's default name)
+        import tempfile
+        from .sweep import settings_file
+        settings_directory = tempfile.TemporaryDirectory(prefix="contouring_ros_set_")
+        config = settings_file(config, args.set, settings_directory.name)
     try:
         if sum(map(bool, (args.composed, args.group, args.process))) > 1:
             raise ConfigError("--process, --composed and --group are three layouts: give one")
         layout = "composed" if args.composed else "process" if args.process or args.group else None
+        from .config import build_curve, load_experiment, program_warnings
+        for warning in program_warnings(build_curve(load_experiment(config))):
+            print(f"warning: {warning}", file=sys.stderr)
         bag = run_graph(config, args.bag, progress=lambda m: print(m, flush=True),
                         layout=layout, groups=args.group,
                         namespace=args.namespace, domain_id=args.domain, shared_domain=args.domain is not None)
     except RunError as error:
-        print(f"error: {error}", file=sys.stderr)
+        interrupted = isinstance(error, Interrupted)
+        print(f"{'' if interrupted else 'error: '}{error}", file=sys.stderr)
         if error.bag is not None and Path(error.bag).is_file():
             try:
                 scores, run = score_bag(error.bag)
@@ -78,16 +100,15 @@ def _run(args):
                 _warn(run)
                 print(f"partial bag: {error.bag} ({run.complete_steps} complete steps)")
                 print(format_scores([(config.stem, scores)], run.axes))
-        raise SystemExit(1)
+        raise SystemExit(error.code if interrupted else 1)
     scores, run = score_bag(bag)
     _warn(run)
     print(f"bag: {bag}")
     print(format_scores([(config.stem, scores)], run.axes))
     from .config import parse_experiment
-    from .scoring import tolerance_line
-    held = tolerance_line(parse_experiment(run.experiment_text, str(config)).schedule, scores.mce)
-    if held:
-        print(held)
+    from .scoring import curve_of, cutting_lines
+    for line in cutting_lines(curve_of(run), run.result, parse_experiment(run.experiment_text, str(config)).schedule):
+        print(line)
     from .bag import node_reports
     from .scoring import format_realtime
     realtime = format_realtime(node_reports(bag))
@@ -99,14 +120,19 @@ LONG_RUN_STEPS = 20_000       # simulate shows a progress bar beyond this many s
 
 
 def _simulate(args):
-    from .config import build_loop, load_experiment
+    from .config import build_loop, load_experiment, note_while_slow
     from .core.simulation import simulate
-    from .scoring import format_scores, score_run, tolerance_line
+    from .scoring import cutting_lines, format_scores, score_run
     from .errors import Diverged
+    from .config import program_warnings
     experiment = load_experiment(_experiment_path(args.config))
     loop = build_loop(experiment)
+    for warning in program_warnings(loop.curve):
+        print(f"warning: {warning}", file=sys.stderr)
     try:
-        result = simulate(loop, progress=loop.n_steps > LONG_RUN_STEPS and sys.stderr.isatty())
+        terminal = sys.stderr.isatty()             # a progress bar there; a note now and then off one
+        with contextlib.nullcontext() if terminal else note_while_slow(f"simulating {loop.n_steps} steps"):
+            result = simulate(loop, progress=loop.n_steps > LONG_RUN_STEPS and sys.stderr.isatty())
     except Diverged as error:
         print(f"error: {error}", file=sys.stderr)
         if len(error.result.time):
@@ -115,9 +141,8 @@ def _simulate(args):
         raise SystemExit(1)
     scores = score_run(loop.curve, result)
     print(format_scores([(experiment.name, scores)], list(experiment.axes)))
-    held = tolerance_line(experiment.schedule, scores.mce)
-    if held:
-        print(held)
+    for line in cutting_lines(loop.curve, result, experiment.schedule):
+        print(line)
 
 
 def _experiment_text(args):
@@ -160,6 +185,30 @@ def _score(args):
         if args.from_time:
             print(f"scores of the samples at t >= {args.from_time:g} s")
         print(format_scores([(name, scores) for name, scores, _ in results], results[0][2].axes))
+
+
+def _blocks(args):
+    from .blocks import block_results, format_blocks, write_blocks_csv
+    from .config import build_schedule, parse_experiment
+    from .scoring import curve_of, cutting_lines
+    text = _experiment_text(args)
+    for bag in args.bags:
+        from .bag import read_run
+        run = read_run(bag, experiment_text=text, progress=sys.stderr.isatty())
+        _warn(run)
+        curve = curve_of(run)
+        if not hasattr(curve, "blocks"):
+            raise ConfigError(f"{bag}: not a tool path run (curve type gcode or toolpath): it has no blocks")
+        experiment = parse_experiment(run.experiment_text, str(bag))
+        rows = block_results(curve, run.result, build_schedule(experiment, curve),
+                             experiment.schedule.get("contour_tolerance") or 0.0)
+        print(f"{bag}:")
+        for line in cutting_lines(curve, run.result, experiment.schedule):
+            print(line)
+        print(format_blocks(rows, run.axes))
+        if args.csv:
+            Path(args.csv).mkdir(parents=True, exist_ok=True)
+            print(write_blocks_csv(rows, run.axes, Path(args.csv) / f"{Path(bag).stem}_blocks.csv"))
 
 
 def _compare(args):
@@ -320,6 +369,9 @@ def main(argv=None):
                         "loop; repeat for more groups; every node in no group runs in its own process")
     p.add_argument("--namespace", default="/", metavar="NS",
                    help="run every node and topic under /NS (e.g. m1: /m1/x/plant publishes /m1/x/state)")
+    p.add_argument("--set", action="append", metavar="KEY=VALUE",
+                   help="change one key of the experiment for this run, with the sweep's key syntax (x/servo.kp=10, "
+                        "ccc.kp=2, curve.h=80); repeatable")
     p.add_argument("--domain", type=_domain_id, metavar="ID",
                    help="run on this ROS domain, shared with ROS tools and other runs there (give each graph its "
                         "own --namespace) instead of a private one")
@@ -335,6 +387,11 @@ def main(argv=None):
                    help="score only the samples at t >= T seconds (steady state; same keys)")
     p.add_argument("--experiment", help=experiment_help)
     p.set_defaults(func=_score)
+    p = sub.add_parser("blocks", help="results per block of tool path runs, and the scores of their cutting moves")
+    p.add_argument("bags", nargs="+")
+    p.add_argument("--csv", metavar="DIR", help="also write <bag>_blocks.csv per bag into DIR")
+    p.add_argument("--experiment", help=experiment_help)
+    p.set_defaults(func=_blocks)
     p = sub.add_parser("compare", help="score runs side by side, with ratios to a baseline")
     p.add_argument("bags", nargs="+")
     p.add_argument("--baseline", help="the bag the ratios refer to (default: the first)")
@@ -344,7 +401,7 @@ def main(argv=None):
     p.add_argument("bag")
     p.add_argument("--estimator", action="append", help="NAME[:key=value,...], repeatable (e.g. newton:k_prime=800)")
     p.add_argument("--play", action="store_true", help="republish the bag on ROS topics with /clock")
-    p.add_argument("--rate", type=float, default=1.0, help="with --play: speed factor, 0 = as fast as possible")
+    p.add_argument("--rate", type=_rate, default=1.0, help="with --play: speed factor, 0 = as fast as possible")
     p.add_argument("--loop", action="store_true",
                    help="with --play: play again and again until Ctrl-C (/clock restarts with the bag each pass)")
     p.add_argument("--start", type=_seconds, default=0.0, metavar="T",

@@ -128,8 +128,12 @@ def run_composed(experiment_path: str, bag: str, executor_kind: str = "lean", st
                 spin_once(timeout_sec=0.02)
             recorder.finish()
     finally:
-        for node in reversed(nodes):
-            node.destroy()
+        for node in reversed(nodes):      # the recorder first: its bag is closed whatever comes after
+            try:
+                node.destroy()
+            except Exception:             # a node whose context a signal shut down
+                if rclpy.ok():
+                    raise
         rclpy.try_shutdown()
         directory.cleanup()
 
@@ -192,14 +196,19 @@ def main(argv=None) -> int:
                         "grouped layout; default every node)")
     parser.add_argument("--namespace", default="/", help="the graph's namespace (default: the root)")
     args = parser.parse_args(sys.argv[1:] if argv is None else argv)
+    from .nodes.lockstep import interrupted_code, track_signals
+    received = track_signals()
     try:
         run_composed(args.experiment, args.bag, args.executor, args.start_time,
                      args.nodes.split(",") if args.nodes else None, args.namespace)
-    except KeyboardInterrupt:
-        return 130
-    except ContouringError as error:
-        print(f"error: {error}", file=sys.stderr)
-        return 1
+    except BaseException as error:     # 130 (SIGINT) or 143 (SIGTERM) in any state, one line for an error
+        code = interrupted_code(error, received)
+        if code is None and isinstance(error, ContouringError):
+            print(f"error: {error}", file=sys.stderr)
+            return 1
+        if code is None:
+            raise
+        return code
     return 0
 
 

@@ -27,7 +27,7 @@ import yaml
 
 from .core import contouring, curves, disturbances, estimators, gcode, plants, servo
 from .core.feed_planning import FeedPlan
-from .core.interpolation import FeedrateSchedule, UniformSchedule, reference
+from .core.interpolation import FeedrateSchedule, InPositionClock, UniformSchedule, reference
 from .core.simulation import ControlLoop
 from .errors import ConfigError
 from .registry import BuildContext, Role
@@ -101,7 +101,7 @@ def _spline(s, context):
 
 
 _PLAN_KEYS = ("rapid_feedrate", "axis_feedrate", "axis_acceleration", "axis_jerk", "contour_tolerance", "tracking_lag",
-              "exact_stop_dwell")
+              "exact_stop_dwell", "feed_override", "in_position_timeout")
 
 
 def _feedrate_schedule(section, context):
@@ -113,9 +113,10 @@ def _feedrate_schedule(section, context):
     jerk = arguments.pop("jerk")
     plan = {key: arguments.pop(key) for key in _PLAN_KEYS}
     if jerk or program is not None:
+        plan.pop("in_position_timeout")      # the reference's, not the plan's (build_clock)
         return _feed_plan(where, context.curve, program, jerk, arguments, plan)
     for key, value in plan.items():
-        if value not in (None, 0.0):
+        if value not in (None, 0.0) and (key, value) not in (("feed_override", 100.0), ("in_position_timeout", 0.5)):
             _fail(where, f"schedule.{key}", "applies to the jerk-limited feed plan of a tool path: give jerk too")
     if arguments["feedrate"] is None:
         _fail(where, "schedule.feedrate", "missing required key")
@@ -126,6 +127,35 @@ def _feedrate_schedule(section, context):
         return FeedrateSchedule(context.curve, **arguments)
     except ValueError as error:
         raise ConfigError(f"{context.where}: schedule: {error}") from None
+
+
+SLOW_NOTE_AFTER, SLOW_NOTE_EVERY = 3.0, 15.0     # s before the first note on stderr, then between notes
+
+
+class note_while_slow:
+    """Context manager: while its block runs longer than SLOW_NOTE_AFTER seconds, a line on stderr every
+    SLOW_NOTE_EVERY seconds says ``what`` is still under way (on a terminal or not: a log shows it too)."""
+
+    def __init__(self, what: str):
+        self.what = what
+
+    def __enter__(self):
+        import threading
+        import time
+        self.done, started = threading.Event(), time.monotonic()
+
+        def watch():
+            wait = SLOW_NOTE_AFTER
+            while not self.done.wait(wait):
+                print(f"note: {self.what}: still under way after {time.monotonic() - started:.0f} s",
+                      file=sys.stderr, flush=True)
+                wait = SLOW_NOTE_EVERY
+        threading.Thread(target=watch, daemon=True).start()
+        return self
+
+    def __exit__(self, *exc):
+        self.done.set()
+        return False
 
 
 def _feed_plan(where, curve, program, jerk, arguments, plan):
@@ -149,9 +179,12 @@ def _feed_plan(where, curve, program, jerk, arguments, plan):
     if plan["tracking_lag"] is not None and not plan["contour_tolerance"]:
         _fail(where, "schedule.tracking_lag", "used only with a contour_tolerance")
     try:
-        return FeedPlan(curve, arguments["acceleration"], jerk, arguments["feedrate"], plan["rapid_feedrate"] or None,
-                        arguments["normal_acceleration"], plan["axis_feedrate"], plan["axis_acceleration"],
-                        plan["axis_jerk"], plan["contour_tolerance"], plan["tracking_lag"], plan["exact_stop_dwell"])
+        with note_while_slow(f"{_printable(where)}: planning the feed along the tool path (a small jerk or "
+                             "contour_tolerance plans many steps)"):
+            return FeedPlan(curve, arguments["acceleration"], jerk, arguments["feedrate"], plan["rapid_feedrate"] or None,
+                            arguments["normal_acceleration"], plan["axis_feedrate"], plan["axis_acceleration"],
+                            plan["axis_jerk"], plan["contour_tolerance"], plan["tracking_lag"],
+                            plan["exact_stop_dwell"], plan["feed_override"] / 100.0)
     except ValueError as error:
         raise ConfigError(f"{_printable(where)}: schedule: {_printable(error, 400)}") from None
 
@@ -165,19 +198,28 @@ def _gcode(s, context):
     if path is None:
         raise ValueError(f"file: cannot find the part program {s['file']!r} (relative paths are read from the "
                          "experiment file's directory)")
-    raw = _read_file(path, _printable(path))
+    raw = _read_file(path, _printable(path), MAX_PROGRAM_BYTES, "a part program is a text file")
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError as error:
         raise ValueError(f"{path}: not a text file (not UTF-8 at byte {error.start})") from None
     try:
-        program = gcode.parse_program(text, s["start"])
+        program = gcode.parse_program(text, s["start"], s["strict"])
         tool_path = curves.ToolPath.from_program(program, s["blend_tolerance"])
     except ValueError as error:
         raise ValueError(f"{path.name}: {error}") from None
     tool_path.program = program
     tool_path.source = str(path.resolve())
     return tool_path
+
+
+def program_warnings(curve) -> list:
+    """One line per kind of setup word the part program of ``curve`` read (none for other curves), naming
+    the program file and the line."""
+    program = getattr(curve, "program", None)
+    if program is None:
+        return []
+    return [f"{Path(curve.source).name}: {warning}" for warning in program.warnings]
 
 
 def resolve_part_program(name: str, where: str):
@@ -302,7 +344,8 @@ _CURVE_SPECS = {
     "spline": {"x": Param("floats"), "y": Param("floats"), "z": Param("floats", None), "closed": Param("bool", False)},
     "toolpath": {"start": Param("floats"), "moves": Param("strings")},
     "gcode": {"file": Param("str"), "start": Param("floats", [0.0, 0.0, 0.0]),
-              "blend_tolerance": Param("float", 0.0, "nonnegative", help="m, as G64 P; 0: exact stop (G61)")},
+              "blend_tolerance": Param("float", 0.0, "nonnegative", help="m, as G64 P; 0: exact stop (G61)"),
+              "strict": Param("bool", False)},
     "helix": {"a": Param("float", check="positive"), "b": Param("float", check="positive"), "c": Param("float"),
               "omega": Param("float"), "length": Param("float", check="positive")},
 }
@@ -334,7 +377,9 @@ _register(SCHEDULES, {
                  "axis_feedrate": Param("floats", None), "axis_acceleration": Param("floats", None),
                  "axis_jerk": Param("floats", None),
                  "contour_tolerance": Param("float", 0.0, "nonnegative"),
-                 "tracking_lag": Param("floats", None), "exact_stop_dwell": Param("float", 0.0, "nonnegative")},
+                 "tracking_lag": Param("floats", None), "exact_stop_dwell": Param("float", 0.0, "nonnegative"),
+                 "feed_override": Param("float", 100.0, "positive"),
+                 "in_position_timeout": Param("float", 0.5, "positive")},
 }, {
     "uniform": lambda s, c: UniformSchedule(**_kwargs(s)),
     "feedrate": _feedrate_schedule,
@@ -372,7 +417,7 @@ _register(PLANTS, {
         c.velocity, s["saturation"], s["coulomb_positive"], s["coulomb_negative"], s["disturbance_unit"],
         **_machine(s)),
 })
-_register(SERVOS, {
+_SERVO_SPECS = {
     "pid_feedforward": {**_gains(), "gain": Param("float", check="positive"),
                         "time_constant": Param("float", check="nonnegative")},
     "ismc": {"a": Param("float", check="positive"), "b": Param("float", check="positive"),
@@ -390,7 +435,8 @@ _register(SERVOS, {
                 "k": Param("float", check="positive"), "alphas": Param("floats"),
                 "sigma": Param("float", check="positive"), "disturbance_compensation": Param("bool", True),
                 "output_limit": LIMIT},
-}, {
+}
+_register(SERVOS, _SERVO_SPECS, {
     "pid_feedforward": lambda s, c: servo.PIDFeedforwardServo(s["kp"], s["ki"], s["kd"], s["gain"], s["time_constant"],
                                                               c.sample_time, s["output_limit"]),
     "ismc": _ismc,
@@ -488,6 +534,12 @@ GLOBALS = {
     # whether the CCC subscribes to /reference and the states: contouring-ros run sets false where the
     # controller does not use them (3 fewer deliveries a step with 2 axes); true is always safe
     "ccc_takes_state": Param("bool", True),
+    # m, one value or one per axis: the drives' in-position window; on a tool path an exact stop waits until
+    # every axis' following error is within it (0: no wait, the plan's own time)
+    "in_position": Param("floats", [1e-5]),
+    # under a namespace: /clock and /diagnostics stay global (false: what use_sim_time nodes and diagnostic
+    # aggregators listen to) or take the namespace too (true: several graphs sharing a domain, each its clock)
+    "namespaced_clock": Param("bool", False),
 }
 # node section -> (key holding the type name, registry)
 ROLE_TYPES = {"plant": ("model", PLANTS), "servo": ("law", SERVOS),
@@ -497,6 +549,7 @@ OPTIONAL_NODES = {"interpolator": {}, "recorder": {"bag": Param("str", ""), "exp
 
 # --- bounds: every number a file gives lies in a stated range, so no run starts that cannot end or fit --------
 MAX_FILE_BYTES = 1 << 20        # an experiment file (UTF-8 text) is at most 1 MiB
+MAX_PROGRAM_BYTES = 256 << 20   # a part program at most 256 MiB (a million short blocks take tens of MB)
 MAX_DEPTH = 16                  # levels of YAML nesting (the shipped files use 6)
 MAX_STEPS = 10_000_000          # control steps of one run: duration / sample_time + 1
 MAX_DURATION = 3600.0           # s of simulated time
@@ -513,7 +566,8 @@ _AXIS_GAIN, _TIME_CONSTANT = (1e-9, 1e9), (1e-6, 1e3)      # command units -> m/
 BOUNDS = {
     "GLOBALS": {"sample_time": (1e-5, 1.0), "duration": (0.0, MAX_DURATION), "settle_time": (0.0, MAX_DURATION),
                 "stall_timeout": (1e-3, 3600.0), "graph_timeout": (1e-3, 86400.0), "start_time": (0.0, 1e10),
-                "divergence_factor": (0.0, 1e6), "max_lag": (1e-6, 3600.0)},
+                "divergence_factor": (0.0, 1e6), "max_lag": (1e-6, 3600.0),
+                "in_position": (0.0, 1e-2)},
     "CURVES": {"a": _SIZE, "b": _SIZE, "radius": _SIZE, "scale": _SIZE, "length": (1e-9, 1e6), "h": (-1e3, 1e3),
                "c": (-1e3, 1e3), "omega": (-1e4, 1e4), "center": _COORDINATE, "start": _COORDINATE,
                "end": _COORDINATE, "x": _COORDINATE, "y": _COORDINATE, "z": _COORDINATE,
@@ -522,7 +576,8 @@ BOUNDS = {
                   "feedrate": (1e-6, 100.0), "acceleration": (1e-6, 1e5), "normal_acceleration": (0.0, 1e5),
                   "samples": (2, 1_000_000), "jerk": (0.0, 1e7), "rapid_feedrate": (0.0, 100.0),
                   "axis_feedrate": (1e-6, 100.0), "axis_acceleration": (1e-6, 1e5), "axis_jerk": (1e-6, 1e7),
-                  "contour_tolerance": (0.0, 1e-2), "tracking_lag": (0.0, 10.0), "exact_stop_dwell": (0.0, 60.0)},
+                  "contour_tolerance": (0.0, 1e-2), "tracking_lag": (0.0, 10.0), "exact_stop_dwell": (0.0, 60.0),
+                  "feed_override": (1.0, 1000.0), "in_position_timeout": (1e-3, 60.0)},
     "DISTURBANCES": {"value": (-1e9, 1e9), "amplitude": (-1e9, 1e9), "offset": (-1e9, 1e9),
                      "frequency": (1e-6, 1e5), "phase": (-1e3, 1e3), "std": (0.0, 1e9), "seed": (0, 2 ** 32 - 1)},
     "PLANTS": {"gain": _AXIS_GAIN, "time_constant": _TIME_CONSTANT, "mass": _MASS, "damping": _DAMPING,
@@ -611,6 +666,8 @@ class Experiment:
     layout: str = "process"
     groups: str = ""
     ccc_takes_state: bool = True
+    in_position: tuple = (1e-5,)                   # m, one or one per axis (0: exact stops do not wait)
+    namespaced_clock: bool = False
     plants: dict = field(default_factory=dict)     # axis -> plant section
     servos: dict = field(default_factory=dict)     # axis -> servo section
     estimator: dict = field(default_factory=dict)
@@ -997,11 +1054,22 @@ def _check_text(where, key, text: str):
         _fail(where, key, f"control characters (NUL, line breaks ...) are not allowed, got {_show(text)}")
 
 
+# keys renamed between versions: old name -> (new name, what changed); an experiment file that still uses the
+# old name is told the new one (where the section has it) instead of "unknown key"
+RENAMED_KEYS = {
+    "iterations": ("max_iterations", "the Newton estimator iterates each step until it is within `tolerance`, "
+                                     "at most max_iterations times"),
+}
+
+
 def _mapping(where, prefix, specs: dict, given: dict, skip=()) -> dict:
     """Validate a mapping against ``specs``: unknown keys, missing required keys, each value."""
     out = {}
     for key in given:
         if key not in specs and key not in skip:
+            renamed = RENAMED_KEYS.get(key)
+            if renamed is not None and renamed[0] in specs:
+                _fail(where, f"{prefix}{key}", f"`{key}` is now `{renamed[0]}` ({renamed[1]}): rename the key")
             known = ", ".join(sorted(specs)) or "none"
             _fail(where, f"{prefix}{key}", f"unknown key (expected one of: {known})")
     for key, spec in specs.items():
@@ -1062,6 +1130,28 @@ def _validate_layout(where, out: dict):
                                f"{out['layout']})")
 
 
+def _check_curve_points(where, section: dict, curve) -> None:
+    """Each point of a curve section (``center``, ``start``, ``end``) has one coordinate per dimension of the
+    curve, and the curve evaluates at its start, middle and end to finite points of that dimension (a circle
+    whose centre has 3 coordinates on a planar curve failed in every node, at its first step)."""
+    dimension = curve.dimension
+    for key in ("center", "start", "end"):
+        value = section.get(key)
+        if section["type"] != "gcode" and isinstance(value, (list, tuple)) and len(value) != dimension:
+            _fail(where, f"curve.{key}", f"expected {dimension} coordinates (the {section['type']} curve is "
+                                         f"{dimension}-dimensional), got {len(value)}")
+    low, high = curve.domain
+    try:
+        for theta in (low, 0.5 * (low + high), high):
+            values = np.asarray(curve.derivatives(float(theta), 3), dtype=float)
+            if values.shape != (4, dimension) or not np.all(np.isfinite(values)):
+                raise ValueError(f"at theta = {theta:g} it gives {values.shape[-1] if values.ndim else 0} "
+                                 f"coordinates{'' if np.all(np.isfinite(values)) else ', not all finite'}, "
+                                 f"expected {dimension}")
+    except (ArithmeticError, ValueError, TypeError, IndexError) as error:
+        _fail(where, "curve", f"cannot evaluate the curve ({type(error).__name__}: {error})")
+
+
 def _validate_globals(where, given: dict) -> dict:
     out = _mapping(where, "", GLOBALS, given)
     axes = out["axes"]
@@ -1084,12 +1174,19 @@ def _validate_globals(where, given: dict) -> dict:
             out["curve"]["file"] = curve.source      # absolute: every node reads the same file
     except (ArithmeticError, ValueError, MemoryError, np.linalg.LinAlgError) as error:
         _fail(where, "curve", f"cannot build the curve ({type(error).__name__}: {error})")
+    _check_curve_points(where, out["curve"], curve)
     if dimension != len(axes):
         _fail(where, "axes", f"{len(axes)} axes given but the {out['curve']['type']} curve has {dimension} "
                              "coordinates")
+    if len(out["in_position"]) not in (1, len(axes)):
+        _fail(where, "in_position", f"expected 1 value or one per axis ({len(axes)}), got {len(out['in_position'])}")
     if out["duration"] == 0.0:
         try:
-            out["duration"] = _schedule_duration(where, out["curve"], out["schedule"]) + out["settle_time"]
+            schedule = build_schedule_from(out["schedule"], curve, where)
+            # with in-position checks every exact stop may wait up to its timeout
+            waits = len(schedule.stops) * out["schedule"]["in_position_timeout"] \
+                if in_position_windows(out) is not None and hasattr(schedule, "stops") else 0.0
+            out["duration"] = schedule.duration + waits + out["settle_time"]
         except (ArithmeticError, ValueError, MemoryError, np.linalg.LinAlgError) as error:
             _fail(where, "schedule", f"cannot build the schedule ({type(error).__name__}: {error})")
         if not out["duration"] <= MAX_DURATION:
@@ -1248,6 +1345,7 @@ def _shared_fields(globals_: dict) -> dict:
     (axes as a tuple), so that a new shared key reaches the Experiment of a file and of a node alike."""
     out = {f.name: globals_[f.name] for f in fields(Experiment) if f.name in GLOBALS}
     out["axes"] = tuple(out["axes"])
+    out["in_position"] = tuple(out["in_position"])
     return out
 
 
@@ -1259,7 +1357,20 @@ def experiment_for_node(parameters: dict, node: str, role: str, where: str | Non
     where = where or f"node {node}"
     nested = section_from_parameters({k: v for k, v in parameters.items() if k not in ROS_BUILTIN_PARAMETERS})
     globals_ = _validate_globals(where, {k: v for k, v in nested.items() if k in GLOBALS})
-    section = _validate_role(where, node, role, {k: v for k, v in nested.items() if k not in GLOBALS}, globals_)
+    own = {k: v for k, v in nested.items() if k not in GLOBALS}
+    try:
+        section = _validate_role(where, node, role, own, globals_)
+    except ConfigError as error:
+        from .graph import graph_namespace
+        namespace = graph_namespace(node, role in ("plant", "servo"))
+        if namespace == "/" or "missing required key" not in str(error):
+            raise
+        plain = node[len(namespace):]
+        raise ConfigError(f"{error} (hint: this node runs under the namespace {namespace}, and the ROS parameter "
+                          f"parser gives it the file's section \"{node}\" only: a file whose sections name {plain} "
+                          f"fits the graph without a namespace; write the sections with it, e.g. with "
+                          f"contouring_ros.config.namespaced_parameter_file(text, \"{namespace}\"), as contouring-ros "
+                          f"run --namespace does)") from None
     parts = node.strip("/").split("/")
     axis = parts[-2] if len(parts) > 1 else ""       # a per-axis node's namespace ends in its axis
     return Experiment(
@@ -1349,9 +1460,11 @@ def _program_path_in_text(text: str, given: str, resolved: str) -> str:
     return pattern.sub(lambda match: match.group(1) + quoted, text)
 
 
-def _read_file(path: Path, where: str) -> bytes:
-    """The bytes of a regular file of at most MAX_FILE_BYTES; FIFOs, devices, sockets and directories are
-    refused before they are opened (a FIFO would block, /dev/zero never end)."""
+def _read_file(path: Path, where: str, limit: int = MAX_FILE_BYTES,
+               what: str = "an experiment is a YAML file") -> bytes:
+    """The bytes of a regular file of at most ``limit`` bytes (an experiment's MAX_FILE_BYTES, a part
+    program's MAX_PROGRAM_BYTES); FIFOs, devices, sockets and directories are refused before they are
+    opened (a FIFO would block, /dev/zero never end)."""
     try:
         info = path.stat()
     except (OSError, ValueError) as error:   # ValueError: a NUL in the path
@@ -1360,24 +1473,24 @@ def _read_file(path: Path, where: str) -> bytes:
              (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket"))
     for test, kind in kinds:
         if test(info.st_mode):
-            raise ConfigError(f"{where}: not a regular file ({kind}); an experiment is a YAML file")
+            raise ConfigError(f"{where}: not a regular file ({kind}); {what}")
     if not stat.S_ISREG(info.st_mode):
-        raise ConfigError(f"{where}: not a regular file; an experiment is a YAML file")
-    if info.st_size > MAX_FILE_BYTES:
-        raise ConfigError(f"{where}: too large ({info.st_size} bytes; an experiment is at most {MAX_FILE_BYTES})")
+        raise ConfigError(f"{where}: not a regular file; {what}")
+    if info.st_size > limit:
+        raise ConfigError(f"{where}: too large ({info.st_size} bytes; {what.split(' is ')[0]} is at most {limit})")
     try:   # O_NONBLOCK: should the path have become a FIFO since, opening it does not wait for a writer
         descriptor = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOCTTY", 0))
     except OSError as error:
         raise ConfigError(f"{where}: cannot read ({error.strerror})") from None
     with os.fdopen(descriptor, "rb") as stream:
         if not stat.S_ISREG(os.fstat(stream.fileno()).st_mode):
-            raise ConfigError(f"{where}: not a regular file; an experiment is a YAML file")
+            raise ConfigError(f"{where}: not a regular file; {what}")
         try:
-            raw = stream.read(MAX_FILE_BYTES + 1)
+            raw = stream.read(limit + 1)
         except OSError as error:
             raise ConfigError(f"{where}: cannot read ({error.strerror})") from None
-    if len(raw) > MAX_FILE_BYTES:
-        raise ConfigError(f"{where}: too large (more than {MAX_FILE_BYTES} bytes)")
+    if len(raw) > limit:
+        raise ConfigError(f"{where}: too large (more than {limit} bytes)")
     return raw
 
 
@@ -1416,10 +1529,6 @@ def build_schedule_from(section: dict, curve, where: str = "schedule"):
     return SCHEDULES.build(section, BuildContext(curve=curve, where=where))
 
 
-def _schedule_duration(where: str, curve_section: dict, schedule_section: dict) -> float:
-    return build_schedule_from(schedule_section, build_curve_from(curve_section, where), where).duration
-
-
 def build_schedule(experiment: Experiment, curve=None):
     return build_schedule_from(experiment.schedule, curve or build_curve(experiment), experiment.path)
 
@@ -1444,6 +1553,32 @@ def build_plant(experiment: Experiment, axis: str, position: float, velocity: fl
                                                               velocity=velocity, where=experiment.path))
 
 
+def in_position_windows(shared) -> list | None:
+    """Each axis' in-position window [m] (the shared key ``in_position``, an Experiment or the shared
+    section) where the reference waits at exact stops for the axes: a tool path planned by the jerk-limited
+    feed plan with a window > 0; else None (the reference runs on the plan's own time and the interpolator
+    takes no axis state)."""
+    get = shared.get if isinstance(shared, dict) else lambda key: getattr(shared, key)
+    curve, schedule = get("curve"), get("schedule")
+    planned = curve["type"] == "gcode" or (curve["type"] == "toolpath" and schedule["type"] == "feedrate"
+                                           and schedule.get("jerk"))
+    windows = [float(w) for w in get("in_position")]
+    if not planned or not any(windows):
+        return None
+    return windows * len(get("axes")) if len(windows) == 1 else windows
+
+
+def build_clock(experiment: Experiment, curve, schedule):
+    """The reference's :class:`~contouring_ros.core.interpolation.InPositionClock`, or None (see
+    :func:`in_position_windows`)."""
+    windows = in_position_windows(experiment)
+    if windows is None or not hasattr(schedule, "stops"):
+        return None
+    from .graph import LOOKAHEAD
+    return InPositionClock(schedule, curve, windows, experiment.sample_time,
+                           experiment.schedule["in_position_timeout"], LOOKAHEAD)
+
+
 def build_servo(experiment: Experiment, axis: str, position: float, velocity: float, acceleration: float):
     return SERVOS.build(experiment.servos[axis], BuildContext(experiment, axis=axis, position=position,
                                                               velocity=velocity, acceleration=acceleration,
@@ -1465,7 +1600,7 @@ def build_loop(experiment: Experiment) -> ControlLoop:
     positions, velocities, accelerations = initial_state(experiment, curve, schedule)
     axes = experiment.axes
     return ControlLoop(
-        curve=curve, schedule=schedule,
+        curve=curve, schedule=schedule, clock=build_clock(experiment, curve, schedule),
         plants=[build_plant(experiment, a, positions[i], velocities[i]) for i, a in enumerate(axes)],
         servos=[build_servo(experiment, a, positions[i], velocities[i], accelerations[i])
                 for i, a in enumerate(axes)],

@@ -1,7 +1,8 @@
 """Errors that reach the user as one line."""
 from __future__ import annotations
 
-__all__ = ["ContouringError", "ConfigError", "RunError", "BagError", "ScoreError", "Diverged"]
+__all__ = ["ContouringError", "ConfigError", "RunError", "Interrupted", "BagError", "ScoreError", "Diverged",
+           "OutputError", "write_atomically"]
 
 
 class ContouringError(Exception):
@@ -23,8 +24,52 @@ class RunError(ContouringError):
         self.bag = bag
 
 
+class Interrupted(RunError):
+    """SIGINT or SIGTERM stopped a run; the message says what exists (the bag, or no bag yet). ``code`` is
+    the exit status the command ends with: 130 for SIGINT, 143 for SIGTERM."""
+
+    def __init__(self, message: str, bag=None, code: int = 130):
+        super().__init__(message, bag)
+        self.code = code
+
+
 class BagError(ContouringError):
     """A bag cannot be read or lacks what scoring needs."""
+
+
+class OutputError(ContouringError):
+    """A file cannot be written (a full disk, a folder one cannot write into, a file where a folder is
+    expected); the message names the path. Nothing half-written is left under the file's name."""
+
+
+def write_atomically(path, write):
+    """Call ``write(tmp)`` on a temporary file beside ``path`` (same folder, so the rename is atomic), then
+    rename it to ``path``: a full disk or any failure leaves no truncated file under ``path`` (a file already
+    there is kept as it was). An OSError becomes one :class:`OutputError` line naming ``path``."""
+    import os
+    import secrets
+    from pathlib import Path
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}.part")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        write(tmp)
+        os.replace(tmp, path)
+    except OSError as error:
+        _remove(tmp)
+        raise OutputError(f"{path}: cannot write it ({error.strerror or type(error).__name__}); nothing was "
+                          "written there") from None
+    except BaseException:
+        _remove(tmp)
+        raise
+    return path
+
+
+def _remove(path):
+    try:
+        path.unlink()
+    except OSError:
+        pass
 
 
 class ScoreError(ContouringError):

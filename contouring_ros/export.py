@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from .core.geometry import ExactContourError
-from .errors import BagError
+from .errors import BagError, write_atomically
 
 __all__ = ["run_table", "write_csv", "write_parquet", "export_bag"]
 
@@ -40,14 +40,14 @@ def run_table(result, axes, curve) -> dict:
 
 
 def write_csv(columns: dict, path) -> Path:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with open(path, "w", newline="") as stream:
-        writer = csv.writer(stream)
-        writer.writerow(columns)
-        for row in zip(*(values.tolist() for values in columns.values())):
-            writer.writerow([repr(v) for v in row])
-    return path
+    """The table as CSV, written to a temporary file and renamed (no truncated CSV on a full disk)."""
+    def write(tmp):
+        with open(tmp, "x", newline="") as stream:
+            writer = csv.writer(stream)
+            writer.writerow(columns)
+            for row in zip(*(values.tolist() for values in columns.values())):
+                writer.writerow([repr(v) for v in row])
+    return write_atomically(path, write)
 
 
 def write_parquet(columns: dict, path) -> Path:
@@ -57,10 +57,8 @@ def write_parquet(columns: dict, path) -> Path:
         import pyarrow.parquet as pq
     except ImportError:
         raise BagError("Parquet export needs pyarrow (pip install pyarrow); --csv needs nothing more") from None
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    pq.write_table(pa.table({name: np.asarray(values) for name, values in columns.items()}), path)
-    return path
+    table = pa.table({name: np.asarray(values) for name, values in columns.items()})
+    return write_atomically(path, lambda tmp: pq.write_table(table, tmp))
 
 
 def export_bag(bag, csv_dir=None, parquet_dir=None, experiment_text: str | None = None) -> tuple:

@@ -29,7 +29,7 @@ from .errors import ConfigError
 __all__ = ["Topic", "topics", "node_names", "NodeSpec", "node_specs", "CONTOUR_ERROR_NAME", "FOOT_POINT_NAME", "THETA_NAME",
            "LOOKAHEAD", "step_to_stamp", "reference_from_msg",
            "estimate_from_msg", "estimate_names", "estimate_values", "state_topic", "command_topic",
-           "message_problem", "recorded_topics", "normalize_namespace", "resolve", "graph_namespace",
+           "message_problem", "recorded_topics", "normalize_namespace", "resolve", "GLOBAL_TOPICS", "graph_namespace",
            "namespace_of_topics"]
 
 CLOCK = "/clock"
@@ -69,13 +69,29 @@ def normalize_namespace(namespace: str | None) -> str:
         if not _NAMESPACE_TOKEN.fullmatch(token):
             raise ValueError(f"namespace {namespace!r}: {token!r} is not a ROS name part (a letter or '_', "
                              "then letters, digits and '_', parts separated by one '/')")
-    return "/" + "/".join(tokens)
+        if "__" in token:
+            raise ValueError(f"namespace {namespace!r}: {token!r} holds '__', which ROS keeps for its own names")
+    out = "/" + "/".join(tokens)
+    if len(out) > MAX_NAMESPACE:
+        raise ValueError(f"namespace of {len(out)} characters: at most {MAX_NAMESPACE} (ROS limits a topic name's "
+                         "length, and the graph's topics add up to 41 characters to it)")
+    return out
 
 
-def resolve(namespace: str, name: str) -> str:
+MAX_NAMESPACE = 160   # characters of a graph namespace: /<ns>/<axis of 32>/command stays within ROS's name limit
+
+
+GLOBAL_TOPICS = (CLOCK, DIAGNOSTICS)   # global under any namespace, as ROS tools expect (use_sim_time nodes
+                                       # subscribe to /clock, diagnostic aggregators to /diagnostics)
+
+
+def resolve(namespace: str, name: str, namespaced_clock: bool = False) -> str:
     """The name on the wire of the graph's topic or node ``name`` (absolute in the graph, e.g. /x/state)
-    under the graph ``namespace``."""
-    return name if namespace in ("", "/") else namespace.rstrip("/") + name
+    under the graph ``namespace``; /clock and /diagnostics stay global unless ``namespaced_clock`` (the
+    experiment key of that name: several graphs sharing one domain, each with its own clock)."""
+    if namespace in ("", "/") or (name in GLOBAL_TOPICS and not namespaced_clock):
+        return name
+    return namespace.rstrip("/") + name
 
 
 def graph_namespace(node_full_name: str, per_axis: bool) -> str:
@@ -145,12 +161,15 @@ def node_specs(axes, overrides: dict | None = None, bag: str | None = None,
     return out
 
 
-def topics(axes, ccc_takes_state: bool = True) -> list:
+def topics(axes, ccc_takes_state: bool = True, interpolator_takes_state: bool = False) -> list:
     """Every topic of the graph for ``axes``; the recorder takes them all. The CCC takes /reference and the
-    states only with ``ccc_takes_state`` (the shared key of that name: its controller uses them)."""
+    states only with ``ccc_takes_state`` (the shared key of that name: its controller uses them); the
+    interpolator takes the states only with ``interpolator_takes_state`` (exact stops wait for the axes:
+    ``config.in_position_windows``)."""
     n = len(axes)
     axis_state = (("position", 1), ("velocity", 1))
     ccc = ("/ccc",) if ccc_takes_state else ()
+    interpolator = ("/interpolator",) if interpolator_takes_state else ()
     out = [Topic(CLOCK, "rosgraph_msgs/msg/Clock", "/interpolator", ("/recorder",)),
            Topic(REFERENCE, "trajectory_msgs/msg/JointTrajectory", "/interpolator",
                  ("/contour_estimator",) + ccc + tuple(f"/{a}/servo" for a in axes) + ("/recorder",),
@@ -158,7 +177,8 @@ def topics(axes, ccc_takes_state: bool = True) -> list:
                  names=tuple(axes) + (THETA_NAME,))]
     for a in axes:
         out.append(Topic(state_topic(a), "sensor_msgs/msg/JointState", f"/{a}/plant",
-                         ("/contour_estimator",) + ccc + (f"/{a}/servo", "/recorder"), axis_state, names=(a,)))
+                         interpolator + ("/contour_estimator",) + ccc + (f"/{a}/servo", "/recorder"), axis_state,
+                         names=(a,)))
     out.append(Topic(CONTOUR_ERROR, "sensor_msgs/msg/JointState", "/contour_estimator",
                      ("/ccc", "/interpolator", "/recorder"), (("position", n + 2),),
                      names=tuple(estimate_names(axes))))
@@ -170,9 +190,9 @@ def topics(axes, ccc_takes_state: bool = True) -> list:
     return out
 
 
-def recorded_topics(axes, ccc_takes_state: bool = True) -> list:
+def recorded_topics(axes, ccc_takes_state: bool = True, interpolator_takes_state: bool = False) -> list:
     """What the recorder takes: every lockstep topic, then /diagnostics (event-driven, not counted)."""
-    return topics(axes, ccc_takes_state) + [Topic(DIAGNOSTICS, "diagnostic_msgs/msg/DiagnosticArray", "any node", ("/recorder",),
+    return topics(axes, ccc_takes_state, interpolator_takes_state) + [Topic(DIAGNOSTICS, "diagnostic_msgs/msg/DiagnosticArray", "any node", ("/recorder",),
                                   every_step=False)]
 
 

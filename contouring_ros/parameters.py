@@ -31,8 +31,10 @@ DESCRIPTIONS = {
         "timing": "lockstep (as fast as the graph goes) or realtime (one step a period of wall time)",
         "start_time": "realtime: Unix time of tick 0 [s since 1970]",
         "ccc_takes_state": "the CCC node subscribes to the reference and the axis states",
+        "namespaced_clock": "under a namespace, /clock and /diagnostics take it too (else they stay global)",
         "layout": "where contouring-ros run puts the nodes: a process each, all in one, or the processes of groups",
-        "groups": "grouped layout: the nodes of each process, e.g. 'x/plant,x/servo; y/plant,y/servo'"},
+        "groups": "grouped layout: the nodes of each process, e.g. 'x/plant,x/servo; y/plant,y/servo'",
+        "in_position": f"drives' in-position window, one or one per axis: exact stops wait for it, 0: no wait {_M}"},
     "CURVES": {
         "type": "curve type", "a": f"size a {_M}", "b": f"size b {_M}", "radius": f"radius {_M}", "scale": f"scale {_M}",
         "h": "shape parameter h", "c": f"pitch term c {_M}", "omega": "angular rate [rad per unit of parameter]",
@@ -42,6 +44,7 @@ DESCRIPTIONS = {
         "moves": "tool path moves (G1/G2/G3 words)", "file": "part program (RS274/NGC subset), absolute path",
         "gcode.start": f"where the program starts {_M}",
         "blend_tolerance": f"corner blending within this distance of the corner (as G64 P), 0: exact stop (G61) {_M}",
+        "strict": "refuse the part program's setup words (G40, G54, M3, T ...) instead of reading and reporting them",
         "contour_error_window": "parameter half-width the exact contour error searches around the reference (0: whole curve)"},
     "SCHEDULES": {
         "type": "schedule type", "theta_start": "curve parameter at t = 0", "theta_end": "curve parameter at the end",
@@ -53,7 +56,9 @@ DESCRIPTIONS = {
         "axis_acceleration": "per-axis acceleration bounds [m/s^2]", "axis_jerk": "per-axis jerk bounds [m/s^3]",
         "contour_tolerance": f"lower the feed where the predicted contour error exceeds this, 0: off {_M}",
         "tracking_lag": f"each axis' tracking lag for the contour-error prediction {_S}",
-        "exact_stop_dwell": f"dwell at each exact-stop corner {_S}"},
+        "exact_stop_dwell": f"dwell at each exact-stop corner {_S}",
+        "feed_override": "feed override [percent of every programmed feed, rapids included]",
+        "in_position_timeout": f"the longest the reference waits at one exact stop for the axes {_S}"},
     "DISTURBANCES": {
         "type": "disturbance type", "value": "constant disturbance [command units or m/s^2]",
         "amplitude": "amplitude [command units or m/s^2]", "offset": "offset [command units or m/s^2]",

@@ -143,20 +143,22 @@ class _Index:
 
 
 def _index(path: Path, warnings: list) -> _Index:
-    """Schemas, channels and first log time from the bag's summary, or from one pass over a bag without."""
+    """Schemas, channels and first log time from the bag's summary (read with the bag reader's bounds: a
+    summary section past its size cap, or one that does not check, is not used), or from one pass over a
+    bag without."""
     from mcap.records import Channel, Schema
+    from .bag import _summary_chunks
     index = _Index()
-    try:
-        from mcap.reader import make_reader
-        with open(path, "rb") as stream:
-            summary = make_reader(stream).get_summary()
-        if summary is not None and summary.statistics is not None and summary.channels:
-            index.schemas, index.channels = dict(summary.schemas), dict(summary.channels)
-            if summary.statistics.message_count:
-                index.first_log = summary.statistics.message_start_time
+    with open(path, "rb") as stream:
+        _, chunks, records = _summary_chunks(stream, path.stat().st_size, path, [])
+    if chunks and records:
+        for record in records:
+            (index.schemas if isinstance(record, Schema) else index.channels)[record.id] = record
+        starts = [start for _, _, start, end in chunks if end > 0]     # a chunk without messages has 0, 0
+        index.first_log = min(starts) if starts else None
+        if any(isinstance(record, Channel) for record in records):
             return index
-    except Exception:      # no summary, or a damaged one: read the bag through
-        pass
+        index = _Index()
     for record in _iter_records(path, warnings):
         if isinstance(record, Schema):
             index.schemas[record.id] = record

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 from importlib import metadata
 from typing import Callable
 
-from .errors import ConfigError
+from .errors import ConfigError, ContouringError
 
 __all__ = ["Entry", "Role", "BuildContext", "ROLES", "entry_from_class"]
 
@@ -161,7 +161,7 @@ class Role(Mapping):
         where = f"plugin {name!r} ({self.group}: {point.value})"
         try:
             target = point.load()
-        except Exception as error:
+        except (Exception, SystemExit) as error:      # sys.exit() at import must not end the run with 0
             self._pending[name] = point       # the next lookup says so again
             raise ConfigError(f"{where} failed to load: {type(error).__name__}: {_line(error)}") from None
         try:
@@ -195,8 +195,22 @@ class Role(Mapping):
                           f"{', '.join(self.names())})")
 
     def build(self, section: dict, context: BuildContext):
-        """The core object of a validated ``section``."""
-        return self.entry(section[self.type_key]).build(section, context)
+        """The core object of a validated ``section``. A plugin's object is built and stepped under a guard
+        (:func:`_guarded`): what it raises (SystemExit included) or a step output that is not finite becomes
+        one RunError line naming the plugin, the step and what failed."""
+        entry = self.entry(section[self.type_key])
+        if entry.origin == "contouring_ros":
+            return entry.build(section, context)
+        where = f"plugin {entry.name!r} ({self.group}: {entry.origin})"
+        try:
+            built = entry.build(section, context)
+        except (Exception, SystemExit) as error:
+            if isinstance(error, ContouringError):
+                raise
+            raise ConfigError(f"{where} failed to build: {type(error).__name__}: {_line(error)}") from None
+        if self.role in _STEPPED and callable(getattr(built, "step", None)):
+            _guarded(built, where)
+        return built
 
     def __getitem__(self, name):
         if not isinstance(name, str) or name not in self:
@@ -214,6 +228,63 @@ class Role(Mapping):
 
     def __repr__(self) -> str:
         return f"<{self.role} registry: {', '.join(self._entries)}>"
+
+
+_STEPPED = ("servo", "estimator", "controller")
+
+
+_GUARDED: dict = {}      # (plugin class, where) -> its guarded subclass
+
+
+def _guarded(built, where: str) -> None:
+    """Give ``built`` a subclass of its class (same name, a new ``step`` only) whose ``step`` counts the
+    steps (one call per control step, in the simulation and in the node alike) and turns an exception,
+    SystemExit included, or an output that is not finite into a RunError naming ``where`` and the step.
+    Its attributes and results stay the plugin's, and copies of it stay guarded."""
+    cls = type(built)
+    guarded = _GUARDED.get((cls, where))
+    if guarded is None:
+        guarded = type(cls.__name__, (cls,), {"__slots__": (), "__module__": cls.__module__,
+                                              "__qualname__": cls.__qualname__, "step": _checked_step(cls, where)})
+        _GUARDED[(cls, where)] = guarded
+    try:
+        built.__class__ = guarded
+    except TypeError:            # a class whose instances cannot change class: left unguarded
+        pass
+
+
+def _checked_step(cls, where: str):
+    import numpy as np
+
+    from .errors import RunError
+    step = cls.step
+
+    def checked(self, *args, **kwargs):
+        state = getattr(self, "__dict__", None)
+        k = state.get("_plugin_steps", 0) if state is not None else 0
+        if state is not None:
+            state["_plugin_steps"] = k + 1
+        try:
+            out = step(self, *args, **kwargs)
+        except (Exception, SystemExit) as error:
+            if isinstance(error, ContouringError):
+                raise
+            raise RunError(f"{where} failed at step {k}: {type(error).__name__}: {_line(error)}") from None
+        if hasattr(out, "theta") and hasattr(out, "vector"):          # a contour estimate
+            parts = (("theta", out.theta), ("vector", out.vector), ("signed", getattr(out, "signed", 0.0)))
+        else:
+            parts = (("output", out),)
+        for name, value in parts:
+            try:
+                finite = bool(np.all(np.isfinite(np.asarray(value, dtype=float))))
+            except (TypeError, ValueError):
+                finite = False
+            if not finite:
+                raise RunError(f"{where} returned a {name} that is not a finite number at step {k} "
+                               f"({' '.join(str(value).split())[:80]})")
+        return out
+
+    return checked
 
 
 _ALL_POINTS = None

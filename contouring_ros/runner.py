@@ -22,7 +22,7 @@ from pathlib import Path
 from . import graph
 from .graph import parse_groups
 from .config import Experiment, controller_uses_state, load_experiment, namespaced_parameter_file, split_groups
-from .errors import RunError
+from .errors import Interrupted, RunError
 
 __all__ = ["NodeProcess", "DomainLease", "graph_commands", "grouped_commands", "parse_groups", "write_parameter_file",
            "private_environment", "run_graph", "default_bag_path"]
@@ -65,6 +65,14 @@ class NodeProcess:
         lines = [line.strip() for line in self.log.read().decode(errors="replace").splitlines() if line.strip()]
         errors = [line for line in lines if line.startswith("error:")]
         return (errors or lines or [""])[-1]
+
+    def exited_early(self) -> bool:
+        """Exited 0 without saying it completed its steps (every node logs "completed N steps" as it
+        finishes): a node that left the run mid-way (os._exit(0) in a plugin, say)."""
+        if self.log is None or self.process is None or self.process.poll() != 0:
+            return False
+        self.log.seek(0)
+        return b"completed " not in self.log.read()
 
 
 def default_bag_path(experiment: Experiment, directory="bags") -> Path:
@@ -431,9 +439,15 @@ def run_graph(experiment_path, bag=None, *, timeout: float | None = None, domain
                     on_started(nodes)
                 _watch(nodes, timeout, started, say)
             except (KeyboardInterrupt, _Terminated) as interrupt:
-                what = "SIGTERM" if isinstance(interrupt, _Terminated) else "SIGINT"
-                raise RunError(f"interrupted by {what}: stopped every node; the bag {bag} holds the steps "
-                               "recorded so far", bag=bag) from None
+                terminated = isinstance(interrupt, _Terminated)
+                _stop(nodes)          # every node gone (the recorder has closed the bag) before we say what exists
+                what = "SIGTERM" if terminated else "SIGINT"
+                if bag.is_file() and bag.stat().st_size > 0:
+                    state = f"the bag {bag} holds the steps recorded so far"
+                else:
+                    state = f"no bag yet (the recorder had not opened {bag})"
+                raise Interrupted(f"interrupted by {what}: stopped every node; {state}",
+                                  bag=bag if bag.is_file() else None, code=143 if terminated else 130) from None
             except RunError as error:
                 raise RunError(str(error), bag=bag) from None
             finally:
@@ -456,6 +470,11 @@ def _watch(nodes, timeout, started, say):
     recorder_done = None
     while True:
         codes = {node.name: node.process.poll() for node in nodes}
+        early = [node for node in nodes if codes[node.name] == 0 and node.exited_early()]
+        if early:           # the others would stall for want of its messages: name it, not them
+            time.sleep(0.2)
+            raise RunError("; ".join(f"node {node.name} exited with code 0 before completing its steps (its last "
+                                     f"line: {node.last_error_line() or 'none'})" for node in early))
         if any(code not in (None, 0) for code in codes.values()):
             first = {name for name, code in codes.items() if code not in (None, 0)}
             time.sleep(0.2)     # let the other nodes report too, then name the root cause first: a node

@@ -9,7 +9,7 @@ from .core.metrics import Scores, score
 from .errors import BagError, ScoreError
 
 __all__ = ["score_run", "score_bag", "check_experiment_matches", "curve_of", "format_scores", "format_realtime",
-           "miss_rate", "tolerance_line"]
+           "miss_rate", "tolerance_line", "cutting_lines"]
 
 REALTIME_COLUMNS = ("ticks", "deadline misses", "skipped ticks", "late inputs", "ticks missing an input",
                     "latency p50 [us]", "latency p99 [us]", "latency max [us]", "work p50 [us]", "work p99 [us]",
@@ -35,6 +35,21 @@ def tolerance_line(schedule: dict, mce: float) -> str | None:
     verdict = "held" if mce <= tolerance else f"exceeded by {(mce - tolerance) * 1e6:.4g} um " \
                                               f"({mce / tolerance:.3g} x)"
     return f"contour tolerance {tolerance * 1e6:.4g} um: {verdict} (MCE {mce * 1e6:.4g} um)"
+
+
+def cutting_lines(curve, result, schedule: dict) -> list:
+    """For a tool path run: one line with the scores of its cutting moves alone (G1 / G2 / G3, the start-up
+    and rapids left out: :mod:`contouring_ros.blocks`), then the contour-tolerance verdict on them (where the
+    schedule has a tolerance); for any other run the verdict on the whole run, if any."""
+    from .blocks import cutting_scores
+    cutting = cutting_scores(curve, result)
+    if cutting is None:
+        held = tolerance_line(schedule, score_run(curve, result).mce) if schedule.get("contour_tolerance") else None
+        return [held] if held else []
+    lines = [f"cutting moves (G1/G2/G3; start-up and rapids left out, {cutting.steps} steps): MCE "
+             f"{cutting.mce * 1e6:.4g} um, TACE {cutting.tace * 1e6:.4g} um, RMS {cutting.rms * 1e6:.4g} um"]
+    held = tolerance_line(schedule, cutting.mce)
+    return lines + ([held] if held else [])
 
 
 def score_bag(path, experiment_text: str | None = None, progress: bool = False,

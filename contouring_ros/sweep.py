@@ -15,6 +15,7 @@ import csv
 import itertools
 import math
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -25,7 +26,7 @@ from .core.simulation import first_divergence, simulate
 from .errors import ConfigError, Diverged, ScoreError
 from .scoring import score_run
 
-__all__ = ["parse_grid", "apply_settings", "experiments_for", "combinations", "SweepRow", "score_experiments",
+__all__ = ["parse_grid", "apply_settings", "settings_file", "experiments_for", "combinations", "SweepRow", "score_experiments",
            "simulate_experiments", "run_sweep", "format_sweep", "write_sweep_csv"]
 
 
@@ -71,6 +72,37 @@ def apply_settings(data: dict, settings: dict) -> dict:
         else:
             _set(data, key, value)
     return data
+
+
+def settings_file(path, specs: list, directory) -> Path:
+    """The experiment file ``path`` with ``specs`` (``['x/servo.kp=10', 'curve.h=80']``, the grid's key syntax,
+    one value each) applied, written as ``directory``/<same name> for the nodes to read; validated like any
+    experiment file, the ROS 2 parameter parser's reading included (ConfigError naming the setting)."""
+    import yaml
+    from .config import load_experiment, recorded_text
+
+    class _Quoted(yaml.SafeDumper):
+        """Every string double-quoted: the ROS parser then reads 'y' or 'on' as the strings they are."""
+
+    _Quoted.add_representer(str, lambda dumper, value: dumper.represent_scalar("tag:yaml.org,2002:str", value,
+                                                                                 style='"'))
+    path = Path(path)
+    settings = {}
+    for spec in specs:
+        key, sep, value = spec.partition("=")
+        if not sep or not key.strip() or not value.strip():
+            raise ConfigError(f"--set {spec}: expected key=value (keys as the sweep's: x/servo.kp, ccc.kp, curve.h)")
+        settings[key.strip()] = read_yaml(value, f"--set {key}")
+    data = read_yaml(recorded_text(path), str(path))
+    try:
+        apply_settings(data, settings)
+        experiment_from_data(copy.deepcopy(data), f"{path} with --set {', '.join(specs)}")
+    except ConfigError as error:
+        raise ConfigError(f"--set {', '.join(specs)}: {error}") from None
+    out = Path(directory) / path.name
+    out.write_text(yaml.dump(data, Dumper=_Quoted, sort_keys=False, default_flow_style=False))
+    load_experiment(out)           # what the ROS parser will read is what was validated
+    return out
 
 
 def experiments_for(text: str, settings_list: list, where: str = "--grid") -> list:

@@ -11,6 +11,18 @@ CONFIG = ROOT / "config"
 DEFAULT = CONFIG / "paper000_b_ismc_h50_newton.yaml"
 
 
+def machine_pace() -> float:
+    """How much slower than an idle machine this one runs now: the 1-minute load average per core, at least
+    1 and at most 8. Timeouts that a busy machine (other programs, other test jobs) would overrun are
+    multiplied by it, so the tests judge function, not the machine's spare capacity."""
+    import os
+    try:
+        load = os.getloadavg()[0] / (os.cpu_count() or 1)
+    except OSError:
+        return 1.0
+    return min(max(load, 1.0), 8.0)
+
+
 def shortened(path: Path, duration: float) -> str:
     """The experiment at ``path`` cut to ``duration`` seconds of its schedule."""
     text = path.read_text()

@@ -134,11 +134,46 @@ def test_batch_of_tool_paths_splines_and_random_disturbances_equals_each_run_alo
     _assert_equal_runs(simulate_batch(batch), [simulate(loop) for loop in loops()], tolerance=1e-12)
 
 
+def test_batch_of_in_position_waits_equals_each_run_alone(tmp_path):
+    # exact stops that wait for the axes (the in-position clock, stepped per member on its own axis states):
+    # members of other gains wait other numbers of steps at each corner, and each equals its run alone to 1e-12,
+    # its clock's waits included
+    from test_in_position import square_experiment
+    path = square_experiment(tmp_path, "paper000_b_ismc_h50_newton", 1e-5, side_mm=2, feed=600, duration=1.2)
+    grid = {"x/servo.a": [8.0, 12.5, 20.0], "y/servo.a": [11.1, 20.0]}
+    text = path.read_text().replace("file: square.ngc", f"file: {tmp_path / 'square.ngc'}")
+
+    def loops():
+        return [build_loop(experiment) for _, experiment in combinations(text, grid)]
+    batch, alone = loops(), loops()
+    assert batchable(batch) and all(loop.clock is not None for loop in batch)
+    singles = [simulate(loop) for loop in alone]
+    waits = [loop.clock.waits for loop in alone]
+    assert len({tuple(w) for w in waits}) > 1 and all(len(w) >= 2 for w in waits)
+    _assert_equal_runs(simulate_batch(batch), singles, tolerance=1e-12)
+    assert [loop.clock.waits for loop in batch] == [[]] * len(batch)         # the batch ran on copies
+
+
+def test_a_feed_plan_in_a_batch_gives_each_members_times_as_alone():
+    # the plan shared across a batch: a batch of times (members at different spans, as after waits of their
+    # own) gives each time's theta, feed and acceleration as the plan alone, bit for bit
+    loops = _loops(shortened(CONFIG / "gcode_example_part.yaml", 0.2), ["ccc.kp=1,2,3"])
+    plan = stack([loop.schedule for loop in loops])
+    alone = loops[0].schedule
+    times = np.array([[0.05], [1.7], [3.2]])
+    for got, want in zip(plan(times), zip(*(alone(float(t)) for t in times[:, 0]))):
+        assert np.array_equal(got[:, 0], np.array(want))
+
+
 def test_tool_paths_and_feed_plans_batch_only_when_they_are_the_same():
     text = _on_spline()
     assert not batchable(_loops(text, ["curve.closed=false,true"]))
     part = shortened(CONFIG / "gcode_example_part.yaml", 0.2)
     assert batch_problem(_loops(part, ["schedule.jerk=10,20"])) == "FeedPlan.limits must be the same across a batch"
+    assert batch_problem(_loops(part, ["schedule.feed_override=80,100"])) == \
+        "FeedPlan.limits must be the same across a batch"
+    assert batch_problem(_loops(part, ["schedule.exact_stop_dwell=0,0.1"])) == \
+        "FeedPlan._span must be the same across a batch"
 
 
 def test_every_scenario_file_can_run_as_a_batch():

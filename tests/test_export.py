@@ -56,3 +56,51 @@ def test_experiment_of_another_curve_or_other_axes_is_refused(bag):
         score_bag(path, (CONFIG / "paper000_b_ismc_h100_newton.yaml").read_text())
     with pytest.raises(BagError, match="has axes x, y, z; the bag has x, y"):
         score_bag(path, (CONFIG / "paper004_saddle_eso.yaml").read_text())
+
+
+def _cli_with_file_size_limit(args, limit_bytes, cwd):
+    """The CLI with every file it writes capped at ``limit_bytes`` (RLIMIT_FSIZE: a write past it fails
+    with EFBIG, as a full disk fails one with ENOSPC)."""
+    import resource
+
+    def limit():
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit_bytes, limit_bytes))
+    return subprocess.run([sys.executable, "-m", "contouring_ros.cli", *args], cwd=cwd, capture_output=True,
+                          text=True, preexec_fn=limit, timeout=300)
+
+
+@pytest.mark.parametrize("command", ["export", "plot"])
+def test_a_full_disk_gives_one_line_and_leaves_no_truncated_file(bag, tmp_path, command):
+    path, _, _ = bag
+    out = tmp_path / "out"
+    args = ["export", str(path), "--csv", str(out)] if command == "export" else ["plot", str(path), "--out", str(out)]
+    done = _cli_with_file_size_limit(args, 4096, ROOT)
+    assert done.returncode != 0
+    assert "Traceback" not in done.stderr
+    errors = [line for line in done.stderr.splitlines() if line.startswith("error:")]
+    assert len(errors) == 1 and str(out) in errors[0] and "cannot write it" in errors[0], done.stderr
+    assert not [p for p in out.iterdir() if p.stat().st_size >= 4096 or p.suffix in (".csv", ".png")] \
+        if out.exists() else True
+    assert not list(out.glob(".*.part")) if out.exists() else True
+
+
+def test_plot_out_naming_an_existing_file_is_refused_in_one_line_and_the_file_kept(bag, tmp_path):
+    path, _, _ = bag
+    existing = tmp_path / "notes.txt"
+    existing.write_text("mine")
+    done = subprocess.run([sys.executable, "-m", "contouring_ros.cli", "plot", str(path), "--out", str(existing)],
+                          cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert done.returncode != 0 and "Traceback" not in done.stderr
+    assert done.stderr.strip().splitlines()[-1].startswith(f"error: {existing}: a file of that name exists")
+    assert existing.read_text() == "mine"
+
+
+def test_an_export_that_fails_keeps_the_whole_file_already_there(bag, tmp_path):
+    path, _, _ = bag
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "short.csv").write_text("a whole earlier export\n")
+    done = _cli_with_file_size_limit(["export", str(path), "--csv", str(out)], 4096, ROOT)
+    assert done.returncode != 0 and "Traceback" not in done.stderr
+    assert (out / "short.csv").read_text() == "a whole earlier export\n"
+    assert sorted(p.name for p in out.iterdir()) == ["short.csv"]

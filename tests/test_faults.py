@@ -18,7 +18,7 @@ from contouring_ros.core.simulation import simulate
 from contouring_ros.errors import RunError
 from contouring_ros.runner import DomainLease, run_graph
 from contouring_ros.scoring import score_bag, score_run
-from conftest import DEFAULT, ROOT, shortened, sigint_as_from_a_terminal
+from conftest import DEFAULT, ROOT, machine_pace, shortened, sigint_as_from_a_terminal
 
 graph = pytest.mark.graph
 
@@ -58,7 +58,7 @@ def test_killed_node_stops_the_run_and_the_bag_scores_up_to_the_failure(tmp_path
     shared_memory_before = _shared_memory_files()
     error, delay = _run_and_signal(DEFAULT, bag, "/y/servo", signal.SIGKILL, 0.5)
     # the killed node could not release its Fast DDS segments: the runner removed them
-    assert _shared_memory_files() <= shared_memory_before
+    assert not _leaked_shared_memory(shared_memory_before)
     assert "/y/servo was killed by SIGKILL" in str(error)
     assert delay < 1.0 + 5.5        # noticed within a second; the rest get SIGINT and up to 5 s to close
     run = read_run(bag)
@@ -85,9 +85,12 @@ def test_frozen_node_gives_a_stall_error_naming_node_and_topic(tmp_path, write_e
     path = write_experiment(shortened(DEFAULT, 2.0).replace("    sample_time: 0.001\n",
                                                             "    sample_time: 0.001\n    stall_timeout: 2.0\n", 1))
     error, delay = _run_and_signal(path, tmp_path / "stall.mcap", "/x/servo", signal.SIGSTOP, 0.3)
-    # the nodes downstream of the frozen servo stall first: its plant (no /x/command), then the estimator
-    assert "stalled" in str(error) and ("/x/command" in str(error) or "/x/state" in str(error))
-    assert delay < 2.0 + 5.0 + 2.0   # stall timeout, then up to 5 s for the frozen node to take SIGKILL
+    # the nodes downstream of the frozen servo stall first: its plant (no /x/command), then the estimator (no
+    # /x/state); on a busy machine the CCC's consumers may report first (no /contour_error, /ccc/correction)
+    downstream = ("/x/command", "/x/state", "/contour_error", "/ccc/correction")
+    assert "stalled" in str(error) and any(topic in str(error) for topic in downstream), str(error)
+    # stall timeout, then up to 5 s for the frozen node to take SIGKILL, and the machine's pace
+    assert delay < 2.0 + 5.0 + 2.0 * machine_pace()
 
 
 @graph
@@ -240,6 +243,39 @@ def _shared_memory_files() -> set:
         if os.path.isdir("/dev/shm") else set()
 
 
+def _shared_memory_in_use() -> set:
+    """Names of /dev/shm files that a live process maps or holds open (Fast DDS maps its segments and
+    semaphores and holds its _el lock files open): those of other programs running meanwhile."""
+    used = set()
+    for pid in filter(str.isdigit, os.listdir("/proc")):
+        try:
+            with open(f"/proc/{pid}/maps") as maps:
+                used.update(line.rsplit("/dev/shm/", 1)[1].strip() for line in maps if "/dev/shm/" in line)
+            for fd in os.listdir(f"/proc/{pid}/fd"):
+                target = os.readlink(f"/proc/{pid}/fd/{fd}")
+                if target.startswith("/dev/shm/"):
+                    used.add(target[len("/dev/shm/"):])
+        except OSError:          # gone meanwhile, or not ours to read
+            continue
+    return {name.removesuffix(" (deleted)") for name in used}
+
+
+def _leaked_shared_memory(before: set) -> set:
+    """Fast DDS files in /dev/shm that were not there ``before``, are ours and no live process uses: what
+    this test's runs left behind. Another Fast DDS program running beside the suite is no leak of ours."""
+    new = _shared_memory_files() - before
+    if not new:
+        return set()
+    used, leaked = _shared_memory_in_use(), set()
+    for name in new - used:
+        try:
+            if os.stat(f"/dev/shm/{name}").st_uid == os.getuid():
+                leaked.add(name)
+        except OSError:
+            continue
+    return leaked
+
+
 def test_soak_in_process_50_runs_identical():
     experiment = load_experiment(DEFAULT)
     scores = set()
@@ -260,7 +296,7 @@ def test_soak_graph_10_runs_identical_and_nothing_leaked(tmp_path, write_experim
         scores.add(score_bag(bag)[0])
     assert len(scores) == 1
     assert _node_processes(str(path)) == []
-    assert _shared_memory_files() <= before_shm | set()
+    assert not _leaked_shared_memory(before_shm)
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["soak.yaml"] + [f"soak{i}.mcap" for i in range(10)])
 
 

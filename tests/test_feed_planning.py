@@ -8,7 +8,8 @@ import pytest
 
 from contouring_ros.config import build_loop, load_experiment
 from contouring_ros.core.curves import ToolPath
-from contouring_ros.core.feed_planning import FeedPlan, scurve_time, tolerance_feed
+from contouring_ros.core.feed_planning import (FeedPlan, junction_speed, reach, scurve_distance, scurve_time,
+                                                  tolerance_feed)
 from contouring_ros.core.gcode import parse_program
 from contouring_ros.core.geometry import ExactContourError
 from contouring_ros.core.simulation import simulate
@@ -228,7 +229,9 @@ def test_experiment_reads_the_program_relative_to_its_file(tmp_path):
     assert parse_experiment(experiment.text, "a bag's copy").curve["file"] == resolved
     loop = build_loop(experiment)
     assert loop.curve.domain[1] == pytest.approx(0.01)
-    assert experiment.duration == pytest.approx(loop.schedule.duration)
+    # the in-position check (on by default) lets each exact stop wait up to in_position_timeout (0.5 s)
+    assert len(loop.schedule.stops) == 1
+    assert experiment.duration == pytest.approx(loop.schedule.duration + 0.5)
 
 
 @pytest.mark.parametrize("program, schedule, fragment", [
@@ -273,6 +276,11 @@ def test_jerk_only_for_tool_paths_and_plan_keys_only_with_jerk(tmp_path):
                                                   "rapid_feedrate: 0.1}"))
     with pytest.raises(ConfigError, match="schedule.rapid_feedrate: applies to the jerk-limited feed plan"):
         load_experiment(path)
+    for key in ("feed_override: 50", "in_position_timeout: 2.0"):
+        path.write_text(text.format(file="", kp=20.0, schedule=f"{{type: feedrate, feedrate: 0.01, acceleration: "
+                                                                 f"1.0, {key}}}"))
+        with pytest.raises(ConfigError, match=f"schedule.{key.split(':')[0]}: applies to the jerk-limited"):
+            load_experiment(path)
 
 
 @pytest.mark.slow
@@ -389,3 +397,161 @@ def test_the_newton_estimate_follows_the_path_round_exact_stop_corners():
     assert deviation(experiment) < 20e-6
     estimator = dict(experiment.estimator, branch_check_samples=0)
     assert deviation(dataclasses.replace(experiment, estimator=estimator)) > 100e-6
+
+
+def chord_circle(chords, radius_mm=10.0, feed=1200, header=""):
+    """A circle of ``chords`` G1 chords at F``feed`` (mm), as CAM systems write small arcs."""
+    rows = [header, f"G1 X{radius_mm:.6f} Y0 F{feed}"] + [
+        f"X{radius_mm * math.cos(a):.6f} Y{radius_mm * math.sin(a):.6f}"
+        for a in 2 * math.pi * np.arange(1, chords + 1) / chords]
+    return "\n".join(rows)
+
+
+@pytest.mark.parametrize("chords", [360, 720])
+@pytest.mark.parametrize("blend", [1e-6, 1e-5, 1e-4, 1e-3])
+def test_a_chord_circle_runs_near_its_ideal_time_with_blending_and_never_reverses(chords, blend):
+    # the circle of 720 chords of 0.087 mm at F1200 took 47 s under exact stop at every 0.5 degree junction
+    path = ToolPath.from_program(parse_program(chord_circle(chords), start=(0.01, 0.0, 0.0)), blend)
+    schedule = FeedPlan(path, 1.0, 10.0)            # config/gcode_example_part.yaml's bounds
+    ideal = path.domain[1] / 0.02
+    assert schedule.duration <= 1.2 * ideal
+    t, s, v, acc = sampled(schedule)
+    assert np.all(np.diff(s) >= 0.0) and v.min() >= 0.0
+    assert v.max() <= 0.02 * (1 + 1e-9) and np.abs(acc).max() <= 1.0 * (1 + 1e-9)
+
+
+def test_g64_in_the_program_blends_and_g61_stops_and_the_exact_stop_default_is_kept():
+    circle = chord_circle(720)
+    exact = FeedPlan(ToolPath.from_program(parse_program(circle)), 1.0, 10.0)
+    blended = FeedPlan(ToolPath.from_program(parse_program("G64 P0.001\n" + circle)), 1.0, 10.0)
+    assert exact.duration > 10 * blended.duration
+    back = FeedPlan(ToolPath.from_program(parse_program("G64 P0.001\n" + circle + "\nG61\nX0 Y0\nY-5")), 1.0,
+                    10.0)
+    assert len(back.stops) == 1                                  # the corner after the G61 block (X0 Y0) stops
+
+
+@pytest.mark.parametrize("angle_deg", [5.0, 30.0, 90.0, 135.0])
+def test_junction_speed_is_grbls_junction_deviation_formula(angle_deg):
+    phi, deviation, a, j = math.radians(angle_deg), 1e-5, 2.0, 1e6
+    t0, t1 = np.array([1.0, 0.0]), np.array([math.cos(phi), math.sin(phi)])
+    radius = deviation * math.cos(phi / 2) / (1 - math.cos(phi / 2))
+    assert junction_speed(t0, t1, deviation, a, j) == pytest.approx(math.sqrt(a * radius), rel=1e-12)
+    # the radius is that of the arc within `deviation` of the corner (LinuxCNC's blend arc for P)
+    assert radius / math.cos(phi / 2) - radius == pytest.approx(deviation, rel=1e-9)
+    slow_jerk = junction_speed(t0, t1, deviation, a, 1e-3)
+    assert slow_jerk == pytest.approx((1e-3 * radius**2) ** (1 / 3), rel=1e-12)
+    assert junction_speed(t0, t1, 0.0, a, j) == 0.0                        # exact stop
+    assert junction_speed(t0, -t0, deviation, a, j) == 0.0                  # a reversal always stops
+    # an axis bound along the velocity change lowers it: at 90 degrees the change is along (-1, 1)/sqrt(2)
+    if angle_deg == 90.0:
+        lowered = junction_speed(t0, t1, deviation, a, j, axis_acceleration=[0.5, 10.0])
+        assert lowered == pytest.approx(math.sqrt(0.5 * math.sqrt(2) * radius), rel=1e-9)
+
+
+def test_corners_that_may_deviate_keep_the_junction_speed_and_g9_stops_one():
+    square = "G1 X10 F1200\nY10\nX0\nY0"
+    for header, stops in (("G64 P0.01\n", 0), ("G61\n", 3), ("G64 P0.01\n", 1)):
+        text = header + (square if header != "G64 P0.01\n" or not stops else square.replace("Y10", "Y10 G9"))
+        _, schedule = plan(text, acceleration=1.0, jerk=20.0)
+        assert len(schedule.stops) == stops
+    # G64 P on lines rounds them; the feed at the tangent blends is their arcs' centripetal limit
+    path, schedule = plan("G64 P0.01\n" + square, acceleration=1.0, jerk=20.0)
+    assert [b.kind for b in path.blocks].count("blend") == 3
+    # arcs meeting lines at a corner take the junction deviation, not a stop
+    path, schedule = plan("G64 P0.01\nG1 X10 F1200\nG2 X20 Y0 I5 J0", acceleration=1.0, jerk=20.0)
+    expected = junction_speed(path.blocks[0].tangent_out, path.blocks[1].tangent_in, 1e-5, 1.0, 20.0)
+    assert 0.0 < expected < 0.02 and schedule.junctions[1] == pytest.approx(expected, rel=1e-9)
+
+
+def test_reach_is_the_inverse_of_the_scurve_distance():
+    for v0, length, a, j in [(0.0, 1e-5, 1.0, 10.0), (0.01, 2e-4, 1.0, 10.0), (0.0, 0.05, 0.5, 100.0),
+                             (0.02, 0.01, 2.0, 50.0), (1e-6, 1e-9, 1.0, 10.0)]:
+        v1 = reach(v0, length, 10.0, a, j)
+        assert scurve_distance(v0, v1, a, j) == pytest.approx(length, rel=1e-9)
+    assert reach(0.01, 1.0, 0.02, 1.0, 10.0) == 0.02                         # the cap
+
+
+def test_g4_dwell_and_the_feed_override():
+    _, dwelling = plan("G1 X10 F1200\nG4 P0.5\nX20", acceleration=1.0, jerk=20.0)
+    _, plain = plan("G1 X10 F1200\nX20\nY5", acceleration=1.0, jerk=20.0)
+    assert len(dwelling.stops) == 1                               # a dwell stops on a straight line too
+    t0 = dwelling.stops[0, 0]
+    for t in (t0, t0 + 0.25, t0 + 0.5):
+        assert dwelling(t) == (pytest.approx(0.01), 0.0, 0.0)
+    assert dwelling(t0 + 0.51)[1] > 0.0
+    _, slow = plan("G1 X10 F1200", acceleration=1.0, jerk=20.0, feed_override=0.5)
+    assert sampled(slow)[2].max() == pytest.approx(0.01, rel=1e-9)
+    _, fast = plan("G1 X10 F1200\nG0 X0", acceleration=1.0, jerk=20.0, rapid_feedrate=0.05, feed_override=1.5)
+    assert sampled(fast)[2].max() == pytest.approx(0.075, rel=1e-9)
+
+
+HEADER_PROGRAM = "%\nO0001\nG21 G17 G40 G49 G80 G90 G94\nG54\nT1 M6\nS10000 M3\nM8\nG1 X5 F600\nY5\nM9 M5\nM30\n%\n"
+
+
+def test_a_post_processors_program_runs_unedited_and_reports_its_setup_words(tmp_path):
+    import contouring_ros as cr
+    from contouring_ros.config import program_warnings
+    path = write(tmp_path, HEADER_PROGRAM)
+    run = cr.simulate(str(path))
+    assert run.warnings == program_warnings(build_loop(load_experiment(path)).curve)
+    assert len(run.warnings) == 9 and all(w.startswith("part.ngc: line ") for w in run.warnings)
+    strict = tmp_path / "strict.yaml"
+    strict.write_text(path.read_text().replace("file: parts/part.ngc}", "file: parts/part.ngc, strict: true}"))
+    with pytest.raises(ConfigError) as error:
+        load_experiment(strict)
+    assert "part.ngc: line 2: O0001" in str(error.value) and "\n" not in str(error.value)
+
+
+def test_the_feed_override_is_a_percentage_of_every_feed(tmp_path):
+    plain = build_loop(load_experiment(write(tmp_path, "G1 X5 F600")))
+    half = build_loop(load_experiment(write(tmp_path, "G1 X5 F600", "{type: feedrate, acceleration: 1.0, "
+                                                                    "jerk: 20.0, feed_override: 50}")))
+    assert sampled(half.schedule)[2].max() == pytest.approx(0.5 * sampled(plain.schedule)[2].max())
+    with pytest.raises(ConfigError, match="schedule.feed_override"):
+        load_experiment(write(tmp_path, "G1 X5 F600", "{type: feedrate, acceleration: 1.0, jerk: 20.0, "
+                                                      "feed_override: 0}"))
+
+
+def test_blending_and_junction_speeds_hold_for_turns_too_small_for_cosines():
+    # a turn of 2e-9 rad: 1 / cos(phi / 2) - 1 rounds to 0 in floating point
+    text = "G64 P0.001\nG1 X10 F1200\nX20 Y0.00000002\nX30 Y0.00000005"
+    path, schedule = plan(text, acceleration=1.0, jerk=10.0)
+    assert sampled(schedule)[2].max() == pytest.approx(0.02)
+    phi = 1e-7
+    t1 = np.array([math.cos(phi), math.sin(phi)])
+    radius = 1e-5 * math.cos(phi / 2) / (2 * math.sin(phi / 4) ** 2)     # 1 - cos(phi / 2), without cancelling
+    assert junction_speed([1.0, 0.0], t1, 1e-5, 1.0, 1e9) == pytest.approx(math.sqrt(radius), rel=1e-6)
+
+
+def test_a_long_planning_says_so_on_stderr_also_off_a_terminal(tmp_path, monkeypatch, capsys):
+    import time
+
+    from contouring_ros import config
+
+    class SlowPlan:
+        def __init__(self, *args):
+            time.sleep(0.5)
+            raise ValueError("stopped here")
+
+    monkeypatch.setattr(config, "FeedPlan", SlowPlan)
+    monkeypatch.setattr(config, "SLOW_NOTE_AFTER", 0.1)
+    monkeypatch.setattr(config, "SLOW_NOTE_EVERY", 10.0)
+    text = EXPERIMENT.replace("{{type: gcode, file: {file}}}",
+                              '{{type: toolpath, start: [0.0, 0.0], moves: ["G1 X0.01 Y0", "G1 X0.02 Y0"]}}')
+    path = tmp_path / "slow.yaml"
+    path.write_text(text.format(file="", kp=20.0, schedule="{type: feedrate, feedrate: 0.02, acceleration: 1.0, "
+                                                           "jerk: 1.0e-9}"))
+    with pytest.raises(ConfigError, match="stopped here"):
+        load_experiment(path)
+    err = capsys.readouterr().err
+    assert "note: " in err and "planning the feed along the tool path" in err and "still under way after" in err
+    assert err.count("note: ") == 1
+
+
+def test_a_long_simulation_off_a_terminal_says_it_is_under_way(monkeypatch, capsys):
+    from contouring_ros import cli, config
+    monkeypatch.setattr(config, "SLOW_NOTE_AFTER", 0.0)
+    monkeypatch.setattr(config, "SLOW_NOTE_EVERY", 10.0)
+    assert cli.main(["simulate", str(CONFIG_DIR / "paper000_b_ismc_h50_newton.yaml")]) == 0
+    err = capsys.readouterr().err
+    assert "note: simulating " in err and "steps: still under way after" in err

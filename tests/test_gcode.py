@@ -101,17 +101,80 @@ def test_derivatives_are_those_of_the_points():
 
 @pytest.mark.parametrize("text, line, word", [
     ("G1 X1 F60\nG41 X2", 2, "G41"),
-    ("G1 X1 F60\n\nT1 M6", 3, "T1"),
-    ("G1 X1 F60 S1000", 1, "S1000"),
-    ("G1 X1 F60\nM3", 2, "M3"),
+    ("G1 X1 F60\nG42.1 D1 X2", 2, "G42.1"),
+    ("G1 X1 F60\nG43 H1", 2, "G43"),
+    ("G93\nG1 X1 F60", 1, "G93"),
+    ("G1 X1 F60\nG81 X2 R1 Z-1", 2, "G81"),
     ("G1 X1 F60\nG1 A10", 2, "A10"),
-    ("G1 X1 F60\nG64 P0.01", 2, "G64"),
+    ("G1 X1 F60\nM0", 2, "M0"),
 ])
-def test_unsupported_words_are_refused_naming_line_and_word(text, line, word):
+@pytest.mark.parametrize("strict", [False, True])
+def test_unsupported_motion_is_refused_in_either_mode_naming_line_and_word(text, line, word, strict):
     with pytest.raises(ProgramError) as error:
-        parse_program(text)
+        parse_program(text, strict=strict)
     message = str(error.value)
     assert f"line {line}:" in message and word in message and "\n" not in message
+
+
+POST_PROCESSOR_HEADER = """%
+O1000 (a CAM post-processor's preamble)
+G21 G17 G40 G49 G80 G90 G94
+G54
+T1 M6
+S12000 M3
+M8
+G0 X0 Y0
+G1 X10 F600
+G1 Y10
+M9
+M5
+M30
+%
+"""
+
+
+def test_setup_words_are_read_and_reported_once_per_kind_naming_a_line():
+    program = parse_program(POST_PROCESSOR_HEADER)
+    assert [b.kind for b in program.blocks] == ["line", "line"]          # G0 X0 Y0 is where the tool is
+    kinds = ["program numbers", "cutter compensation off", "tool length offset off", "canned cycle off",
+             "feed per minute", "work offsets", "tool change", "spindle", "coolant"]
+    assert len(program.warnings) == len(kinds)
+    for kind, warning in zip(kinds, program.warnings):
+        assert kind in warning and warning.startswith("line ") and "\n" not in warning
+    assert program.warnings[0].startswith("line 2: O1000")
+    assert program.warnings[7].startswith("line 6: S12000")               # S and M3, M5 later: one warning
+
+
+@pytest.mark.parametrize("word, line", [("O1000", 2), ("G40", 3), ("G54", 4), ("T1", 5), ("S12000", 6),
+                                        ("M8", 7)])
+def test_strict_mode_refuses_each_setup_word_naming_its_line(word, line):
+    text = "\n".join(row for row in POST_PROCESSOR_HEADER.splitlines()
+                     if row in ("%", "M30") or word in row or row.startswith("G1"))
+    with pytest.raises(ProgramError) as error:
+        parse_program(text, strict=True)
+    message = str(error.value)
+    assert word in message and "strict" in message and "\n" not in message
+
+
+def test_path_control_words_set_each_blocks_tolerance_and_dwell():
+    program = parse_program("G1 X1 F60\nG64 P0.01\nX2\nX3 G9\nG4 P0.5\nX4\nG61\nX5\nG64\nX6\nG61.1 X7")
+    tolerances = [b.tolerance for b in program.blocks]
+    assert tolerances == [None, pytest.approx(1e-5), 0.0, pytest.approx(1e-5), 0.0, pytest.approx(1e-5), 0.0]
+    assert [b.dwell for b in program.blocks] == [0, 0, 0.5, 0, 0, 0, 0]
+    assert parse_program("G20 G64 P0.001\nG1 X1 F60").blocks[0].tolerance == pytest.approx(25.4e-6)
+    assert parse_program("G4 P1.5\nG1 X1 F60").dwell == 1.5
+
+
+@pytest.mark.parametrize("text, fragment", [
+    ("G1 X1 F60\nG4", "line 2: G4 needs its dwell P"),
+    ("G1 X1 F60\nG4 P1 X2", "line 2: G4 with a motion"),
+    ("G1 X1 F60 P2", "line 1: P2 without G4 or G64"),
+    ("G1 X1 F60 Q2", "line 1: Q2 without G64"),
+    ("G64 P-1\nG1 X1 F60", "line 1: P-1: the blending tolerance"),
+])
+def test_path_control_mistakes_are_one_line(text, fragment):
+    with pytest.raises(ProgramError, match=fragment):
+        parse_program(text)
 
 
 @pytest.mark.parametrize("text, fragment", [
@@ -179,4 +242,36 @@ def test_dimension_two_for_planar_programs_three_where_z_is_used():
                                         ("G2 X0.06 Y0 I0.03 J0 K0", "K0"), ("G3 X0.06 Y0 R0.03", "R0.03")])
 def test_inline_moves_refuse_words_they_do_not_read(move, word):
     with pytest.raises(ValueError, match=f"move 1 .*: {word} is not read in inline moves"):
+        ToolPath([0.0, 0.0], [move])
+
+
+@pytest.mark.parametrize("text, line", [
+    ("G1 X1 F60\nG1 X" + "9" * 400 + " F60", 2),                     # reads as infinity
+    ("G1 X1 F60\nG2 X0 Y0 I" + "9" * 400 + " J0", 2),                 # an arc of infinite radius
+    ("G1 X1 F60\n\nG2 X1 Y2 R" + "9" * 309 + ".5", 3),
+    ("N" + "9" * 400 + " G1 X1 F60", 1),
+    ("G1 X1 F" + "9" * 400, 1),
+    ("G1 X1e5 F60", 1),                                               # not a number word at all
+])
+def test_numbers_out_of_range_are_refused_naming_the_line(text, line):
+    with pytest.raises(ProgramError) as error:
+        ToolPath.from_program(parse_program(text))
+    message = str(error.value)
+    assert message.startswith(f"line {line}: ") and "\n" not in message and len(message) < 200
+
+
+def test_a_move_whose_length_or_radius_is_not_finite_is_refused_naming_its_line():
+    from contouring_ros.core.gcode import Block, Program
+    big = np.array([1e200, 1e200, 0.0])
+    arc = Block("arc", big, big.copy(), 0.01, 7, np.array([-1e200, -1e200, 0.0]), (0, 1, 2), False)
+    with pytest.raises(ValueError, match=r"^line 7: .*not a finite number"):
+        ToolPath.from_program(Program([arc], 2, True))
+    line = Block("line", np.zeros(3), np.array([1e308, 1e308, 0.0]), 0.01, 4)
+    with pytest.raises(ValueError, match=r"^line 4: .*not a finite number"):
+        ToolPath.from_program(Program([line], 2, True))
+
+
+@pytest.mark.parametrize("move", ["G1 Xnan Y0", "G1 Xinf Y0", "G2 X0 Y0 I1e400 J0", "G1 X1e300 Y0", "G1 X1e7 Y0"])
+def test_inline_moves_take_only_finite_numbers(move):
+    with pytest.raises(ValueError, match=r"^move 1 .*finite"):
         ToolPath([0.0, 0.0], [move])

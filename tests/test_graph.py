@@ -7,7 +7,7 @@ from contouring_ros.config import build_loop, load_experiment
 from contouring_ros.core.simulation import simulate
 from contouring_ros.runner import run_graph
 from contouring_ros.scoring import score_bag, score_run
-from conftest import CONFIG, DEFAULT, shortened
+from conftest import CONFIG, DEFAULT, machine_pace, shortened
 
 pytestmark = [pytest.mark.graph, pytest.mark.slow]
 SIGNALS = ["theta", "reference_position", "reference_velocity", "position", "velocity", "estimate_theta",
@@ -73,7 +73,8 @@ def test_run_longer_than_the_stall_timeout_completes(tmp_path):
     """The stall timer measures time without progress, not time since the start: a run whose lockstep
     lasts several stall timeouts completes, identical to the simulation."""
     path = tmp_path / "long.yaml"
-    path.write_text(shortened(DEFAULT, 2.5).replace("    duration: 2.5\n", "    duration: 2.5\n    stall_timeout: 1.0\n"))
+    stall = 1.0 * machine_pace()            # a busy machine starves nodes for longer between steps
+    path.write_text(shortened(DEFAULT, 2.5).replace("    duration: 2.5\n", f"    duration: 2.5\n    stall_timeout: {stall}\n"))
     _assert_identical(path, run_graph(path, tmp_path / "long.mcap"))
 
 
@@ -216,8 +217,8 @@ def test_realtime_run_records_every_step_and_its_timing(layout, tmp_path, monkey
     if layout == "process":
         monkeypatch.setattr("contouring_ros.runner.REALTIME_START_DELAY", 12.0)
     path = tmp_path / "realtime.yaml"
-    path.write_text(shortened(DEFAULT, 0.5).replace("    duration: 0.5\n",
-                                                    "    duration: 0.5\n    timing: realtime\n    max_lag: 0.5\n"))
+    path.write_text(shortened(DEFAULT, 0.5).replace("    duration: 0.5\n", "    duration: 0.5\n    timing: realtime\n"
+                                                    f"    max_lag: {0.5 * machine_pace()}\n"))
     bag = run_graph(path, tmp_path / "realtime.mcap", layout=layout)
     scores, run = score_bag(bag)
     # downstream nodes may lack an input at the first ticks (its producer ticks at the same instant in

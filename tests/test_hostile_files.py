@@ -90,6 +90,14 @@ CASES = [
     ("list too long", CURVE, CIRCLE.replace("CENTER", "[" + ", ".join(["0.0"] * 5000) + "]"), "curve.center",
      "at most 4096 items"),
     ("alias", NAME, "      name: &n paper\n      again: *n\n", "experiment.again", "aliases"),
+    ("circle centre in 3-D", CURVE, CIRCLE.replace("CENTER", "[0.0, 0.0, 0.0]"), "curve.center",
+     "expected 2 coordinates (the circle curve is 2-dimensional), got 3"),
+    ("ellipse centre of 1 coordinate", CURVE, "    curve: {type: ellipse, a: 0.02, b: 0.01, center: [0.0]}\n",
+     "curve.center", "expected 2 coordinates"),
+    ("line of mixed dimensions", CURVE, "    curve: {type: line, start: [0.0, 0.0, 0.0], end: [0.1, 0.0]}\n", "curve",
+     "same dimension"),
+    ("renamed key", "    max_iterations: 200\n", "    iterations: 20\n", "/contour_estimator.iterations",
+     "`iterations` is now `max_iterations`"),
 ]
 
 

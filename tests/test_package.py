@@ -37,6 +37,20 @@ def test_colcon_build_installs_every_node(tmp_path, options):
         assert executable.is_file() and os.access(executable, os.X_OK), node
     assert list((prefix / "share" / "contouring_ros" / "config").glob("paper000_*.yaml"))
     assert (prefix / "share" / "contouring_ros" / "launch" / "contouring.launch.py").is_file()
+    # the README's recipe sources a script this colcon wrote (colcon-core writes setup.sh; setup.bash only
+    # with colcon-bash)
+    import re
+    sourced = re.findall(r"colcon build && source (install/\S+)", (ROOT / "README.md").read_text())
+    assert sourced and all((tmp_path / name).is_file() for name in sourced), sourced
+
+
+def test_package_xml_declares_the_launch_file_s_packages():
+    """The installed launch file imports launch and launch_ros: package.xml names both (rosdep installs them)."""
+    xml = (ROOT / "package.xml").read_text()
+    launch = (ROOT / "launch" / "contouring.launch.py").read_text()
+    for package in ("launch", "launch_ros"):
+        assert f"import {package}" in launch or f"from {package}" in launch
+        assert f"<exec_depend>{package}</exec_depend>" in xml, package
 
 
 def test_the_code_cites_only_documents_in_the_repository():

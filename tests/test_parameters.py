@@ -114,3 +114,101 @@ def test_a_plain_rclpy_client_reads_the_descriptors_through_the_parameter_servic
     assert seen["values"] == [10.3, 0.04, ["x", "y"]]
     successful, reason = seen["set"]
     assert not successful and "read-only" in reason.lower().replace("read only", "read-only")
+
+
+_GET = r"""
+import json, sys, rclpy
+from rcl_interfaces.srv import DescribeParameters, GetParameters
+rclpy.init()
+node = rclpy.create_node("parameter_reader")
+target, name = sys.argv[1:3]
+
+def call(kind, service, request):
+    client = node.create_client(kind, f"{target}/{service}")
+    if not client.wait_for_service(timeout_sec=60.0):
+        raise SystemExit(f"no {service} service")
+    future = client.call_async(request)
+    rclpy.spin_until_future_complete(node, future, timeout_sec=30.0)
+    return future.result()
+
+value = call(GetParameters, "get_parameters", GetParameters.Request(names=[name])).values[0]
+described = call(DescribeParameters, "describe_parameters", DescribeParameters.Request(names=[name])).descriptors[0]
+print(json.dumps([value.type, value.double_value, described.description]))
+"""
+
+
+def _node_parameter(tmp_path, executable: str, arguments: list, target: str, name: str) -> list:
+    """[type, double value, description] of parameter ``name`` of a node started by hand with ``arguments``."""
+    script = tmp_path / "get.py"
+    script.write_text(_GET)
+    with DomainLease() as lease:
+        env = private_environment(lease.domain_id)
+        node = subprocess.Popen([sys.executable, "-m", f"contouring_ros.nodes.{executable}", "--ros-args", *arguments],
+                                env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, cwd=tmp_path)
+        try:
+            client = subprocess.run([sys.executable, str(script), target, name], env=env, capture_output=True,
+                                    text=True, timeout=120)
+        finally:
+            node.terminate()
+            node.wait(timeout=30)
+    assert client.returncode == 0, client.stderr[-2000:]
+    return json.loads(client.stdout.strip().splitlines()[-1])
+
+
+@pytest.mark.graph
+def test_the_readme_s_parameter_examples_run_as_written(tmp_path):
+    """`ros2 param describe` of the README's node and key describes a parameter the default experiment's node
+    has; its second parameter file changes that node's key; `-p` does not beat the node's section (ROS 2's
+    precedence, which the README states)."""
+    import re
+    from conftest import ROOT
+    readme = (ROOT / "README.md").read_text()
+    target, key = re.search(r"`ros2 param describe (\S+) (\w+)`", readme).groups()
+    printf, override = re.search(r"printf '([^']+)' > (\S+)\n", readme).groups()
+    command = re.search(r"ros2 run contouring_ros (\w+) --ros-args (--params-file \$P --params-file \S+)\n", readme)
+    executable, arguments = command.groups()
+    (tmp_path / override).write_text(printf.replace("\\n", "\n"))
+    arguments = arguments.replace("$P", str(DEFAULT)).split()
+    kind, value, description = _node_parameter(tmp_path, executable, arguments, target, key)
+    given = read_yaml(printf.replace("\\n", "\n"))[target]["ros__parameters"][key]
+    file_value = read_yaml(DEFAULT.read_text())[target]["ros__parameters"][key]
+    assert kind == 3 and value == given != file_value and description      # PARAMETER_DOUBLE, the override's
+    kind, value, _ = _node_parameter(tmp_path, executable, ["--params-file", str(DEFAULT), "-p", f"{key}:={given}"],
+                                     target, key)
+    assert value == file_value                                               # the node's section wins over -p
+
+
+def test_set_applies_the_sweep_s_keys_to_a_file_the_ros_parser_reads_alike(tmp_path):
+    from contouring_ros.config import load_experiment
+    from contouring_ros.errors import ConfigError
+    from contouring_ros.sweep import settings_file
+    out = settings_file(DEFAULT, ["ccc.kp=2.0", "x/servo.a=13.0", "curve.h=60.0"], tmp_path)
+    assert out.name == DEFAULT.name
+    experiment, base = load_experiment(out), load_experiment(DEFAULT)
+    assert experiment.controller["kp"] == 2.0 and experiment.servos["x"]["a"] == 13.0 and experiment.curve["h"] == 60.0
+    assert experiment.servos["y"] == base.servos["y"] and list(experiment.axes) == ["x", "y"]
+    for bad, fragment in [("ccc.kq=2.0", "/ccc.kq: unknown key"), ("ccc.kp=-1", "/ccc.kp"), ("ccc.kp", "key=value")]:
+        with pytest.raises(ConfigError, match=fragment) as info:
+            settings_file(DEFAULT, [bad], tmp_path)
+        assert str(info.value).startswith("--set ") and "\n" not in str(info.value)
+
+
+@pytest.mark.graph
+def test_run_with_set_records_the_changed_experiment(tmp_path):
+    """`contouring-ros run CONFIG --set ccc.kp=2.0`: the graph runs the changed experiment (its bag scores as
+    the in-process simulation of it, bit for bit) and keeps it."""
+    from conftest import ROOT, shortened
+    from contouring_ros.bag import read_run
+    from contouring_ros.config import build_loop, parse_experiment
+    from contouring_ros.core.simulation import simulate
+    path = tmp_path / "short.yaml"
+    path.write_text(shortened(DEFAULT, 0.3))
+    bag = tmp_path / "set.mcap"
+    out = subprocess.run([sys.executable, "-m", "contouring_ros.cli", "run", str(path), "--set", "ccc.kp=2.0",
+                          "--bag", str(bag)], capture_output=True, text=True, cwd=ROOT, timeout=300)
+    assert out.returncode == 0, out.stderr
+    run = read_run(bag)
+    experiment = parse_experiment(run.experiment_text, "bag")
+    assert experiment.controller["kp"] == 2.0
+    expected = simulate(build_loop(experiment))
+    assert (run.result.position == expected.position).all() and (run.result.command == expected.command).all()

@@ -150,3 +150,122 @@ def test_every_role_has_a_registry_with_its_entry_point_group():
             assert entry.name == name and callable(entry.build) and isinstance(entry.params, dict)
     assert {n for n in CONTROLLERS if CONTROLLERS.entry(n).whole_command} == {"task_frame_pd", "tvt"}
     assert [n for n in SERVOS if SERVOS.entry(n).direct] == ["direct"]
+
+
+HOSTILE_PLUGIN = '''
+import math
+import sys
+
+from contouring_plugin_example import TwoStepNewtonEstimator
+from contouring_ros.config import Param
+
+
+class Hostile(TwoStepNewtonEstimator):
+    """The example estimator, until step ``at`` where it does what its subclass says."""
+    params = {"at": Param("int", 5)}
+
+    def __init__(self, curve, at: int = 5):
+        super().__init__(curve, 2)
+        self.at, self.k = at, 0
+
+    def step(self, reference, position):
+        estimate = super().step(reference, position)
+        self.k += 1
+        return self.hostile(estimate) if self.k > self.at else estimate
+
+
+class Raising(Hostile):
+    def hostile(self, estimate):
+        return 1 / 0
+
+
+class Exiting(Hostile):
+    def hostile(self, estimate):
+        sys.exit(0)
+
+
+class Vanishing(Hostile):
+    def hostile(self, estimate):
+        import os
+        os._exit(0)
+
+
+class Infinite(Hostile):
+    def hostile(self, estimate):
+        return type(estimate)(theta=math.inf, vector=estimate.vector, signed=estimate.signed)
+
+
+class NotANumber(Hostile):
+    def hostile(self, estimate):
+        return type(estimate)(theta=estimate.theta, vector=estimate.vector * math.nan, signed=estimate.signed)
+'''
+
+
+@pytest.fixture(scope="module")
+def hostile_site(tmp_path_factory):
+    root = tmp_path_factory.mktemp("hostile")
+    project = root / "hostile"
+    project.mkdir()
+    (project / "hostile_plugin.py").write_text(HOSTILE_PLUGIN)
+    (project / "exits_at_import.py").write_text("import sys\nsys.exit(0)\n")
+    points = {"raising": "hostile_plugin:Raising", "exiting": "hostile_plugin:Exiting",
+              "infinite": "hostile_plugin:Infinite", "vanishing": "hostile_plugin:Vanishing",
+              "not_a_number": "hostile_plugin:NotANumber",
+              "exits_at_import": "exits_at_import:Whatever"}
+    (project / "pyproject.toml").write_text('[project]\nname = "hostile-plugin"\nversion = "1.0"\n'
+                                            '[project.entry-points."contouring_ros.estimators"]\n'
+                                            + "".join(f'{k} = "{v}"\n' for k, v in points.items()))
+    site = install(root / "site", project)
+    for module in EXAMPLE.glob("*.py"):
+        shutil.copy(module, site / module.name)
+    return site
+
+
+def cli(site: Path, cwd: Path, *args, timeout: float = 300) -> subprocess.CompletedProcess:
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(site), os.environ.get("PYTHONPATH", "")]))
+    return subprocess.run([sys.executable, "-m", "contouring_ros.cli", *args], cwd=cwd, env=env,
+                          capture_output=True, text=True, timeout=timeout)
+
+
+@pytest.mark.parametrize("name, fragment", [
+    ("raising", "failed at step 5: ZeroDivisionError: division by zero"),
+    ("exiting", "failed at step 5: SystemExit: 0"),
+    ("infinite", "returned a theta that is not a finite number at step 5 (inf)"),
+    ("not_a_number", "returned a vector that is not a finite number at step 5 ([nan nan])"),
+    ("exits_at_import", "failed to load: SystemExit: 0"),
+])
+def test_a_plugin_failing_in_simulate_ends_in_one_line_naming_it_and_the_step(hostile_site, tmp_path, name,
+                                                                               fragment):
+    experiment = tmp_path / "hostile.yaml"
+    experiment.write_text(with_estimator(shortened(DEFAULT, 0.05), f"  ros__parameters:\n    type: {name}\n"))
+    done = cli(hostile_site, tmp_path, "simulate", str(experiment))
+    assert done.returncode in (1, 2), (done.returncode, done.stdout, done.stderr)
+    assert "Traceback" not in done.stderr
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and f"plugin {name!r} (contouring_ros.estimators: " in lines[0], done.stderr
+    assert fragment in lines[0], lines[0]
+
+
+@pytest.mark.parametrize("name, fragment", [
+    ("exits_at_import", "failed to load: SystemExit: 0"),
+    ("exiting", "failed at step 5: SystemExit: 0"),
+])
+def test_a_plugin_calling_sys_exit_makes_run_fail_naming_it(hostile_site, tmp_path, name, fragment):
+    experiment = tmp_path / "hostile.yaml"
+    experiment.write_text(with_estimator(shortened(DEFAULT, 0.05), f"  ros__parameters:\n    type: {name}\n"))
+    done = cli(hostile_site, tmp_path, "run", str(experiment), "--bag", str(tmp_path / "run.mcap"),
+               "--composed")
+    assert done.returncode != 0, (done.stdout, done.stderr)
+    assert "Traceback" not in done.stderr
+    assert f"plugin {name!r}" in done.stderr and fragment in done.stderr, done.stderr
+
+
+def test_a_node_that_exits_0_mid_run_is_named_as_having_exited(hostile_site, tmp_path):
+    experiment = tmp_path / "vanishing.yaml"
+    experiment.write_text(with_estimator(shortened(DEFAULT, 0.05), "  ros__parameters:\n    type: vanishing\n"))
+    done = cli(hostile_site, tmp_path, "run", str(experiment), "--bag", str(tmp_path / "run.mcap"), "--process")
+    assert done.returncode != 0, (done.stdout, done.stderr)
+    assert "Traceback" not in done.stderr
+    error = [line for line in done.stderr.splitlines() if line.startswith("error:")]
+    assert error and "node /contour_estimator exited with code 0 before completing its steps" in error[0], done.stderr
+    assert "stalled" not in error[0] and "/x/servo" not in error[0], error[0]

@@ -13,6 +13,7 @@ from contouring_ros.nodes.lockstep import LockstepNode
 
 class _Experiment:
     on_invalid_input = "stop"
+    namespaced_clock = False
 
 
 def _node(name: str, axes, counter: list) -> LockstepNode:

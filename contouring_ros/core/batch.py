@@ -151,6 +151,21 @@ def _stacked(loops):
             stack([loop.estimator for loop in loops]), stack([loop.controller for loop in loops]))
 
 
+def _times(clocks, k, t, positions, velocities) -> np.ndarray:
+    """The schedule's time of each member at step k, (b, 1): the step time t, or where a member has an in-position
+    clock (:class:`~contouring_ros.core.interpolation.InPositionClock`) its clock's time on its own axis
+    states of step k - delay, as :func:`~contouring_ros.core.simulation.simulate` takes it. Each clock is stepped
+    on its member's row with the scalar code: where the members wait at exact stops is theirs alone, and the
+    times are the runs' own, bit for bit."""
+    out = np.full((len(clocks), 1), t)
+    for j, clock in enumerate(clocks):
+        if clock is not None:
+            seen = (positions[k - clock.delay, j].copy(), velocities[k - clock.delay, j].copy()) \
+                if k >= clock.delay else (None, None)
+            out[j, 0] = clock.time(k, *seen)
+    return out
+
+
 def simulate_batch(loops: list[ControlLoop]) -> list[SimulationResult]:
     """Run every loop of ``loops`` (one structure, see :func:`batchable`) in one vectorised pass.
 
@@ -164,6 +179,7 @@ def simulate_batch(loops: list[ControlLoop]) -> list[SimulationResult]:
     loops = [copy.deepcopy(loop) for loop in loops]
     curve, schedule, plants, servos, estimator, controller = _stacked(loops)
     b, m, n, ts = len(loops), loops[0].n_steps, len(plants), loops[0].sample_time
+    clocks = [loop.clock for loop in loops]
     time = np.empty(m)
     theta, est_theta, est_signed = np.empty((m, b)), np.empty((m, b)), np.empty((m, b))
     ref_pos, ref_vel, ref_acc, positions, velocities, est_vector, corrections, commands = (
@@ -173,7 +189,7 @@ def simulate_batch(loops: list[ControlLoop]) -> list[SimulationResult]:
         for i, plant in enumerate(plants):
             positions[k, :, i], velocities[k, :, i] = (np.broadcast_to(v, (b, 1))[:, 0] for v in plant.measure())
         position, velocity = positions[k].copy(), velocities[k].copy()
-        ref = reference(curve, schedule, np.full((b, 1), t))      # arrays (b, 1, n): drop the time axis
+        ref = reference(curve, schedule, _times(clocks, k, t, positions, velocities))   # (b, 1, n): drop the time axis
         ref = dataclasses.replace(ref, position=ref.position[:, 0], velocity=ref.velocity[:, 0],
                                   acceleration=ref.acceleration[:, 0])
         estimate = estimator.step_batch(ref, position)

@@ -352,6 +352,10 @@ class PathBlock:
         Unit tangents at its two ends.
     curvature : float
         Curvature [1/m] (0 on lines; r / (r^2 + p^2) on a helix of radius r and pitch p per radian).
+    deviation : float
+        How far [m] the path may leave the corner at its end (G64 P): 0 is an exact stop there (G61, G9).
+    dwell : float
+        [s] G4 dwell after it (the motion stops there first).
     """
 
     kind: str
@@ -362,6 +366,8 @@ class PathBlock:
     tangent_in: np.ndarray
     tangent_out: np.ndarray
     curvature: float
+    deviation: float = 0.0
+    dwell: float = 0.0
 
 
 class ToolPath(Curve):
@@ -383,6 +389,7 @@ class ToolPath(Curve):
     batch_shared = ("segments", "blocks", "program")
 
     dimension = 2
+    dwell = 0.0            # [s] G4 before the first motion
 
     def __init__(self, start, moves):
         position = np.asarray(start, dtype=float)
@@ -397,6 +404,8 @@ class ToolPath(Curve):
                 values = {w[0].upper(): float(w[1:]) for w in words[1:]}
             except ValueError:
                 raise ValueError(f"move {number} {move!r}: expected words like X0.05") from None
+            if not all(math.isfinite(v) and abs(v) <= 1e6 for v in values.values()):
+                raise ValueError(f"move {number} {move!r}: every number must be finite and at most 1e+06 m in size")
             allowed = "XY" if code in ("G1", "G01") else "XYIJ"
             extra = [w for w in words[1:] if w[0].upper() not in allowed]
             if extra and code in ("G1", "G01", "G2", "G02", "G3", "G03"):
@@ -432,29 +441,34 @@ class ToolPath(Curve):
                                  "G21 for millimetres)")
         if not self.segments:
             raise ValueError("a tool path needs at least one move")
-        self._finish(lengths, [("arc" if seg[0] == "arc" else "line", None, n)
+        self._finish(lengths, [("arc" if seg[0] == "arc" else "line", None, n, 0.0, 0.0)
                                for n, seg in enumerate(self.segments, start=1)])
 
     @classmethod
     def from_program(cls, program, blend_tolerance: float = 0.0) -> "ToolPath":
         """The tool path of a part program (:class:`contouring_ros.core.gcode.Program`).
 
-        ``blend_tolerance`` > 0 (as G64 P): each corner between two G1 lines is rounded by the circular arc
-        tangent to both whose distance from the corner is at most the tolerance: for a turn angle phi that
-        arc has radius r = P / (1 / cos(phi / 2) - 1) and meets the lines t = r tan(phi / 2) from the corner
-        (the arc blend of LinuxCNC's trajectory planner); t is capped at half of each line, which only lowers
-        the deviation. 0: every corner is kept exact (the feed planner stops there, as G61).
+        Each block's path tolerance is the program's (G64 P, G61, G9: ``Block.tolerance``), else
+        ``blend_tolerance``. A tolerance P > 0 rounds the corner between two G1 lines at the block's end by
+        the circular arc tangent to both whose distance from the corner is at most P: for a turn angle phi
+        that arc has radius r = P / (1 / cos(phi / 2) - 1) and meets the lines t = r tan(phi / 2) from the
+        corner (the arc blend of LinuxCNC's trajectory planner, tp.c); t is capped at 0.45 of each line's
+        programmed length, which only lowers the deviation, so blending works for lines of any length. Other
+        corners keep P as their junction deviation for the feed planner; 0 keeps the corner exact (the feed
+        planner stops there, as G61).
         """
         self = cls.__new__(cls)
         d = program.dimension
         self.dimension = d
+        self.dwell = program.dwell
         items = []                     # (segment, length, kind, feed, line)
         for block in program.blocks:
             start, end = block.start[:d], block.end[:d]
+            tolerance = blend_tolerance if block.tolerance is None else block.tolerance
             if block.kind in ("line", "rapid"):
                 length = float(np.linalg.norm(end - start))
                 items.append([("line", start, (end - start) / length, 0.0, 0.0, 0.0), length, block.kind,
-                              block.feed, block.line])
+                              block.feed, block.line, tolerance, block.dwell])
                 continue
             first, second, normal = block.plane
             centre = block.centre
@@ -474,15 +488,21 @@ class ToolPath(Curve):
             base = centre.copy()
             base[normal] = block.start[normal]
             items.append([("helix", base[:d], (e1[:d], e2[:d], w[:d], rho), radius, a0, turn), length, "arc",
-                          block.feed, block.line])
-        if blend_tolerance > 0.0:
-            items = _blend(items, blend_tolerance)
+                          block.feed, block.line, tolerance, block.dwell])
+        for item in items:            # every derived length and radius finite (a NaN passes the guard below)
+            _, origin, direction, radius, *_ = item[0]
+            numbers = [item[1], radius, *np.ravel(origin), *np.ravel(direction[:3] if item[0][0] == "helix"
+                                                                    else direction)]
+            if not all(math.isfinite(float(v)) for v in numbers):
+                raise ValueError(f"line {item[4]}: the move's length or radius is not a finite number "
+                                 "(coordinates or offsets too large)")
+        items = _blend(items)
         total = sum(item[1] for item in items)
-        if total > MAX_PATH_LENGTH:
+        if not math.isfinite(total) or total > MAX_PATH_LENGTH:
             raise ValueError(f"the path is {total:.4g} m long (at most {MAX_PATH_LENGTH:g} m): check the units "
                              "(G1 X50 is 50 mm under G21, the default, and 50 inch = 1.27 m under G20)")
         self.segments = [item[0] for item in items]
-        self._finish([item[1] for item in items], [(item[2], item[3], item[4]) for item in items])
+        self._finish([item[1] for item in items], [(item[2], item[3], item[4], item[5], item[6]) for item in items])
         return self
 
     def _finish(self, lengths, kinds):
@@ -500,12 +520,13 @@ class ToolPath(Curve):
         self.domain = (0.0, float(self._starts[-1]))
         self.closed = False
         blocks = []
-        for i, (kind, feed, line) in enumerate(kinds):
+        for i, (kind, feed, line, deviation, dwell) in enumerate(kinds):
             begin, end = self._segment(i, 0.0), self._segment(i, float(lengths[i]))
             d1, d2 = np.array(begin[1]), np.array(begin[2])
             curvature = float(np.linalg.norm(d2)) if kind != "line" and kind != "rapid" else 0.0
             blocks.append(PathBlock(kind, float(self._starts[i]), float(lengths[i]), feed, line,
-                                    d1 / np.linalg.norm(d1), np.array(end[1]) / np.linalg.norm(end[1]), curvature))
+                                    d1 / np.linalg.norm(d1), np.array(end[1]) / np.linalg.norm(end[1]), curvature,
+                                    float(deviation), float(dwell)))
         self.blocks = blocks
 
     def _segment(self, i: int, u: float) -> list:
@@ -575,33 +596,36 @@ def _floats(vector) -> tuple:
     return tuple(float(x) for x in vector)
 
 
-def _blend(items, tolerance: float) -> list:
-    """Insert a tangent arc at each corner between two G1 lines (see :meth:`ToolPath.from_program`)."""
+def _blend(items) -> list:
+    """Insert a tangent arc at each corner between two G1 lines whose first has a tolerance and no dwell
+    (see :meth:`ToolPath.from_program`)."""
     items = [list(item) + [item[1]] for item in items]
     out = [items[0]]
     for item in items[1:]:
         previous = out[-1]
         (_, _, u1, *_), length0 = previous[0], previous[1]
         (_, p1, u2, *_), length1 = item[0], item[1]
-        if previous[2] == "line" and item[2] == "line":
-            cosine = float(np.clip(np.dot(u1, u2), -1.0, 1.0))
-            phi = math.acos(cosine)
+        tolerance = previous[5]
+        if previous[2] == "line" and item[2] == "line" and tolerance > 0.0 and not previous[6]:
+            chord = float(np.linalg.norm(u2 - u1))
+            phi = 2.0 * math.atan2(chord, float(np.linalg.norm(u2 + u1)))     # the turn, accurate at any angle
             if 1e-9 < phi < math.pi - 1e-6:
-                half = phi / 2.0
-                radius = tolerance / (1.0 / math.cos(half) - 1.0)
+                half = phi / 2.0       # 1 / cos(half) - 1 = 2 sin^2(half / 2) / cos(half), exact for tiny turns
+                radius = tolerance * math.cos(half) / (2.0 * math.sin(half / 2.0) ** 2)
                 cut = radius * math.tan(half)
-                limit = 0.45 * min(previous[5], item[5])     # of the lines' programmed lengths
+                limit = 0.45 * min(previous[7], item[7])     # of the lines' programmed lengths
                 if cut > limit:
                     cut, radius = limit, limit / math.tan(half)
                 corner = p1
-                centre_side = (u2 - u1) / np.linalg.norm(u2 - u1)
+                centre_side = (u2 - u1) / chord
                 centre = corner + centre_side * radius / math.cos(half)
                 begin = corner - u1 * cut
                 e1 = (begin - centre) / radius
                 previous[1] = length0 - cut
                 feeds = [f for f in (previous[3], item[3]) if f is not None]
                 arc = ("helix", centre, (e1, u1.copy(), np.zeros_like(u1), radius), radius, 0.0, 1.0)
-                out.append([arc, radius * phi, "blend", min(feeds) if feeds else None, item[4], radius * phi])
+                out.append([arc, radius * phi, "blend", min(feeds) if feeds else None, item[4], tolerance, 0.0,
+                            radius * phi])
                 item[0] = ("line", corner + u2 * cut, u2, 0.0, 0.0, 0.0)
                 item[1] = length1 - cut
         out.append(item)

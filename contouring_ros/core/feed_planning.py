@@ -1,27 +1,34 @@
 """Feed planning over a whole tool path: look-ahead across blocks, jerk-limited (S-curve) feed profiles,
-corner handling, and a contour-tolerance planner.
+junction speeds from the geometry and the limits, and a contour-tolerance planner.
 
 The path is a :class:`~contouring_ros.core.curves.ToolPath` parametrised by arc length s, so the curve
 parameter is s itself: theta = s, theta_dot = v (the feed), theta_ddot = dv/dt.
 
 1. Feed limit of each block (:func:`block_limits`): its programmed F (the schedule's ``feedrate`` where the
-   program has none; the ``rapid_feedrate`` on G0), the axes' own velocity, acceleration and jerk bounds
-   projected on a line's direction (an axis k of bound A_k allows A_k / |u_k| along u), and on arcs the
-   centripetal bounds v^2 kappa <= A_n and v^3 kappa^2 <= J (the acceleration and jerk of uniform circular
-   motion), and the contour-tolerance cap (:func:`tolerance_feed`) where a tolerance is given.
-2. Junction speeds: 0 at the path's ends and at every corner (exact stop, as G61); where two blocks meet
-   tangentially (a blend arc, a line into a tangent arc) the lower of their limits.
-3. Look-ahead: a forward and a backward pass lower each junction speed to what a jerk-limited profile can
-   reach from its neighbour within the block between them (:func:`reach`).
-4. One time-optimal jerk-limited profile per block between its junction speeds (zero acceleration at both
-   ends, so acceleration is continuous across blocks), computed by Ruckig (Berscheid and Kroeger,
+   program has none; the ``rapid_feedrate`` on G0) times the feed override, the axes' own velocity,
+   acceleration and jerk bounds projected on a line's direction (an axis k of bound A_k allows A_k / |u_k|
+   along u), and on arcs the centripetal bounds v^2 kappa <= A_n and v^3 kappa^2 <= J (the acceleration and
+   jerk of uniform circular motion), and the contour-tolerance cap (:func:`tolerance_feed`) where a
+   tolerance is given.
+2. Junction speeds (:func:`junction_speed`): 0 at the path's ends, before a G4 dwell and at every corner of
+   a block in exact stop (G61, G9: deviation 0); where two blocks meet tangentially (a blend arc, a line into
+   a tangent arc) the lower of their limits; at any other corner of a block that may deviate by P (G64 P),
+   grbl's junction deviation: the speed at which the axes' acceleration and jerk carry the tool round the
+   arc tangent to both blocks that passes within P of the corner.
+3. Spans: consecutive blocks with the same limits, meeting at junctions that allow their whole feed, are
+   one span (a polygon of short chords at one F is one span), so the feed is not brought to zero
+   acceleration at every short block; the look-ahead runs on spans: a forward and a backward pass lower
+   each span boundary's speed to what a jerk-limited profile can reach from its neighbour within the span
+   (:func:`reach`, in closed form). Both passes are linear in the number of blocks.
+4. One time-optimal jerk-limited profile per span between its boundary speeds (zero acceleration at both
+   ends, so acceleration is continuous across spans), computed by Ruckig (Berscheid and Kroeger,
    "Jerk-limited Real-time Trajectory Generation with Arbitrary Target States", RSS 2021), bounded by the
-   block's feed, acceleration and jerk limits.
+   span's feed, acceleration and jerk limits; the reach leaves each span a relative 1e-9 of its length
+   spare, so no profile has to overshoot the span's end and come back: the feed never reverses.
 """
 from __future__ import annotations
 
 import copy
-
 import math
 from dataclasses import dataclass
 
@@ -30,7 +37,7 @@ import numpy as np
 from .curves import ToolPath
 
 __all__ = ["FeedPlan", "BlockLimit", "block_limits", "scurve_time", "scurve_distance", "reach", "tolerance_feed",
-           "TANGENT_COSINE"]
+           "junction_speed", "TANGENT_COSINE"]
 
 TANGENT_COSINE = math.cos(1e-6)      # two blocks meet tangentially when their tangents differ by under 1 urad
 
@@ -55,17 +62,62 @@ def scurve_distance(v0: float, v1: float, acceleration: float, jerk: float) -> f
 
 
 def reach(v0: float, length: float, cap: float, acceleration: float, jerk: float) -> float:
-    """The highest speed (at most ``cap``) a jerk-limited profile can reach from ``v0`` within ``length``."""
+    """The highest speed (at most ``cap``) a jerk-limited profile can reach from ``v0`` within ``length``.
+
+    Closed form: the speed change dv covers D = (2 v0 + dv) / 2 T(dv) (:func:`scurve_distance`). Without
+    reaching the acceleration bound (dv <= A^2 / J) T = 2 sqrt(dv / J), so x = sqrt(dv) solves the depressed
+    cubic x^3 + 2 v0 x - D sqrt(J) = 0, whose one real root is 2 sqrt(p / 3) sinh(asinh(3 q / (2 p)
+    sqrt(3 / p)) / 3) with p = 2 v0, q = D sqrt(J) (the hyperbolic form of Cardano's formula); beyond it
+    T = dv / A + A / J and dv solves the quadratic dv^2 / A + dv (2 v0 / A + A / J) + 2 v0 A / J - 2 D = 0.
+    """
     if cap <= v0 or scurve_distance(v0, cap, acceleration, jerk) <= length:
         return cap
-    lo, hi = v0, cap
-    for _ in range(100):
-        mid = 0.5 * (lo + hi)
-        if scurve_distance(v0, mid, acceleration, jerk) <= length:
-            lo = mid
-        else:
-            hi = mid
-    return lo
+    p, q = 2.0 * v0, length * math.sqrt(jerk)
+    if p > 0.0:
+        x = 2.0 * math.sqrt(p / 3.0) * math.sinh(math.asinh(1.5 * q / p * math.sqrt(3.0 / p)) / 3.0)
+    else:
+        x = q ** (1.0 / 3.0)
+    dv = x * x
+    if dv * jerk > acceleration * acceleration:
+        a, b, c = 1.0 / acceleration, p / acceleration + acceleration / jerk, p * acceleration / jerk - 2.0 * length
+        dv = (-b + math.sqrt(b * b - 4.0 * a * c)) / (2.0 * a)
+    return min(v0 + dv, cap)
+
+
+def junction_speed(tangent_in, tangent_out, deviation: float, acceleration: float, jerk: float,
+                   axis_acceleration=None, axis_jerk=None) -> float:
+    """The speed at which the tool may pass the corner between a block ending along ``tangent_in`` and the
+    next starting along ``tangent_out``, passing within ``deviation`` [m] of the corner (grbl's junction
+    deviation, planner.c: plan_buffer_line).
+
+    For a turn through phi, the arc tangent to both blocks whose middle lies ``deviation`` from the corner has
+    radius r = deviation cos(phi / 2) / (1 - cos(phi / 2)) (grbl's sin(theta / 2) / (1 - sin(theta / 2)) with
+    theta = pi - phi the angle between the blocks; the blend arc of LinuxCNC's tp.c for tolerance P has the
+    same radius). Round it at v the centripetal acceleration is v^2 / r and its jerk v^3 / r^2, so v^2 <=
+    A r and v^3 <= J r^2, A and J the path bounds lowered by each axis' own along the direction of the
+    velocity change t_out - t_in (grbl's limit_value_by_axis_maximum). A reversal (phi = pi) or a deviation
+    of 0 gives 0: an exact stop.
+    """
+    t0, t1 = np.asarray(tangent_in, dtype=float), np.asarray(tangent_out, dtype=float)
+    change = t1 - t0
+    chord = float(np.linalg.norm(change))                   # |t_out - t_in| = 2 sin(phi / 2)
+    half_sine = min(0.5 * chord, 1.0)
+    half_cosine = math.sqrt(1.0 - half_sine * half_sine)    # cos(phi / 2)
+    if deviation <= 0.0 or half_cosine <= 1e-9:
+        return 0.0
+    if chord == 0.0:
+        return math.inf
+    u = np.abs(change) / chord
+    with np.errstate(divide="ignore"):
+        for limit in (axis_acceleration, axis_jerk):
+            if limit is not None:
+                bound = float(np.min(np.asarray(limit, dtype=float) / u))
+                if limit is axis_acceleration:
+                    acceleration = min(acceleration, bound)
+                else:
+                    jerk = min(jerk, bound)
+    radius = deviation * half_cosine * (1.0 + half_cosine) / (half_sine * half_sine)   # 1 - cos = sin^2 / (1 + cos)
+    return min(math.sqrt(acceleration * radius), (jerk * radius * radius) ** (1.0 / 3.0))
 
 
 def tolerance_feed(tolerance: float, lags, tangent, curvature: float) -> float:
@@ -113,8 +165,9 @@ class BlockLimit:
 def block_limits(path: ToolPath, acceleration: float, jerk: float, feedrate: float | None = None,
                  rapid_feedrate: float | None = None, normal_acceleration: float = 0.0, axis_feedrate=None,
                  axis_acceleration=None, axis_jerk=None, contour_tolerance: float = 0.0,
-                 tracking_lag=None) -> list:
-    """Step 1 of the module docstring: one :class:`BlockLimit` per block of ``path``."""
+                 tracking_lag=None, feed_override: float = 1.0) -> list:
+    """Step 1 of the module docstring: one :class:`BlockLimit` per block of ``path``; ``feed_override``
+    scales every programmed feed (rapids included, as LinuxCNC's feed override with rapids scaled)."""
     n = path.dimension
     per_axis = [np.full(n, np.inf) if v is None else np.broadcast_to(np.asarray(v, dtype=float), (n,))
                 for v in (axis_feedrate, axis_acceleration, axis_jerk)]
@@ -123,11 +176,11 @@ def block_limits(path: ToolPath, acceleration: float, jerk: float, feedrate: flo
         if block.kind == "rapid":
             if not rapid_feedrate:
                 raise ValueError(f"line {block.line}: a rapid move (G0) needs the schedule's rapid_feedrate")
-            feed, bound = rapid_feedrate, "rapid"
+            feed, bound = rapid_feedrate * feed_override, "rapid"
         elif block.feed is not None:
-            feed, bound = block.feed, "F"
+            feed, bound = block.feed * feed_override, "F"
         elif feedrate:
-            feed, bound = feedrate, "feedrate"
+            feed, bound = feedrate * feed_override, "feedrate"
         else:
             raise ValueError(f"line {block.line}: no feed rate (an F word, or the schedule's feedrate)")
         a, j = acceleration, jerk
@@ -154,6 +207,13 @@ def block_limits(path: ToolPath, acceleration: float, jerk: float, feedrate: flo
     return out
 
 
+#: a span's profile is planned over this fraction of its length less, so that none overshoots its end
+SPARE = 1e-9
+
+#: the trajectories of this many spans are kept once planned (the latest ones asked for)
+CACHED_SPANS = 8
+
+
 class FeedPlan:
     """theta(t) along a tool path: the look-ahead, jerk-limited feed plan of the module docstring.
 
@@ -161,7 +221,7 @@ class FeedPlan:
     ----------
     path : ToolPath
     acceleration, jerk : float
-        Bounds along the path [m/s^2, m/s^3] (and the centripetal bounds on arcs).
+        Bounds along the path [m/s^2, m/s^3] (and the centripetal bounds on arcs and at junctions).
     feedrate : float or None
         Feed [m/s] of blocks the program gives no F (None: every feed block must have one).
     rapid_feedrate : float or None
@@ -170,12 +230,14 @@ class FeedPlan:
         Centripetal acceleration bound on arcs [m/s^2] (0: ``acceleration``).
     axis_feedrate, axis_acceleration, axis_jerk : sequence or None
         Per-axis bounds (one value per axis).
-    dwell : float
-        [s] Hold at each exact-stop corner before the next block starts, so that the axes settle there (the
-        in-position check of an exact stop).
     contour_tolerance : float
         [m] 0: none; else the contour-tolerance planner lowers each block's feed to
         :func:`tolerance_feed` with the axes' ``tracking_lag`` [s] (one value, or one per axis).
+    dwell : float
+        [s] Hold at each exact stop between blocks (a fixed settling time; the in-position check waits for
+        the axes instead, :class:`~contouring_ros.core.interpolation.InPositionClock`).
+    feed_override : float
+        Scales every programmed feed (1: 100 %).
 
     Attributes
     ----------
@@ -183,22 +245,25 @@ class FeedPlan:
     junctions : ndarray
         Planned speed at each block boundary (n_blocks + 1 values).
     block_times : ndarray
-        Start time of each block, then the duration.
+        Start time of each block (of the hold before it, where there is one), then the duration.
+    stops : ndarray, shape (k, 2)
+        Each exact stop between blocks: the time the feed reaches 0 there and the arc length of the corner.
     """
 
     #: runs on a batch of times (:mod:`contouring_ros.core.batch`) when every experiment of the batch has the
-    #: same plan (its trajectories follow from the shared limits, junction speeds and block times)
+    #: same plan (its spans' trajectories and the tables follow from the shared limits, spans and times)
     batchable = True
-    batch_shared = ("limits", "junctions", "_dwell", "block_times", "_starts")
-    batch_kept = ("_trajectories",)
+    batch_shared = ("limits", "_span", "_span_times", "_block_first", "stops", "_starts", "_feed")
+    batch_kept = ("_cached", "_table", "_times")
 
     def __init__(self, path: ToolPath, acceleration: float, jerk: float, feedrate: float | None = None,
                  rapid_feedrate: float | None = None, normal_acceleration: float = 0.0, axis_feedrate=None,
                  axis_acceleration=None, axis_jerk=None, contour_tolerance: float = 0.0, tracking_lag=None,
-                 dwell: float = 0.0):
-        from ruckig import InputParameter, Result, Ruckig, Trajectory
+                 dwell: float = 0.0, feed_override: float = 1.0):
         if acceleration <= 0.0 or jerk <= 0.0:
             raise ValueError("acceleration and jerk must be positive")
+        if feed_override <= 0.0:
+            raise ValueError("the feed override must be positive")
         if contour_tolerance > 0.0 and tracking_lag is None:
             raise ValueError("a contour_tolerance needs the axes' tracking_lag")
         self.curve = path
@@ -206,66 +271,108 @@ class FeedPlan:
         self.theta_start, self.theta_end = path.domain
         blocks = path.blocks
         self.limits = block_limits(path, acceleration, jerk, feedrate, rapid_feedrate, normal_acceleration,
-                                   axis_feedrate, axis_acceleration, axis_jerk, contour_tolerance, tracking_lag)
+                                   axis_feedrate, axis_acceleration, axis_jerk, contour_tolerance, tracking_lag,
+                                   feed_override)
         m = len(blocks)
-        v = np.zeros(m + 1)
-        corner = np.zeros(m, dtype=bool)             # block i starts at a corner (an exact stop)
+        feed = np.array([limit.feed for limit in self.limits])
+        acc = np.array([limit.acceleration for limit in self.limits])
+        jer = np.array([limit.jerk for limit in self.limits])
+        corner = np.zeros(m + 1)                 # speed limit at each block boundary
+        hold = np.zeros(m + 1)                   # [s] held at each boundary before the next block
+        hold[0] = getattr(path, "dwell", 0.0)
+        hold[m] = blocks[-1].dwell
         for i in range(1, m):
-            if float(np.dot(blocks[i - 1].tangent_out, blocks[i].tangent_in)) >= TANGENT_COSINE:
-                v[i] = min(self.limits[i - 1].feed, self.limits[i].feed)
+            before, after = blocks[i - 1], blocks[i]
+            if before.dwell > 0.0:
+                hold[i] = before.dwell
+            elif float(np.dot(before.tangent_out, after.tangent_in)) >= TANGENT_COSINE:
+                corner[i] = min(feed[i - 1], feed[i])
             else:
-                corner[i] = True
-        for i in range(m):                       # forward: what block i can reach from its entry speed
-            lim = self.limits[i]
-            v[i + 1] = min(v[i + 1], reach(v[i], blocks[i].length, max(v[i + 1], v[i]), lim.acceleration, lim.jerk))
-        for i in range(m - 1, -1, -1):           # backward: what it can brake to its exit speed from
-            lim = self.limits[i]
-            v[i] = min(v[i], reach(v[i + 1], blocks[i].length, max(v[i], v[i + 1]), lim.acceleration, lim.jerk))
-        self.junctions = v
-        self._trajectories = []
-        self._dwell = np.where(corner, float(dwell), 0.0)
-        times = [0.0]
-        generator = Ruckig(1)
-        for i, block in enumerate(blocks):
-            lim = self.limits[i]
-            inp = InputParameter(1)
-            inp.current_position, inp.current_velocity, inp.current_acceleration = [0.0], [float(v[i])], [0.0]
-            inp.target_position, inp.target_velocity, inp.target_acceleration = \
-                [block.length], [float(v[i + 1])], [0.0]
-            inp.max_velocity, inp.max_acceleration, inp.max_jerk = [lim.feed], [lim.acceleration], [lim.jerk]
-            trajectory = Trajectory(1)
-            result = generator.calculate(inp, trajectory)
-            if result not in (Result.Working, Result.Finished):
-                raise ValueError(f"line {block.line}: no jerk-limited profile for this block ({result})")
-            extrema = trajectory.position_extrema[0]
-            if extrema.min < -1e-12 or extrema.max > block.length + 1e-12:
-                raise ValueError(f"line {block.line}: the planned profile would reverse along the path")
-            self._trajectories.append(trajectory)
-            times.append(times[-1] + self._dwell[i] + trajectory.duration)
-        self.block_times = np.array(times)
-        self._starts = np.array([block.start for block in blocks])
-        self.duration = float(times[-1])
+                corner[i] = min(feed[i - 1], feed[i], junction_speed(
+                    before.tangent_out, after.tangent_in, before.deviation, min(acc[i - 1], acc[i]),
+                    min(jer[i - 1], jer[i]), axis_acceleration, axis_jerk))
+            if corner[i] == 0.0:
+                hold[i] += float(dwell)
+        # spans: blocks of equal limits joined where the junction allows their whole feed and nothing holds
+        joined = (feed[1:] == feed[:-1]) & (acc[1:] == acc[:-1]) & (jer[1:] == jer[:-1]) & \
+            (corner[1:m] >= feed[1:]) & (hold[1:m] == 0.0)
+        first = np.concatenate([[0], np.flatnonzero(~joined) + 1])           # each span's first block
+        starts = np.array([block.start for block in blocks] + [self.theta_end])
+        span_start = starts[first]
+        span_length = np.append(span_start[1:], self.theta_end) - span_start
+        cap, span_acc, span_jerk = feed[first], acc[first], jer[first]
+        v = corner[np.append(first, m)]
+        k = len(first)
+        room = span_length * (1.0 - SPARE)
+        for i in range(k):                       # forward: what span i can reach from its entry speed
+            v[i + 1] = min(v[i + 1], reach(v[i], room[i], max(v[i + 1], v[i]), span_acc[i], span_jerk[i]))
+        for i in range(k - 1, -1, -1):           # backward: what it can brake to its exit speed from
+            v[i] = min(v[i], reach(v[i + 1], room[i], max(v[i], v[i + 1]), span_acc[i], span_jerk[i]))
+        self._span = (first, span_start, span_length, cap, span_acc, span_jerk, v, hold[np.append(first, m)])
+        durations = np.array([self._profile(i).duration for i in range(k)])
+        span_hold = hold[first]
+        # time at which the hold before span i begins, then the end of the last span
+        self._span_times = np.concatenate([[0.0], np.cumsum(span_hold + durations)])
+        self.duration = float(self._span_times[-1] + hold[m])
+        self._block_first = first
+        interior = np.flatnonzero(v[1:k] == 0.0) + 1
+        self.stops = np.column_stack([self._span_times[interior], span_start[interior]]) if interior.size \
+            else np.zeros((0, 2))
+        self._starts = starts[:-1]
+        self._feed = feed
         self._table = None
+        self._times = None
+
+    def _profile(self, i: int):
+        """Span i's Ruckig trajectory (the last few asked for are kept: the reference walks the spans in order,
+        a batch's members waiting at exact stops of their own a few spans apart)."""
+        cached = vars(self).setdefault("_cached", {})
+        if i in cached:
+            return cached[i]
+        from ruckig import InputParameter, Result, Ruckig, Trajectory
+        _, start, length, cap, acc, jerk, v, _ = self._span
+        inp = InputParameter(1)
+        inp.current_position, inp.current_velocity, inp.current_acceleration = [0.0], [float(v[i])], [0.0]
+        inp.target_position, inp.target_velocity, inp.target_acceleration = [float(length[i])], [float(v[i + 1])], [0.0]
+        inp.max_velocity, inp.max_acceleration, inp.max_jerk = [float(cap[i])], [float(acc[i])], [float(jerk[i])]
+        trajectory = Trajectory(1)
+        result = Ruckig(1).calculate(inp, trajectory)
+        line = self.curve.blocks[int(self._span[0][i])].line
+        if result not in (Result.Working, Result.Finished):
+            raise ValueError(f"line {line}: no jerk-limited profile for this block ({result})")
+        extrema = trajectory.position_extrema[0]
+        if extrema.min < -1e-12 or extrema.max > length[i] * (1.0 + 1e-9) + 1e-12:
+            raise ValueError(f"line {line}: the planned profile would reverse along the path")
+        if len(cached) >= CACHED_SPANS:
+            del cached[next(iter(cached))]
+        cached[i] = trajectory
+        return trajectory
 
     def __deepcopy__(self, memo):
-        """A deep copy sharing the planned trajectories (read only once planned; Ruckig's cannot be copied)."""
+        """A deep copy sharing the last planned trajectory (read only once planned; Ruckig's cannot be copied)."""
         out = copy.copy(self)
         memo[id(self)] = out
         for name, value in vars(self).items():
-            if name != "_trajectories":
-                setattr(out, name, copy.deepcopy(value, memo))
+            setattr(out, name, dict(value) if name == "_cached" else copy.deepcopy(value, memo))
         return out
 
     def _one(self, t: float):
         if t >= self.duration:
             return self.theta_end, 0.0, 0.0
         t = max(t, 0.0)
-        i = min(int(np.searchsorted(self.block_times, t, side="right")) - 1, len(self._trajectories) - 1)
-        into = t - self.block_times[i] - self._dwell[i]
-        if into <= 0.0:                   # holding at a corner
-            return self._starts[i], 0.0, 0.0
-        p, v, a = self._trajectories[i].at_time(into)
-        return self._starts[i] + p[0], v[0], a[0]
+        times = self._span_times
+        _, start, length, _, _, _, _, hold = self._span
+        i = int(np.searchsorted(times, t, side="right")) - 1
+        if i >= len(start):                      # the hold after the last block
+            return self.theta_end, 0.0, 0.0
+        into = t - times[i] - hold[i]
+        if into <= 0.0:                          # holding before span i
+            return float(start[i]), 0.0, 0.0
+        trajectory = self._profile(i)
+        if into >= trajectory.duration:
+            return float(start[i] + length[i]), float(self._span[6][i + 1]), 0.0
+        p, v, a = trajectory.at_time(into)
+        return float(start[i]) + min(max(p[0], 0.0), float(length[i])), v[0], a[0]
 
     def __call__(self, t):
         """theta (= arc length), theta_dot (feed), theta_ddot at time(s) t."""
@@ -275,10 +382,43 @@ class FeedPlan:
         rows = np.array([self._one(float(x)) for x in times])[where].reshape(np.shape(t) + (3,))
         return rows[..., 0], rows[..., 1], rows[..., 2]
 
+    def time_at(self, theta: float) -> float:
+        """When the feed plan reaches arc length ``theta`` (the start of the hold there, if any)."""
+        first, start, length, _, _, _, _, hold = self._span
+        i = int(np.clip(np.searchsorted(start, theta, side="right") - 1, 0, len(start) - 1))
+        into = theta - start[i]
+        if into <= 0.0:
+            return float(self._span_times[i])
+        trajectory = self._profile(i)
+        lo, hi = 0.0, trajectory.duration
+        for _ in range(60):                      # the position rises monotonically along the profile
+            mid = 0.5 * (lo + hi)
+            if trajectory.at_time(mid)[0][0] < into:
+                lo = mid
+            else:
+                hi = mid
+        return float(self._span_times[i] + hold[i] + hi)
+
+    @property
+    def block_times(self) -> np.ndarray:
+        """Start time of each block (of the hold before it), then the duration."""
+        if self._times is None:
+            self._times = np.array([self.time_at(float(s)) for s in self._starts] + [self.duration])
+        return self._times
+
+    @property
+    def junctions(self) -> np.ndarray:
+        """Planned speed at each block boundary: the span boundaries' speeds, within a span the profile's."""
+        first, *_, v, _ = self._span
+        out = np.array([self._one(float(t))[1] for t in self.block_times])
+        out[first] = v[:-1]
+        out[-1] = v[-1]
+        return out
+
     def feed_limit_at(self, theta):
         """The feed limit of the block at arc length(s) theta."""
         i = np.clip(np.searchsorted(self._starts, theta, side="right") - 1, 0, len(self.limits) - 1)
-        return np.array([limit.feed for limit in self.limits])[i]
+        return self._feed[i]
 
     def feedrate_at(self, curve, theta):
         """The planned feed where the arc length is theta (0 outside the path), from a table of the profile

@@ -12,25 +12,61 @@ The language is that of Kramer, Proctor and Messina, "The NIST RS274NGC Interpre
 - G20 / G21 inch / millimetre units (millimetres until a program says otherwise);
 - G90 / G91 absolute / incremental distance mode;
 - F feed rate in units per minute, modal; N line numbers; comments in parentheses and after a semicolon;
-  ``%`` on the first and last lines; M2 / M30 program end; X Y Z (up to 3 axes).
+  ``%`` on the first and last lines; M2 / M30 program end; X Y Z (up to 3 axes);
+- path control (LinuxCNC's G-code reference, "G61, G61.1 Exact Path Mode", "G64 Path Blending", "G9",
+  "G4 Dwell"): G61 and G61.1 exact stop at every corner (modal), G9 exact stop at the end of its own block,
+  G64 P p [Q q] blending within p of each corner (modal; G64 without P: within :data:`JUNCTION_DEVIATION`;
+  Q, LinuxCNC's naive CAM tolerance, is read and not applied), G4 P seconds dwell (the motion stops first).
+  A program that says none of them takes the experiment's ``blend_tolerance`` (0: exact stop, as G61);
+- setup words every post-processor writes at the top of a program (:data:`SETUP_WORDS`): G40, G49, G54-G59
+  (zero work offsets: the program's coordinates are the machine's), G80, G94, M3 / M4 / M5 with S, T with M6,
+  M7 / M8 / M9 and O numbers are read and have no effect on the path; each kind is reported once, naming its
+  first line (``Program.warnings``). ``strict=True`` refuses them instead.
 
-Every other word is refused with the line and the word; nothing is ignored silently.
+Motion the project cannot do (cutter compensation G41 / G42, tool length offsets G43, inverse-time and
+per-revolution feed G93 / G95, canned cycles G73 G76 G81-G89) is refused in either mode, and so is every
+other word, each in one line naming the line and the word; nothing is ignored silently.
 """
 from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-__all__ = ["Block", "Program", "ProgramError", "parse_program", "MM", "INCH"]
+__all__ = ["Block", "Program", "ProgramError", "parse_program", "MM", "INCH", "JUNCTION_DEVIATION", "SETUP_WORDS"]
 
 MM, INCH = 1e-3, 25.4e-3          # metres per unit
 ARC_TOLERANCE = 2e-6              # m: an arc's end may lie this far off its circle (LinuxCNC's 0.002 mm)
 _PLANES = {17: (0, 1, 2), 18: (2, 0, 1), 19: (1, 2, 0)}   # G17/18/19: first, second in-plane axis, normal axis
 _CENTRE_WORDS = {0: "I", 1: "J", 2: "K"}
+JUNCTION_DEVIATION = 1e-5         # m: G64 without P blends within this (grbl's default junction deviation)
+#: the setup words read and reported (strict mode refuses them): the word's kind and what reading it means
+SETUP_WORDS = {
+    "G40": ("cutter compensation off", "the programmed path is run"),
+    "G49": ("tool length offset off", "the programmed path is run"),
+    "G54": ("work offsets", "zero offsets: the program's coordinates are the machine's"),
+    "G80": ("canned cycle off", "no cycle was on"),
+    "G94": ("feed per minute", "F is read per minute, the only feed mode"),
+    "M3": ("spindle", "no spindle is simulated"),
+    "T": ("tool change", "no tool is simulated"),
+    "M8": ("coolant", "no coolant is simulated"),
+    "O": ("program numbers", "a label"),
+}
+_SETUP_KIND = {**{f"G{c}": "G54" for c in ("54", "55", "56", "57", "58", "59", "59.1", "59.2", "59.3")},
+               "G40": "G40", "G49": "G49", "G80": "G80", "G94": "G94", "M3": "M3", "M4": "M3", "M5": "M3",
+               "S": "M3", "T": "T", "M6": "T", "M7": "M8", "M8": "M8", "M9": "M8", "O": "O"}
+#: motion the project cannot do: refused in either mode
+_REFUSED = {**{f"G{c}": "cutter radius compensation" for c in ("41", "41.1", "42", "42.1")},
+            **{f"G{c}": "tool length offsets" for c in ("43", "43.1", "43.2")},
+            "G93": "inverse-time feed", "G95": "feed per revolution",
+            **{f"G{c}": "canned cycles" for c in ("73", "76", "81", "82", "83", "84", "85", "86", "87", "88",
+                                                     "89")}}
 _WORD = re.compile(r"([A-Za-z])\s*([+-]?(?:\d+\.?\d*|\.\d+))")
+
+
+MAX_NUMBER = 1e9          # a word's value at most this in size (a coordinate of 1e9 mm is already 1000 km)
 
 
 class ProgramError(ValueError):
@@ -58,6 +94,13 @@ class Block:
         Arc plane as (first, second, normal) axis indices (G17: (0, 1, 2)).
     clockwise : bool
         G2 (True) or G3.
+    tolerance : float or None
+        How far [m] the path may leave the corner at the block's end: G64 P (> 0), 0 for an exact stop (G61,
+        G61.1, G9); None where the program says neither (the experiment's ``blend_tolerance``).
+    dwell : float
+        [s] G4 dwell after the block.
+    number : int or None
+        Its N number, where the line gives one.
     """
 
     kind: str
@@ -68,16 +111,22 @@ class Block:
     centre: np.ndarray | None = None
     plane: tuple | None = None
     clockwise: bool = False
+    tolerance: float | None = None
+    dwell: float = 0.0
+    number: int | None = None
 
 
 @dataclass(frozen=True)
 class Program:
     """A parsed part program: its motion blocks and its dimension: 3 where it moves Z, arcs outside the XY
-    plane or starts off z = 0, else 2."""
+    plane or starts off z = 0, else 2; ``warnings``: one line per kind of setup word read; ``dwell``: [s] of
+    G4 before the first motion."""
 
     blocks: list
     dimension: int
     has_feed_words: bool
+    warnings: tuple = ()
+    dwell: float = 0.0
 
 
 def _strip_comments(text: str, number: int) -> str:
@@ -111,7 +160,12 @@ def _words(text: str, number: int) -> list:
         match = _WORD.match(body, at)
         if not match:
             raise ProgramError(f"line {number}: cannot read {body[at:].split()[0]!r} (expected words like X10.5)")
-        words.append((match.group(1).upper(), float(match.group(2)), match.group(0).replace(" ", "")))
+        value, word = float(match.group(2)), match.group(0).replace(" ", "")
+        if not math.isfinite(value) or (abs(value) > MAX_NUMBER and match.group(1).upper() != "N"):
+            shown = word if len(word) <= 24 else f"{word[:20]}... ({len(match.group(2))} characters)"
+            raise ProgramError(f"line {number}: {shown}: the number is out of range (at most {MAX_NUMBER:g} "
+                               "in size)")
+        words.append((match.group(1).upper(), value, word))
         at = match.end()
     return words
 
@@ -120,8 +174,15 @@ def _code(value: float) -> int | None:
     return int(value) if value == int(value) else None
 
 
-def parse_program(text: str, start=(0.0, 0.0, 0.0)) -> Program:
+def _name(letter: str, value: float) -> str:
+    """A G or M word's canonical name: G01 -> G1, G61.10 -> G61.1."""
+    return f"{letter}{value:.4f}".rstrip("0").rstrip(".")
+
+
+def parse_program(text: str, start=(0.0, 0.0, 0.0), strict: bool = False) -> Program:
     """Read a part program (see the module docstring) starting at ``start`` [m].
+
+    ``strict``: refuse the setup words (:data:`SETUP_WORDS`) instead of reading and reporting them.
 
     Raises
     ------
@@ -131,7 +192,8 @@ def parse_program(text: str, start=(0.0, 0.0, 0.0)) -> Program:
     """
     position = np.array(list(start) + [0.0] * (3 - len(start)), dtype=float)
     unit, absolute, plane, motion, feed = MM, True, _PLANES[17], None, None
-    blocks, has_feed, ended = [], False, None
+    tolerance = None                            # the path control mode: None (the experiment's), 0 (G61), P
+    blocks, has_feed, ended, warnings, first_dwell = [], False, None, {}, 0.0
     moved_z = bool(position[2] != 0.0)         # a start off the XY plane keeps Z
     lines = text.splitlines()
     for number, raw in enumerate(lines, start=1):
@@ -142,13 +204,26 @@ def parse_program(text: str, start=(0.0, 0.0, 0.0)) -> Program:
             raise ProgramError(f"line {number}: after the program end (M{ended} on an earlier line)")
         if body.startswith("/"):
             raise ProgramError(f"line {number}: block delete '/' is not supported")
-        axes, centre, radius, seen = {}, {}, None, set()
-        block_motion = None
+        axes, centre, radius, seen, words = {}, {}, None, set(), {}
+        block_motion, exact_once, dwell, blend = None, False, False, False
         for letter, value, word in _words(body, number):
-            if letter in "XYZIJKRFN" and letter in seen:
+            if letter in "XYZIJKRFNPQSTO" and letter in seen:
                 raise ProgramError(f"line {number}: {letter} given twice")
             seen.add(letter)
-            if letter == "N":
+            words[letter] = (value, word)
+            name = _name(letter, value) if letter in "GM" else letter
+            if name in _REFUSED:
+                raise ProgramError(f"line {number}: unsupported word {word} ({_REFUSED[name]}: the project runs "
+                                   "the programmed path as it is, in either mode)")
+            if name in _SETUP_KIND:
+                kind = _SETUP_KIND[name]
+                meaning, reading = SETUP_WORDS[kind]
+                if strict:
+                    raise ProgramError(f"line {number}: {word} ({meaning}) is a setup word; strict: true refuses "
+                                       "them (leave strict out to read and report them)")
+                warnings.setdefault(kind, f"line {number}: {word} ({meaning}) read: {reading}")
+                continue
+            if letter in "NPQ":
                 continue
             if letter == "G":
                 code = _code(value)
@@ -162,13 +237,23 @@ def parse_program(text: str, start=(0.0, 0.0, 0.0)) -> Program:
                     unit = INCH if code == 20 else MM
                 elif code in (90, 91):
                     absolute = code == 90
+                elif name in ("G61", "G61.1"):
+                    tolerance = 0.0
+                elif code == 64:
+                    blend = True
+                elif code == 9:
+                    exact_once = True
+                elif code == 4:
+                    dwell = True
                 else:
-                    raise ProgramError(f"line {number}: unsupported word {word} (supported: G0 G1 G2 G3 G17 G18 "
-                                       "G19 G20 G21 G90 G91)")
+                    raise ProgramError(f"line {number}: unsupported word {word} (supported: G0 G1 G2 G3 G4 G9 G17 "
+                                       "G18 G19 G20 G21 G61 G61.1 G64 G90 G91 and the setup words G40 G49 "
+                                       "G54-G59 G80 G94)")
             elif letter == "M":
                 code = _code(value)
                 if code not in (2, 30):
-                    raise ProgramError(f"line {number}: unsupported word {word} (supported: M2 M30)")
+                    raise ProgramError(f"line {number}: unsupported word {word} (supported: M2 M30 and the setup "
+                                       "words M3 M4 M5 M6 M7 M8 M9)")
                 ended = code
             elif letter in "XYZ":
                 axes["XYZ".index(letter)] = value
@@ -182,6 +267,29 @@ def parse_program(text: str, start=(0.0, 0.0, 0.0)) -> Program:
                 feed, has_feed = value, True
             else:
                 raise ProgramError(f"line {number}: unsupported word {word}")
+        if dwell and blend:
+            raise ProgramError(f"line {number}: G4 and G64 on one line (both take P)")
+        if "P" in words and not (dwell or blend):
+            raise ProgramError(f"line {number}: {words['P'][1]} without G4 or G64")
+        if "Q" in words and not blend:
+            raise ProgramError(f"line {number}: {words['Q'][1]} without G64")
+        if blend:
+            p = words.get("P", (None,))[0]
+            if p is not None and p < 0.0:
+                raise ProgramError(f"line {number}: {words['P'][1]}: the blending tolerance must not be negative")
+            tolerance = JUNCTION_DEVIATION if p is None else p * unit
+        if dwell:
+            if "P" not in words:
+                raise ProgramError(f"line {number}: G4 needs its dwell P (seconds)")
+            seconds = words["P"][0]
+            if not 0.0 <= seconds <= 3600.0:
+                raise ProgramError(f"line {number}: {words['P'][1]}: a dwell of 0 to 3600 s")
+            if axes:
+                raise ProgramError(f"line {number}: G4 with a motion on one line (give the dwell its own line)")
+            if blocks:
+                blocks[-1] = replace(blocks[-1], dwell=blocks[-1].dwell + seconds)
+            else:
+                first_dwell += seconds
         if block_motion is not None:
             motion = block_motion
         if not axes:
@@ -196,14 +304,18 @@ def parse_program(text: str, start=(0.0, 0.0, 0.0)) -> Program:
         if (2 in axes and end[2] != position[2]) or (motion in (2, 3) and plane != _PLANES[17]):
             moved_z = True                                  # an arc in the ZX or YZ plane moves Z
         block_feed = None if motion == 0 or feed is None else feed * unit / 60.0
+        block_tolerance = 0.0 if exact_once else tolerance
+        label = _code(words["N"][0]) if "N" in words else None
         if motion in (0, 1):
             if centre or radius is not None:
                 raise ProgramError(f"line {number}: {'I, J, K' if centre else 'R'} on a G{motion} line")
             if np.array_equal(end, position):
                 continue                                    # a move to where the tool is: no motion
-            blocks.append(Block("rapid" if motion == 0 else "line", position, end, block_feed, number))
+            blocks.append(Block("rapid" if motion == 0 else "line", position, end, block_feed, number,
+                                tolerance=block_tolerance, number=label))
         else:
-            blocks.append(_arc(number, motion, plane, position, end, centre, radius, unit, block_feed))
+            blocks.append(replace(_arc(number, motion, plane, position, end, centre, radius, unit, block_feed),
+                                  tolerance=block_tolerance, number=label))
         position = end
     if not blocks:
         raise ProgramError("the program has no motion")
@@ -211,7 +323,7 @@ def parse_program(text: str, start=(0.0, 0.0, 0.0)) -> Program:
         if has_feed and block.kind != "rapid" and block.feed is None:
             code = "G1" if block.kind == "line" else "G2" if block.clockwise else "G3"
             raise ProgramError(f"line {block.line}: {code} before any feed rate (F)")
-    return Program(blocks, 3 if moved_z else 2, has_feed)
+    return Program(blocks, 3 if moved_z else 2, has_feed, tuple(warnings.values()), first_dwell)
 
 
 def _arc(number, motion, plane, start, end, centre_words, radius, unit, feed) -> Block:

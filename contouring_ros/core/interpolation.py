@@ -11,7 +11,7 @@ import numpy as np
 
 from .curves import Curve
 
-__all__ = ["UniformSchedule", "FeedrateSchedule", "Reference", "reference"]
+__all__ = ["UniformSchedule", "FeedrateSchedule", "InPositionClock", "Reference", "reference"]
 
 
 class UniformSchedule:
@@ -127,6 +127,63 @@ class FeedrateSchedule:
         if np.ndim(theta) == 0:
             return float(theta), float(theta_dot), float(theta_ddot)
         return theta, theta_dot, theta_ddot
+
+
+#: [s] an axis is in position when within its window and too slow to leave it in less than this (not passing
+#: through the window on its way past the corner)
+SETTLE = 0.01
+
+
+class InPositionClock:
+    """The time along a feed plan at each step, where every exact stop waits for the axes (the in-position
+    check of a CNC's exact stop, G61 / G9: the next block starts once every axis is in position).
+
+    Call :meth:`time` for k = 0, 1, 2, ... in order. The plan's time runs with the steps until it reaches an
+    exact stop (``schedule.stops``: the time the feed reaches 0 there and the corner's arc length); there it
+    holds, the reference resting on the corner, until every axis is in position: its measured position
+    within its ``windows`` [m] of the corner and its speed under window / :data:`SETTLE` (an axis that
+    crosses the window on its way past the corner, as an integrating servo's overshoot does, is not in
+    position yet); or for at most ``timeout`` [s]; then the plan runs on (through any planned dwell).
+
+    The states a step sees are those measured ``delay`` steps earlier: the node graph's interpolator
+    publishes the reference of step k + delay when the estimate of step k arrives, and it takes the axis
+    states of step k (docs/ARCHITECTURE.md), so the in-process loop gives it those of step k - delay. Until
+    the first stop the time is k Ts exactly, as without the check.
+    """
+
+    def __init__(self, schedule, curve, windows, sample_time: float, timeout: float, delay: int):
+        stops = np.asarray(schedule.stops, dtype=float).reshape(-1, 2)
+        self.stop_times = stops[:, 0]
+        self.corners = np.atleast_2d(curve.point(stops[:, 1])) if len(stops) else np.zeros((0, len(windows)))
+        self.windows = np.asarray(windows, dtype=float)
+        self.sample_time = float(sample_time)
+        self.timeout_steps = int(round(timeout / sample_time))
+        self.delay = int(delay)
+        self._next = 0              # the next stop
+        self._held = -1             # the step its hold began, -1 while moving
+        self._offset = 0.0          # plan time = k Ts - offset while moving
+        self.waits = []             # (stop, steps waited), for the report
+
+    def time(self, k: int, position=None, velocity=None) -> float:
+        """The plan's time at step k; ``position``, ``velocity``: every axis' state measured at step
+        k - delay (None before the first)."""
+        ts = self.sample_time
+        if self._held >= 0:
+            stop = self._next
+            corner_time = self.stop_times[stop]
+            in_position = position is not None and \
+                bool(np.all(np.abs(np.asarray(position) - self.corners[stop]) <= self.windows)) and \
+                bool(np.all(np.abs(np.asarray(velocity)) * SETTLE <= self.windows))
+            if not in_position and k - self._held < self.timeout_steps:
+                return float(corner_time)
+            self.waits.append((stop, k - self._held))
+            self._held, self._next = -1, stop + 1
+            self._offset = k * ts - (corner_time + ts)
+        t = k * ts - self._offset
+        if self._next < len(self.stop_times) and t >= self.stop_times[self._next]:
+            self._held = k
+            return float(self.stop_times[self._next])
+        return t
 
 
 @dataclass(frozen=True)

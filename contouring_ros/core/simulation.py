@@ -55,6 +55,7 @@ class ControlLoop:
     sample_time: float
     n_steps: int
     divergence_factor: float = 10.0     # see simulate(); 0: never stop for divergence
+    clock: object = None                # InPositionClock (exact stops wait for the axes), or None: t_k
 
 
 @dataclass
@@ -150,6 +151,7 @@ def simulate(loop: ControlLoop, stop_on_divergence: bool = True, progress: bool 
         np.empty((m, n)) for _ in range(8))
     curve, schedule, estimator, controller = loop.curve, loop.schedule, loop.estimator, loop.controller
     axes = list(zip(range(n), loop.plants, loop.servos))
+    clock = loop.clock
     steps = range(m)
     if progress:
         from tqdm import tqdm
@@ -159,7 +161,12 @@ def simulate(loop: ControlLoop, stop_on_divergence: bool = True, progress: bool 
         for i, plant, _ in axes:
             positions[k, i], velocities[k, i] = plant.measure()
         position, velocity = positions[k].copy(), velocities[k].copy()
-        ref = reference(curve, schedule, t)
+        if clock is None:
+            ref = reference(curve, schedule, t)
+        else:         # the reference of step k sees the positions of step k - delay, as in the graph
+            seen = (positions[k - clock.delay].copy(), velocities[k - clock.delay].copy()) \
+                if k >= clock.delay else (None, None)
+            ref = reference(curve, schedule, clock.time(k, *seen))
         for i in range(n if stop_on_divergence else 0):
             distance = abs(position[i] - ref.position[i])
             if not distance <= bound:        # also when not finite

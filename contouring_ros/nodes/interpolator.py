@@ -1,8 +1,9 @@
-"""Interpolator node: publishes the reference of every step, a few steps ahead, and /clock."""
+"""Interpolator node: publishes the reference of every step, a few steps ahead, and /clock; where exact stops
+wait for the axes (in-position check), it takes every axis state too."""
 from __future__ import annotations
 
 from .. import cdr, graph
-from ..config import build_curve, build_schedule
+from ..config import build_clock, build_curve, build_schedule
 from ..core.interpolation import reference
 from ..core.simulation import step_time
 from .lockstep import LockstepNode, run_node
@@ -10,7 +11,9 @@ from .lockstep import LockstepNode, run_node
 
 class InterpolatorNode(LockstepNode):
     """Publishes /reference for step k + LOOKAHEAD when the estimate of step k arrives (paced by the
-    graph, never more than LOOKAHEAD steps ahead), and /clock = t_k at that moment."""
+    graph, never more than LOOKAHEAD steps ahead), and /clock = t_k at that moment. With the in-position
+    check (``config.build_clock``) it also takes every /<axis>/state: the reference of step k + LOOKAHEAD
+    holds at an exact stop until the positions of step k are within the window."""
 
     role = "interpolator"
     default_name = "interpolator"
@@ -19,15 +22,21 @@ class InterpolatorNode(LockstepNode):
     def setup(self):
         self.curve = build_curve(self.experiment)
         self.schedule = build_schedule(self.experiment, self.curve)
+        self.clock = build_clock(self.experiment, self.curve, self.schedule)
         self.add_input(graph.CONTOUR_ERROR)
+        self.state_topics = [graph.state_topic(a) for a in self.axes] if self.clock is not None else []
+        for topic in self.state_topics:
+            self.add_input(topic)
         self.reference_pub = self.add_output(graph.REFERENCE)
         self.clock_pub = self.add_output(graph.CLOCK)
         self.names = self.axes + [graph.THETA_NAME]
 
-    def publish_reference(self, k: int):
+    def publish_reference(self, k: int, position=None, velocity=None):
         if k >= self.n_steps:
             return
-        ref = reference(self.curve, self.schedule, step_time(k, self.experiment.sample_time))
+        t = step_time(k, self.experiment.sample_time) if self.clock is None else \
+            self.clock.time(k, position, velocity)
+        ref = reference(self.curve, self.schedule, t)
         stamp = self.stamp(k)
         self.reference_pub.publish(cdr.encode_joint_trajectory(
             *stamp, self.names, [*ref.position, float(ref.theta)], [*ref.velocity, float(ref.theta_dot)],
@@ -41,7 +50,12 @@ class InterpolatorNode(LockstepNode):
     def on_step(self, k, inputs):
         if k > 0:
             self.clock_pub.publish(cdr.encode_clock(*self.stamp(k)))
-        self.publish_reference(k + graph.LOOKAHEAD)
+        states = [inputs.get(topic) for topic in self.state_topics]
+        if states and None not in states:
+            self.publish_reference(k + graph.LOOKAHEAD, [state.position[0] for state in states],
+                                   [state.velocity[0] for state in states])
+        else:
+            self.publish_reference(k + graph.LOOKAHEAD)
 
 
 def main(args=None):

@@ -15,6 +15,7 @@ import gc
 import importlib
 import os
 import sys
+import threading
 import time
 
 import numpy as np
@@ -27,7 +28,7 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from .. import cdr, graph
-from ..config import experiment_for_node
+from ..config import experiment_for_node, in_position_windows
 from ..parameters import descriptor, node_parameters
 from ..errors import ConfigError, ContouringError, RunError
 
@@ -98,7 +99,8 @@ class LockstepNode:
         self.sample_time_ns = int(round(self.experiment.sample_time * 1e9))
         self.n_steps = self.experiment.n_steps
         self.axes = list(self.experiment.axes)
-        self._topics = {t.name: t for t in graph.recorded_topics(self.axes, self.experiment.ccc_takes_state)}
+        self._topics = {t.name: t for t in graph.recorded_topics(
+            self.axes, self.experiment.ccc_takes_state, in_position_windows(self.experiment) is not None)}
         self._inputs = []          # (topic name, subscription, msg class, decoder)
         self._decoded_keys = {}    # input topic -> its key in _DECODED
         self._outputs = {}         # topic name -> publisher
@@ -108,6 +110,7 @@ class LockstepNode:
         self._sequence = {}        # topic -> publication sequence number expected of its one publisher
         self._last_step = {}       # topic -> step of the last message admitted
         self.strangers = 0         # messages refused before filing (wrong publisher, stamp, size)
+        self.second_publisher = {}  # topic -> the step when a second writer's message was first seen
         self._diagnostics = self.node.create_publisher(DiagnosticArray, self.wire_name(graph.DIAGNOSTICS),
                                                        DIAGNOSTICS_QOS)
         self.next_step = 0
@@ -167,7 +170,7 @@ class LockstepNode:
 
     def wire_name(self, topic: str) -> str:
         """The name on the wire of the graph's ``topic`` (/x/state is /m1/x/state under /m1)."""
-        return graph.resolve(self.graph_namespace, topic)
+        return graph.resolve(self.graph_namespace, topic, self.experiment.namespaced_clock)
 
     def decoded_key(self, topic: str) -> str:
         """The key of ``topic``'s messages among those decoded in this process (:data:`_DECODED`): its name on
@@ -210,6 +213,8 @@ class LockstepNode:
             if self._realtime and self.experiment.start_time > 0.0 else None
         self.node.get_logger().info(f"waiting up to {timeout:g} s (graph_timeout) for the rest of the graph")
         while True:
+            if not rclpy.ok(context=self.node.context):      # SIGINT/SIGTERM while waiting: stop now
+                raise ExternalShutdownException()
             missing = [f"subscribers of {topic} ({', '.join(self._topics[topic].subscribers)})"
                        for topic, pub in self._outputs.items()
                        if pub.get_subscription_count() < len(self._topics[topic].subscribers)]
@@ -221,8 +226,6 @@ class LockstepNode:
             if time.monotonic() > deadline:
                 raise RunError(f"{self.name}: the graph did not come up within {timeout:g} s (graph_timeout; "
                                f"still waiting for {missing[0]})")
-            if not rclpy.ok(context=self.node.context):      # SIGINT/SIGTERM while waiting: stop now
-                raise ExternalShutdownException()
             if run_end is not None and time.time() > run_end:
                 raise RunError(f"{self.name}: the graph was not up by the realtime run's last tick (still waiting "
                                f"for {missing[0]}): the machine was too busy to start the graph in time")
@@ -257,8 +260,13 @@ class LockstepNode:
         """
         expected = self._sequence.get(topic)
         if expected is not None and sequence is not None and sequence != expected:
+            shared = topic in graph.GLOBAL_TOPICS and self.graph_namespace != "/" and \
+                not self.experiment.namespaced_clock
             return (f"a message from an unexpected publisher (publication sequence number {sequence}, expected "
-                    f"{expected} from the topic's one publisher {self._topics[topic].publisher})")
+                    f"{expected} from the topic's one publisher {self._topics[topic].publisher}; a second publisher "
+                    f"wrote on {topic}: which messages are whose cannot be told with certainty)"
+                    + (f"; {topic} is global under a namespace: graphs sharing a domain need namespaced_clock: true"
+                       if shared else ""))
         if len(data) < _MIN_STAMPED:
             return f"a {len(data)}-byte payload cannot be decoded (no header stamp)"
         stamp = cdr.stamp_ns(data)
@@ -291,7 +299,9 @@ class LockstepNode:
         (``on_invalid_input: stop``) or go on without it (``hold``)."""
         self.rejected[topic] = self.rejected.get(topic, 0) + 1
         self.strangers += k is None
-        where = f"step {self.next_step if k is None else k}"
+        where = f"step {self.current_step() if k is None else k}"
+        if k is None and problem.startswith("a message from an unexpected publisher"):
+            self.second_publisher.setdefault(topic, where)
         count = self.rejected[topic]
         if count <= REPORT_LIMIT:     # bounded: a flood of junk cannot flood /diagnostics (counted in finish)
             more = f" (further rejections on {topic} are only counted)" if count == REPORT_LIMIT else ""
@@ -380,6 +390,11 @@ class LockstepNode:
         if level >= DiagnosticStatus.WARN:
             self.node.get_logger().warning(message)
 
+    def current_step(self) -> int:
+        """The step this node works on (the steps before it are done): what its progress, its end-of-run
+        count and its refusals of strangers name."""
+        return self.next_step
+
     def missing_inputs(self) -> list:
         have = self._pending.get(self.next_step, {})
         return [topic for topic, *_ in self._inputs if topic not in have]
@@ -399,7 +414,7 @@ class LockstepNode:
             self.serve_requests()
             if time.monotonic() >= next_log + PROGRESS_PERIOD:
                 next_log = time.monotonic()
-                self.node.get_logger().info(f"step {self.next_step} of {self.n_steps}")
+                self.node.get_logger().info(f"step {self.current_step()} of {self.n_steps}")
             if not rclpy.ok(context=self.node.context):
                 raise ExternalShutdownException()
             if take_progress():
@@ -517,13 +532,14 @@ class LockstepNode:
         A subscriber that left is no longer waited for (it leaves only after its last step). The
         acknowledgements follow the writers' heartbeats, every 20 ms with the package's Fast DDS profile.
         """
-        self.node.get_logger().info(f"completed {self.next_step} steps")
+        steps = self.current_step()
+        self.node.get_logger().info(f"completed {steps} steps")
         skipped = getattr(self, "skipped_ticks", 0)
-        message = f"completed {self.next_step} steps"
+        message = f"completed {steps} steps"
         if skipped:
             message += (f"; skipped {skipped} ticks that started more than max_lag "
                         f"({self.experiment.max_lag * 1e3:g} ms) late (on_overrun: skip)")
-        counts = {"steps": self.next_step, **self.counters(), **self.realtime_counters(),
+        counts = {"steps": steps, **self.counters(), **self.realtime_counters(),
                   **{f"rejected {topic}": count for topic, count in self.rejected.items()}}
         self.report(DiagnosticStatus.OK if not self.rejected and not skipped else DiagnosticStatus.WARN,
                     message, counts)
@@ -532,6 +548,27 @@ class LockstepNode:
             while time.monotonic() < deadline:
                 if pub.get_subscription_count() == 0 or pub.wait_for_all_acked(Duration(nanoseconds=20_000_000)):
                     break
+        self.check_single_publishers()
+
+    def check_single_publishers(self):
+        """Under ``on_invalid_input: hold``: a run whose node saw a second publisher on a graph topic (a
+        message breaking the one writer's sequence numbers, or two writers matched at the end) does not end
+        0. Message info carries no writer identity here: a stranger's message numbered as the graph's
+        writer would number it cannot be told apart from the genuine one, so the steps may hold a stranger's
+        message (the genuine one then refused); ``stop`` ends the run at the first such message."""
+        if self.experiment.on_invalid_input != "hold":
+            return
+        seen = dict(self.second_publisher)
+        for topic, sub, _, _ in self._inputs:
+            if self._topics[topic].every_step and topic not in seen and sub.get_publisher_count() > 1:
+                seen[topic] = f"the end ({sub.get_publisher_count()} publishers matched)"
+        if seen:
+            topic, where = next(iter(seen.items()))
+            raise RunError(f"{self.name}: a second publisher of {topic} appeared ({where}; "
+                           f"{self._topics[topic].publisher} is its only publisher in the graph): its messages "
+                           "cannot be told apart from the graph's with certainty, so the run's results are not "
+                           "trusted (on_invalid_input: hold); run on a domain of its own"
+                           + (f" (also on {', '.join(list(seen)[1:])})" if len(seen) > 1 else ""))
 
     def destroy(self):
         self.node.destroy_node()
@@ -644,29 +681,70 @@ def wait_until(deadline: float, wait_set, handles, take, context, spin: float = 
             raise ExternalShutdownException()
 
 
+def track_signals() -> list:
+    """A list that receives the number of each SIGINT and SIGTERM that arrives (the handlers are installed
+    before rclpy.init: rclpy's own handlers shut the context down and then call these), so that the exit
+    code can tell an interruption, and which, from an error. SIGINT still raises KeyboardInterrupt."""
+    import signal
+    received = []
+
+    def on_sigint(signum, frame):
+        received.append(signum)
+        raise KeyboardInterrupt
+
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGTERM, lambda signum, frame: received.append(signum))
+        signal.signal(signal.SIGINT, on_sigint)
+    return received
+
+
+def interrupted_code(error: BaseException, received: list) -> int | None:
+    """143 (SIGTERM) or 130 (SIGINT) when ``error`` is how an interruption ended a node's process (whatever
+    the interrupted call raised once rclpy's handler had shut the context down: KeyboardInterrupt,
+    ExternalShutdownException, an RCLError of a publisher whose context is gone), else None."""
+    import signal
+    if not received and not isinstance(error, ContouringError):
+        time.sleep(0.01)          # a signal whose Python handler has not run yet runs now (sleep lets it in)
+    if signal.SIGTERM in received:
+        return 143
+    if received or isinstance(error, (KeyboardInterrupt, ExternalShutdownException)):
+        return 130
+    if not isinstance(error, ContouringError) and not rclpy.ok():
+        return 130                # the context is gone: a signal's handler shut it down
+    return None
+
+
 def run_node(node_class, args=None) -> int:
     """Entry point shared by every node's main(): init, spin to the end, clean shutdown.
 
-    Returns the process exit code: 0 when the run completed, 1 on an error (reported in one line),
-    130 when interrupted.
+    Returns the process exit code: 0 when the run completed, 1 on an error (reported in one line), 130 when
+    interrupted by SIGINT and 143 by SIGTERM, in any state (waiting for the graph, stepping, finishing),
+    without a traceback.
     """
-    rclpy.init(args=args)
+    received = track_signals()
     node = None
     code = 0
     try:
+        rclpy.init(args=args)
         node = node_class(args)
         if node.experiment.timing == "realtime" and node.role != "recorder":
             node.spin_realtime()
         else:
             node.spin()
         node.finish()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        code = 130
-    except ContouringError as error:
-        print(f"error: {error}", file=sys.stderr)
-        code = 1
+    except BaseException as error:   # every way out becomes an exit code; only a bug keeps its traceback
+        code = interrupted_code(error, received)
+        if code is None and isinstance(error, ContouringError):
+            print(f"error: {error}", file=sys.stderr)
+            code = 1
+        elif code is None:
+            raise
     finally:
-        if node is not None:
-            node.destroy()
+        try:
+            if node is not None:
+                node.destroy()
+        except Exception:          # a node whose context a signal shut down: what matters (the bag) is closed
+            if code == 0:
+                raise
         rclpy.try_shutdown()
     return code

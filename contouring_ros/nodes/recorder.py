@@ -21,7 +21,7 @@ from rclpy.serialization import deserialize_message
 
 from .. import __version__, cdr, graph
 from ..bag import EXPERIMENT_METADATA, RUN_METADATA, BagWriter
-from ..config import recorded_text
+from ..config import in_position_windows, recorded_text
 from ..errors import ConfigError
 from .lockstep import DIAGNOSTICS_QOS, GRAPH_QOS, LockstepNode, run_node
 
@@ -38,13 +38,16 @@ class RecorderNode(LockstepNode):
         if not options["bag"]:
             raise ConfigError(f"{self.name}: parameter 'bag' (the .mcap file to write) is required")
         text = recorded_text(options["experiment_file"]) if options["experiment_file"] else ""
-        self.topic_list = graph.recorded_topics(self.axes, self.experiment.ccc_takes_state)
+        self.topic_list = graph.recorded_topics(
+            self.axes, self.experiment.ccc_takes_state, in_position_windows(self.experiment) is not None)
         for topic in self.topic_list:
             self.add_input(topic.name, GRAPH_QOS if topic.name != graph.DIAGNOSTICS else DIAGNOSTICS_QOS)
         self.counts = {topic.name: 0 for topic in self.topic_list}
         self.lockstep_topics = [topic.name for topic in self.topic_list if topic.every_step]
         self._incomplete = len(self.lockstep_topics)      # lockstep topics still short of n_steps messages
         self.first_receive = self.last_receive = None
+        self.graph_nodes = {graph.resolve(self.graph_namespace, name) for name in graph.node_names(self.axes)}
+        self._skip, self.foreign = False, 0       # other programs' /diagnostics messages, not recorded
         # channels carry the names on the wire (under the graph's namespace, as `ros2 bag record` would)
         self.channel_names = {t.name: self.wire_name(t.name) for t in self.topic_list}
         self.writer = BagWriter(options["bag"], [(self.channel_names[t.name], t.type) for t in self.topic_list],
@@ -81,7 +84,19 @@ class RecorderNode(LockstepNode):
 
     def intake_problem(self, topic, data, sequence=None):
         self._last_data = data
+        if topic == graph.DIAGNOSTICS and self._foreign_diagnostics(data):
+            self._skip = True          # another program's diagnostics on the global topic: neither ours nor junk
+            return None
         return super().intake_problem(topic, data, sequence)
+
+    def _foreign_diagnostics(self, data) -> bool:
+        """Whether a /diagnostics message is another program's: it decodes, and every status names a node
+        that is not one of this graph's (/diagnostics is global, shared with every ROS program of the domain)."""
+        try:
+            array = deserialize_message(data, DiagnosticArray)
+        except Exception:   # any malformed payload: not foreign, refused by the checks
+            return False
+        return bool(array.status) and not any(status.name in self.graph_nodes for status in array.status)
 
     def refuse(self, topic, problem, k=None):
         super().refuse(topic, problem, k)
@@ -97,10 +112,22 @@ class RecorderNode(LockstepNode):
     def admitted(self, topic, data):
         self.file_message(topic, data)
 
+    def current_step(self) -> int:
+        """The steps recorded in full: every lockstep topic has its message of each step before this one (in
+        realtime timing, where a step may be missing, has recorded a step at least this late)."""
+        if self.experiment.timing == "realtime":
+            return min(self._last_step[topic] for topic in self.lockstep_topics) + 1
+        return min(self.counts[topic] for topic in self.lockstep_topics)
+
     def counters(self):
-        return {"messages recorded": sum(self.counts.values()), "messages refused": self.strangers}
+        return {"messages recorded": sum(self.counts.values()), "messages refused": self.strangers,
+                "other programs' diagnostics left out": self.foreign}
 
     def file_message(self, topic, data):
+        if self._skip:
+            self._skip = False
+            self.foreign += 1
+            return
         self.writer.write(self.channel_names[topic], cdr.stamp_ns(data), data)
         self.counts[topic] += 1
         if self.counts[topic] == self.n_steps and topic in self.lockstep_topics:
