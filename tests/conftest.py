@@ -51,3 +51,19 @@ def pytest_collection_modifyitems(config, items):
     for item in items:
         if item.get_closest_marker("graph") is not None and item.get_closest_marker("flaky") is None:
             item.add_marker(pytest.mark.flaky(reruns=1))
+
+
+def recorded_bag(folder: Path, duration: float, name: str) -> tuple:
+    """The default experiment shortened to ``duration`` s, simulated and written as a bag in ``folder``:
+    (result, path, the bag's bytes, (complete, chunks) of its summary)."""
+    from contouring_ros import bag
+    from contouring_ros.config import build_loop, parse_experiment
+    from contouring_ros.core.simulation import simulate
+    experiment = parse_experiment(shortened(DEFAULT, duration), "short")
+    result = simulate(build_loop(experiment))
+    path = bag.write_simulation(folder / name, experiment, result)
+    data = path.read_bytes()
+    with open(path, "rb") as stream:
+        complete, chunks, _ = bag._summary_chunks(stream, len(data), path, [])
+    return result, path, data, (complete, chunks)
+

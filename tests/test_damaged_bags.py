@@ -12,10 +12,8 @@ import numpy as np
 import pytest
 
 from contouring_ros import bag
-from contouring_ros.bag import read_run, write_simulation
-from contouring_ros.config import build_loop, parse_experiment
-from contouring_ros.core.simulation import simulate
-from conftest import DEFAULT, shortened
+from contouring_ros.bag import read_run
+from conftest import recorded_bag
 
 LOST = re.compile(r"the (?:chunk|record) at byte (\d+) is damaged \((.+)\): steps (\d+)\.\.(\d+) lost \((\d+) steps?, "
                   r"t = [0-9.]+\.\.[0-9.]+ s\); read on from the chunk at byte (\d+)")
@@ -23,12 +21,7 @@ LOST = re.compile(r"the (?:chunk|record) at byte (\d+) is damaged \((.+)\): step
 
 @pytest.fixture(scope="module")
 def recorded(tmp_path_factory):
-    experiment = parse_experiment(shortened(DEFAULT, 2.0), "short")
-    result = simulate(build_loop(experiment))
-    path = write_simulation(tmp_path_factory.mktemp("bags") / "run.mcap", experiment, result)
-    data = path.read_bytes()
-    with open(path, "rb") as stream:
-        complete, chunks, _ = bag._summary_chunks(stream, len(data), path, [])
+    result, _, data, (complete, chunks) = recorded_bag(tmp_path_factory.mktemp("bags"), 2.0, "run.mcap")
     assert complete and len(chunks) >= 5
     return result, data, chunks
 

@@ -19,11 +19,9 @@ import numpy as np
 import pytest
 
 from contouring_ros import bag as bagmod, cdr, cli
-from contouring_ros.bag import BagWriter, read_metadata, read_run, write_simulation
-from contouring_ros.config import build_loop, parse_experiment
-from contouring_ros.core.simulation import simulate
+from contouring_ros.bag import BagWriter, read_metadata, read_run
 from contouring_ros.errors import BagError
-from conftest import DEFAULT, ROOT, shortened
+from conftest import ROOT, recorded_bag
 
 MiB = 1 << 20
 
@@ -48,12 +46,7 @@ print("peak_kb", PEAK)
 @pytest.fixture(scope="module")
 def base(tmp_path_factory):
     """A 0.5 s run's bag, its bytes, the offset of its first chunk and of its summary."""
-    experiment = parse_experiment(shortened(DEFAULT, 0.5), "short")
-    result = simulate(build_loop(experiment))
-    path = write_simulation(tmp_path_factory.mktemp("bags") / "base.mcap", experiment, result)
-    data = path.read_bytes()
-    with open(path, "rb") as stream:
-        complete, chunks, _ = bagmod._summary_chunks(stream, len(data), path, [])
+    result, path, data, (_, chunks) = recorded_bag(tmp_path_factory.mktemp("bags"), 0.5, "base.mcap")
     summary_start = struct.unpack_from("<Q", data, len(data) - 8 - 29 + 9)[0]
     return path, data, chunks[0][0], summary_start, len(result.time)
 
