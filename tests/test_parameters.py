@@ -55,7 +55,8 @@ def test_descriptions_carry_units_and_the_validators_ranges():
     assert "one of: on_reference, at_rest" in described["initial_state"].description
 
 
-_CLIENT = r"""
+#: the start of a plain rclpy client script: `call` one of a node's parameter services (target: sys.argv[1])
+_SERVICE_CALL = r"""
 import json, sys, rclpy
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
 from rcl_interfaces.srv import DescribeParameters, GetParameters, ListParameters, SetParameters
@@ -63,14 +64,16 @@ rclpy.init()
 node = rclpy.create_node("parameter_reader")
 target = sys.argv[1]
 
-def call(kind, name, request):
-    client = node.create_client(kind, f"{target}/{name}")
+def call(kind, service, request):
+    client = node.create_client(kind, f"{target}/{service}")
     if not client.wait_for_service(timeout_sec=60.0):
-        raise SystemExit(f"no {name} service")
+        raise SystemExit(f"no {service} service")
     future = client.call_async(request)
     rclpy.spin_until_future_complete(node, future, timeout_sec=30.0)
     return future.result()
+"""
 
+_CLIENT = _SERVICE_CALL + r"""
 names = list(call(ListParameters, "list_parameters", ListParameters.Request()).result.names)
 descriptors = call(DescribeParameters, "describe_parameters", DescribeParameters.Request(names=names)).descriptors
 values = call(GetParameters, "get_parameters", GetParameters.Request(names=["gain", "time_constant", "axes"])).values
@@ -116,20 +119,7 @@ def test_a_plain_rclpy_client_reads_the_descriptors_through_the_parameter_servic
     assert not successful and "read-only" in reason.lower().replace("read only", "read-only")
 
 
-_GET = r"""
-import json, sys, rclpy
-from rcl_interfaces.srv import DescribeParameters, GetParameters
-rclpy.init()
-node = rclpy.create_node("parameter_reader")
-target, name = sys.argv[1:3]
-
-def call(kind, service, request):
-    client = node.create_client(kind, f"{target}/{service}")
-    if not client.wait_for_service(timeout_sec=60.0):
-        raise SystemExit(f"no {service} service")
-    future = client.call_async(request)
-    rclpy.spin_until_future_complete(node, future, timeout_sec=30.0)
-    return future.result()
+_GET = _SERVICE_CALL + r"""name = sys.argv[2]
 
 value = call(GetParameters, "get_parameters", GetParameters.Request(names=[name])).values[0]
 described = call(DescribeParameters, "describe_parameters", DescribeParameters.Request(names=[name])).descriptors[0]
