@@ -529,8 +529,10 @@ class LockstepNode:
     def finish(self):
         """Wait until every subscriber still in the graph acknowledged what we published.
 
-        A subscriber that left is no longer waited for (it leaves only after its last step). The
-        acknowledgements follow the writers' heartbeats, every 20 ms with the package's Fast DDS profile.
+        A subscriber that left is no longer waited for (it leaves only after its last step). The end-of-run
+        report on /diagnostics is waited for too: it is the node's last message, and a process that ends
+        before its readers acknowledged it may take it with it. The acknowledgements follow the writers'
+        heartbeats, every 20 ms with the package's Fast DDS profile.
         """
         steps = self.current_step()
         self.node.get_logger().info(f"completed {steps} steps")
@@ -544,7 +546,7 @@ class LockstepNode:
         self.report(DiagnosticStatus.OK if not self.rejected and not skipped else DiagnosticStatus.WARN,
                     message, counts)
         deadline = time.monotonic() + ACK_TIMEOUT
-        for pub in self._outputs.values():
+        for pub in [*self._outputs.values(), self._diagnostics]:
             while time.monotonic() < deadline:
                 if pub.get_subscription_count() == 0 or pub.wait_for_all_acked(Duration(nanoseconds=20_000_000)):
                     break
