@@ -1517,7 +1517,8 @@ def build_curve_from(section: dict, where: str = "curve") -> curves.Curve:
         curve = CURVES.build(section, BuildContext(where=where))
     except ValueError as error:
         raise ConfigError(f"{where}: curve: {error}") from None
-    curve.contour_error_window = section["contour_error_window"]
+    if "contour_error_window" in section:       # a key of every built-in curve; a plugin's curve keeps its own
+        curve.contour_error_window = section["contour_error_window"]
     return curve
 
 

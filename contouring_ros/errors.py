@@ -2,7 +2,12 @@
 from __future__ import annotations
 
 __all__ = ["ContouringError", "ConfigError", "RunError", "Interrupted", "BagError", "ScoreError", "Diverged",
-           "OutputError", "write_atomically"]
+           "OutputError", "write_atomically", "one_line"]
+
+
+def one_line(error) -> str:
+    """An exception's message on one line, at most 300 characters (what a plugin raised, for our messages)."""
+    return " ".join(str(error).split())[:300] or "(no message)"
 
 
 class ContouringError(Exception):

@@ -29,7 +29,8 @@ from dataclasses import dataclass
 from importlib import metadata
 from typing import Callable
 
-from .errors import ConfigError, ContouringError
+from .errors import ConfigError, ContouringError, one_line
+from .guard import guard
 
 __all__ = ["Entry", "Role", "BuildContext", "ROLES", "entry_from_class"]
 
@@ -146,7 +147,7 @@ class Role(Mapping):
                 points = _entry_points().select(group=self.group)
             except Exception as error:     # a broken distribution's metadata
                 raise ConfigError(f"cannot list the {self.group} plugins ({type(error).__name__}: "
-                                  f"{_line(error)})") from None
+                                  f"{one_line(error)})") from None
             for point in points:
                 if point.name in self._entries or point.name in pending:
                     warnings.warn(f"plugin {point.name!r} ({self.group}: {point.value}) is named like a "
@@ -163,7 +164,7 @@ class Role(Mapping):
             target = point.load()
         except (Exception, SystemExit) as error:      # sys.exit() at import must not end the run with 0
             self._pending[name] = point       # the next lookup says so again
-            raise ConfigError(f"{where} failed to load: {type(error).__name__}: {_line(error)}") from None
+            raise ConfigError(f"{where} failed to load: {type(error).__name__}: {one_line(error)}") from None
         try:
             if isinstance(target, Entry):
                 entry = Entry(**{**target.__dict__, "name": name, "origin": point.value})
@@ -177,7 +178,7 @@ class Role(Mapping):
                 self.on_register(entry)
         except Exception as error:
             self._pending[name] = point
-            raise ConfigError(f"{where} failed to load: {type(error).__name__}: {_line(error)}") from None
+            raise ConfigError(f"{where} failed to load: {type(error).__name__}: {one_line(error)}") from None
         self._entries[name] = entry
         return entry
 
@@ -195,9 +196,9 @@ class Role(Mapping):
                           f"{', '.join(self.names())})")
 
     def build(self, section: dict, context: BuildContext):
-        """The core object of a validated ``section``. A plugin's object is built and stepped under a guard
-        (:func:`_guarded`): what it raises (SystemExit included) or a step output that is not finite becomes
-        one RunError line naming the plugin, the step and what failed."""
+        """The core object of a validated ``section``. A plugin's object is built, and its methods run, under a
+        guard (:mod:`contouring_ros.guard`): what it raises (SystemExit included) or returns that is not
+        finite becomes one RunError line naming the plugin, the step or the argument, and what failed."""
         entry = self.entry(section[self.type_key])
         if entry.origin == "contouring_ros":
             return entry.build(section, context)
@@ -207,9 +208,8 @@ class Role(Mapping):
         except (Exception, SystemExit) as error:
             if isinstance(error, ContouringError):
                 raise
-            raise ConfigError(f"{where} failed to build: {type(error).__name__}: {_line(error)}") from None
-        if self.role in _STEPPED and callable(getattr(built, "step", None)):
-            _guarded(built, where)
+            raise ConfigError(f"{where} failed to build: {type(error).__name__}: {one_line(error)}") from None
+        guard(built, where, self.role)
         return built
 
     def __getitem__(self, name):
@@ -230,63 +230,6 @@ class Role(Mapping):
         return f"<{self.role} registry: {', '.join(self._entries)}>"
 
 
-_STEPPED = ("servo", "estimator", "controller")
-
-
-_GUARDED: dict = {}      # (plugin class, where) -> its guarded subclass
-
-
-def _guarded(built, where: str) -> None:
-    """Give ``built`` a subclass of its class (same name, a new ``step`` only) whose ``step`` counts the
-    steps (one call per control step, in the simulation and in the node alike) and turns an exception,
-    SystemExit included, or an output that is not finite into a RunError naming ``where`` and the step.
-    Its attributes and results stay the plugin's, and copies of it stay guarded."""
-    cls = type(built)
-    guarded = _GUARDED.get((cls, where))
-    if guarded is None:
-        guarded = type(cls.__name__, (cls,), {"__slots__": (), "__module__": cls.__module__,
-                                              "__qualname__": cls.__qualname__, "step": _checked_step(cls, where)})
-        _GUARDED[(cls, where)] = guarded
-    try:
-        built.__class__ = guarded
-    except TypeError:            # a class whose instances cannot change class: left unguarded
-        pass
-
-
-def _checked_step(cls, where: str):
-    import numpy as np
-
-    from .errors import RunError
-    step = cls.step
-
-    def checked(self, *args, **kwargs):
-        state = getattr(self, "__dict__", None)
-        k = state.get("_plugin_steps", 0) if state is not None else 0
-        if state is not None:
-            state["_plugin_steps"] = k + 1
-        try:
-            out = step(self, *args, **kwargs)
-        except (Exception, SystemExit) as error:
-            if isinstance(error, ContouringError):
-                raise
-            raise RunError(f"{where} failed at step {k}: {type(error).__name__}: {_line(error)}") from None
-        if hasattr(out, "theta") and hasattr(out, "vector"):          # a contour estimate
-            parts = (("theta", out.theta), ("vector", out.vector), ("signed", getattr(out, "signed", 0.0)))
-        else:
-            parts = (("output", out),)
-        for name, value in parts:
-            try:
-                finite = bool(np.all(np.isfinite(np.asarray(value, dtype=float))))
-            except (TypeError, ValueError):
-                finite = False
-            if not finite:
-                raise RunError(f"{where} returned a {name} that is not a finite number at step {k} "
-                               f"({' '.join(str(value).split())[:80]})")
-        return out
-
-    return checked
-
-
 _ALL_POINTS = None
 
 
@@ -297,7 +240,3 @@ def _entry_points():
     if _ALL_POINTS is None:
         _ALL_POINTS = metadata.entry_points()
     return _ALL_POINTS
-
-
-def _line(error) -> str:
-    return " ".join(str(error).split())[:300] or "(no message)"

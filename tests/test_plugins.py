@@ -201,6 +201,70 @@ class NotANumber(Hostile):
 '''
 
 
+HOSTILE_ROLES = '''
+import math
+
+import numpy as np
+
+from contouring_ros.config import Param
+from contouring_ros.core.curves import Parabola
+from contouring_ros.core.disturbances import ConstantDisturbance
+from contouring_ros.core.interpolation import UniformSchedule
+from contouring_ros.core.plants import FirstOrderVelocityAxis
+
+
+class OffThePart(Parabola):
+    """The parabola, raising past the vertex (theta > 0) on the per-step path (a float theta)."""
+    params = {"a": Param("float"), "h": Param("float")}
+
+    def columns(self, t):
+        if np.ndim(t) == 0 and t > 0.0:
+            raise ValueError("theta is off the part")
+        return super().columns(t)
+
+
+class Hollow(Parabola):
+    """The parabola, with a NaN point past the vertex on the per-step path."""
+    params = {"a": Param("float"), "h": Param("float")}
+
+    def columns(self, t):
+        out = super().columns(t)
+        return [(math.nan, math.nan)] + out[1:] if np.ndim(t) == 0 and t > 0.0 else out
+
+
+class Stalling(UniformSchedule):
+    params = {"theta_start": Param("float"), "theta_end": Param("float"), "duration": Param("float")}
+
+    def __call__(self, t):
+        if np.ndim(t) == 0 and t > 0.01:
+            raise RuntimeError("the feed hold never ends")
+        return super().__call__(t)
+
+
+class Leaking(FirstOrderVelocityAxis):
+    """A first-order axis whose position reads NaN from its 6th measurement."""
+    params = {"gain": Param("float"), "time_constant": Param("float")}
+
+    def __init__(self, gain, time_constant, sample_time, position, velocity):
+        super().__init__(gain, time_constant, sample_time, None, position, velocity)
+        self.reads = 0
+
+    def measure(self):
+        self.reads += 1
+        position, velocity = super().measure()
+        return (math.nan if self.reads > 5 else position), velocity
+
+
+class Spiking(ConstantDisturbance):
+    params = {"value": Param("float")}
+
+    def __call__(self, t):
+        return math.inf if t > 0.005 else super().__call__(t)
+'''
+ROLE_PLUGINS = {"curves": {"off_the_part": "OffThePart", "hollow": "Hollow"}, "schedules": {"stalling": "Stalling"},
+                "plants": {"leaking": "Leaking"}, "disturbances": {"spiking": "Spiking"}}
+
+
 @pytest.fixture(scope="module")
 def hostile_site(tmp_path_factory):
     root = tmp_path_factory.mktemp("hostile")
@@ -212,9 +276,13 @@ def hostile_site(tmp_path_factory):
               "infinite": "hostile_plugin:Infinite", "vanishing": "hostile_plugin:Vanishing",
               "not_a_number": "hostile_plugin:NotANumber",
               "exits_at_import": "exits_at_import:Whatever"}
+    (project / "hostile_roles.py").write_text(HOSTILE_ROLES)
     (project / "pyproject.toml").write_text('[project]\nname = "hostile-plugin"\nversion = "1.0"\n'
                                             '[project.entry-points."contouring_ros.estimators"]\n'
-                                            + "".join(f'{k} = "{v}"\n' for k, v in points.items()))
+                                            + "".join(f'{k} = "{v}"\n' for k, v in points.items())
+                                            + "".join(f'[project.entry-points."contouring_ros.{group}"]\n'
+                                                      + "".join(f'{k} = "hostile_roles:{v}"\n' for k, v in names.items())
+                                                      for group, names in ROLE_PLUGINS.items()))
     site = install(root / "site", project)
     for module in EXAMPLE.glob("*.py"):
         shutil.copy(module, site / module.name)
@@ -269,3 +337,51 @@ def test_a_node_that_exits_0_mid_run_is_named_as_having_exited(hostile_site, tmp
     error = [line for line in done.stderr.splitlines() if line.startswith("error:")]
     assert error and "node /contour_estimator exited with code 0 before completing its steps" in error[0], done.stderr
     assert "stalled" not in error[0] and "/x/servo" not in error[0], error[0]
+
+
+def with_replaced(text: str, old: str, new: str) -> str:
+    assert old in text, old
+    return text.replace(old, new, 1)
+
+
+ROLE_CASES = {     # plugin -> (the default experiment's text, what replaces it), fragment of the one-line error
+    "off_the_part": (("type: parabola", "type: off_the_part"),
+                     "(contouring_ros.curves: hostile_roles:OffThePart) failed in columns(0.0"),
+    "hollow": (("type: parabola", "type: hollow"), "returned a value that is not a finite number in columns("),
+    "stalling": (("type: uniform", "type: stalling"),
+                 "failed in __call__(0.011): RuntimeError: the feed hold never ends"),
+    "leaking": (("    model: first_order_velocity\n    gain: 10.3\n    time_constant: 0.040\n"
+                 "    disturbance: {type: constant, value: 1.5e-4}\n",
+                 "    model: leaking\n    gain: 10.3\n    time_constant: 0.040\n"),
+                "returned a value that is not a finite number in measure() ([ nan "),
+    "spiking": (("disturbance: {type: constant", "disturbance: {type: spiking"),
+                "returned a value that is not a finite number in __call__(0.006) (inf)"),
+}
+
+
+@pytest.mark.parametrize("name", list(ROLE_CASES))
+def test_a_curve_schedule_plant_or_disturbance_plugin_failing_ends_in_one_line_naming_it(hostile_site, tmp_path,
+                                                                                       name):
+    """Plugins of every role run under the guard: an exception or a value that is not finite (a NaN curve
+    point, a NaN plant state, an infinite load) ends simulate in one line naming the plugin and the call."""
+    (old, new), fragment = ROLE_CASES[name]
+    experiment = tmp_path / "hostile.yaml"
+    experiment.write_text(with_replaced(shortened(DEFAULT, 0.05), old, new))
+    done = cli(hostile_site, tmp_path, "simulate", str(experiment))
+    assert done.returncode in (1, 2), (done.returncode, done.stdout, done.stderr)
+    assert "Traceback" not in done.stderr
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and f"plugin {name!r} (contouring_ros." in lines[0], done.stderr
+    assert fragment in lines[0], lines[0]
+
+
+def test_a_plugin_value_that_is_not_finite_is_a_diverged_row_of_a_sweep(hostile_site, tmp_path):
+    """In a sweep (and so in tuning) a plugin's non-finite value is that combination's divergence, reported on
+    its row, as a built-in's is: the other combinations still run."""
+    (old, new), _ = ROLE_CASES["leaking"]
+    experiment = tmp_path / "leaking.yaml"
+    experiment.write_text(with_replaced(shortened(DEFAULT, 0.05), old, new))
+    done = cli(hostile_site, tmp_path, "sweep", str(experiment), "--grid", "ccc.kp=1,2", "--out", str(tmp_path / "s.csv"))
+    assert done.returncode == 0, (done.stdout, done.stderr)
+    rows = (tmp_path / "s.csv").read_text().splitlines()[1:]
+    assert len(rows) == 2 and all("diverged: plugin 'leaking'" in row for row in rows), rows
