@@ -37,6 +37,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from .errors import write_atomically
 from .executors import pool as executor
 from .tuning import Protocol, experiment_for, gain_keys, interval, machine_settings, pareto_front, run_outcomes, tune, worst_case
 
@@ -467,27 +468,29 @@ def write_csv(rows: list, path) -> Path:
             "tace_median_um", "tace_lo_um", "tace_hi_um", "mce_median_um", "mce_lo_um", "mce_hi_um",
             "tace_ratio", "tace_ratio_lo", "tace_ratio_hi", "mce_ratio", "mce_ratio_lo", "mce_ratio_hi",
             "tace_verdict", "ideal_tace_um", "ideal_mce_um", "ms", "gain_margin", "phase_margin_deg"]
-    with open(path, "w", newline="") as stream:
-        writer = csv.writer(stream)
-        writer.writerow(head)
-        for row in rows:
-            c = row.combination or row.excluded
-            t = row.tuned
-            n = t.nominal if row.ok else None
-            tace, mce = row.figure("tace"), row.figure("mce")
-            tr, mr = row.ratio("tace"), row.ratio("mce")
-            writer.writerow([
-                row.family.paper, row.family.name, row.family.proposed, c.estimator, c.controller, c.servo,
-                "yes" if row.is_proposed else "", row.status, f"{row.family.from_time:g}",
-                json.dumps(t.gains) if row.ok else "", json.dumps(t.file_gains) if t else "",
-                "; ".join(t.at_bound) if t else "", len(t.evaluations) if t else "",
-                t.robustness_runs if t else "", _num(t.robust_worst) if t else "",
-                _um(n.tace if n else None), _um(n.mce if n else None), _num(n.noise if n else None),
-                _num(row.noise_ratio), _num(n.saturated if n else None), _num(n.effort if n else None),
-                *(_um(v) for v in tace), *(_um(v) for v in mce), *(_num(v) for v in tr), *(_num(v) for v in mr),
-                "" if row.is_proposed or not row.ok else verdict(tr[1], tr[2]),
-                _um(t.ideal.tace if t and t.ideal else None), _um(t.ideal.mce if t and t.ideal else None),
-                *((_num(m.ms), _num(m.gain_margin), _num(m.phase_margin_deg)) if (m := t and t.margins) else ("",) * 3)])
+    def write(tmp):
+        with open(tmp, "w", newline="") as stream:
+            writer = csv.writer(stream)
+            writer.writerow(head)
+            for row in rows:
+                c = row.combination or row.excluded
+                t = row.tuned
+                n = t.nominal if row.ok else None
+                tace, mce = row.figure("tace"), row.figure("mce")
+                tr, mr = row.ratio("tace"), row.ratio("mce")
+                writer.writerow([
+                    row.family.paper, row.family.name, row.family.proposed, c.estimator, c.controller, c.servo,
+                    "yes" if row.is_proposed else "", row.status, f"{row.family.from_time:g}",
+                    json.dumps(t.gains) if row.ok else "", json.dumps(t.file_gains) if t else "",
+                    "; ".join(t.at_bound) if t else "", len(t.evaluations) if t else "",
+                    t.robustness_runs if t else "", _num(t.robust_worst) if t else "",
+                    _um(n.tace if n else None), _um(n.mce if n else None), _num(n.noise if n else None),
+                    _num(row.noise_ratio), _num(n.saturated if n else None), _num(n.effort if n else None),
+                    *(_um(v) for v in tace), *(_um(v) for v in mce), *(_num(v) for v in tr), *(_num(v) for v in mr),
+                    "" if row.is_proposed or not row.ok else verdict(tr[1], tr[2]),
+                    _um(t.ideal.tace if t and t.ideal else None), _um(t.ideal.mce if t and t.ideal else None),
+                    *((_num(m.ms), _num(m.gain_margin), _num(m.phase_margin_deg)) if (m := t and t.margins) else ("",) * 3)])
+    write_atomically(path, write)
     return path
 
 
@@ -559,9 +562,7 @@ def draw_heatmap(rows: list, path) -> Path:
     ax.set_title("Contouring benchmark on the realistic machine, every gain tuned under equal constraints: TACE "
                  "relative to the proposed method (boxed).\nBlue: lower; ~: the 95% interval crosses 1 "
                  "(undecided); grey: cannot be paired; x: no admissible gain", fontsize=9)
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110, bbox_inches="tight")
+    path = write_atomically(path, lambda tmp: fig.savefig(tmp, format="png", dpi=110, bbox_inches="tight"))
     plt.close(fig)
     return path
 
@@ -622,9 +623,7 @@ def draw_pareto(rows: list, families: list, paper: str, path) -> Path:
                  "lines: Pareto fronts; stars: tuned; dashed: the noise bound; points beyond 30x the worst tuned "
                  "TACE or 5x the noise bound left out", fontsize=9)
     fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=100)
+    path = write_atomically(path, lambda tmp: fig.savefig(tmp, format="png", dpi=100))
     plt.close(fig)
     return path
 
@@ -849,5 +848,5 @@ def main_benchmark(patterns=None, protocol: Protocol | None = None, out="reports
     text = benchmark_report(rows, families, protocol, seconds, command, png.name,
                             read_notes(CONFIG_DIR / "benchmark" / "notes.yaml"), cpu, pareto)
     md = out / "benchmark.md"
-    md.write_text(text + "\n")
+    write_atomically(md, lambda tmp: tmp.write_text(text + "\n"))
     return md, csv_path, png, seconds

@@ -15,6 +15,7 @@ import numpy as np
 
 from .core.geometry import ExactContourError
 from .core.metrics import Scores, score
+from .errors import write_atomically
 
 __all__ = ["BlockResult", "block_results", "cutting_steps", "cutting_scores", "format_blocks", "write_blocks_csv",
            "block_cells", "block_headings", "BLOCK_COLUMNS"]
@@ -167,8 +168,10 @@ def format_blocks(rows: list, axes) -> str:
 def write_blocks_csv(rows: list, axes, path) -> Path:
     """The per-block table as CSV (column names carry the unit)."""
     path = Path(path)
-    with open(path, "w", newline="") as stream:
-        writer = csv.writer(stream)
-        writer.writerow(_header(axes))
-        writer.writerows(block_cells(row) for row in rows)
+    def write(tmp):
+        with open(tmp, "w", newline="") as stream:
+            writer = csv.writer(stream)
+            writer.writerow(_header(axes))
+            writer.writerows(block_cells(row) for row in rows)
+    write_atomically(path, write)
     return path

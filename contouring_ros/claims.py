@@ -60,7 +60,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from .errors import ConfigError
+from .errors import ConfigError, write_atomically
 from .paper import CONFIG_DIR
 
 __all__ = ["VERDICTS", "METRICS", "DRAWS", "MISMATCH", "SCALES", "verdict", "interval_verdict", "robustness",
@@ -705,9 +705,7 @@ def draw_map(claim: Claim, spec: RegimeMap, ratios: dict, path) -> Path:
                     if claim.paper_ratio else f"no paper figure ({METRICS[claim.metric]}: below 1 lowers)")
                  + "; ideal machine"
                  + (f"; scores from t = {claim.from_time:g} s" if claim.from_time else ""), fontsize=10)
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
+    path = write_atomically(path, lambda tmp: fig.savefig(tmp, format="png", dpi=110))
     plt.close(fig)
     return path
 
@@ -864,10 +862,7 @@ def claims_report(papers: list | None = None, directory="reports", maps: bool = 
 
 
 def write_claims_report(text: str, directory="reports", name: str = "claims.md") -> Path:
-    path = Path(directory) / name
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(text)
-    return path
+    return write_atomically(Path(directory) / name, lambda tmp: tmp.write_text(text))
 
 
 def main(argv=None) -> int:

@@ -23,7 +23,7 @@ import numpy as np
 from .config import GLOBAL_SECTION, ROS_PARAMETERS, build_loop, experiment_from_data, read_yaml
 from .core.batch import batch_problem, simulate_batch, structure
 from .core.simulation import first_divergence, simulate
-from .errors import ConfigError, Diverged, ScoreError
+from .errors import ConfigError, Diverged, ScoreError, write_atomically
 from .scoring import score_run
 
 __all__ = ["parse_grid", "apply_settings", "settings_file", "experiments_for", "combinations", "SweepRow", "score_experiments",
@@ -301,13 +301,15 @@ def write_sweep_csv(rows: list, path, axes=None) -> None:
     axes = list(axes or [f"axis{i}" for i in range(n)])
     per_axis = [f"{name}_{axis}{unit}" for name, unit in (("tracking_max", "_m"), ("tracking_rms", "_m"),
                                                            ("effort_rms", "")) for axis in axes]
-    with open(path, "w", newline="") as stream:
-        writer = csv.writer(stream)
-        writer.writerow(["rank"] + keys + ["status", "mce_m", "tace_m", "rms_m", "estimation_max_m",
-                                           "estimation_rms_m"] + per_axis + ["travel_time_s", "from_s"])
-        for rank, row in enumerate(rows, 1):
-            s = row.scores
-            values = [""] * (7 + len(per_axis)) if s is None else \
-                [s.mce, s.tace, s.rms, s.estimation_max, s.estimation_rms, *s.tracking_max, *s.tracking_rms,
-                 *s.effort_rms, s.travel_time, s.from_time]
-            writer.writerow([rank] + [row.settings[k] for k in keys] + [row.failure or "ok"] + values)
+    def write(tmp):
+        with open(tmp, "w", newline="") as stream:
+            writer = csv.writer(stream)
+            writer.writerow(["rank"] + keys + ["status", "mce_m", "tace_m", "rms_m", "estimation_max_m",
+                                               "estimation_rms_m"] + per_axis + ["travel_time_s", "from_s"])
+            for rank, row in enumerate(rows, 1):
+                s = row.scores
+                values = [""] * (7 + len(per_axis)) if s is None else \
+                    [s.mce, s.tace, s.rms, s.estimation_max, s.estimation_rms, *s.tracking_max, *s.tracking_rms,
+                     *s.effort_rms, s.travel_time, s.from_time]
+                writer.writerow([rank] + [row.settings[k] for k in keys] + [row.failure or "ok"] + values)
+    write_atomically(path, write)
