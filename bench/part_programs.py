@@ -32,11 +32,12 @@ CONFIG = ROOT / "config"
 
 
 def experiment(directory: Path, base: str, program: str, curve_keys: str = "", shared: str = "",
-               jerk: float = 10.0, observer: bool = True) -> Path:
+               jerk: float = 10.0, observer: bool | str = True) -> Path:
     """The experiment ``base`` (a scenario of config/) with the part program ``program`` as its reference,
     planned with the example part's bounds (acceleration 1 m/s^2, ``jerk`` [m/s^3], default 10);
     ``curve_keys`` and ``shared`` are added to the curve and /**; ``observer`` False takes the disturbance
-    estimate (paper 000 eq. 24-26) off ISMC servos."""
+    estimate (paper 000 eq. 24-26) off ISMC servos, "corrected" gives it the plan correction
+    (observer_plan_correction)."""
     name = f"{base}_{abs(hash((program, curve_keys, shared, jerk, observer)))}"
     (directory / f"{name}.ngc").write_text(program)
     text = (CONFIG / f"{base}.yaml").read_text()
@@ -45,7 +46,9 @@ def experiment(directory: Path, base: str, program: str, curve_keys: str = "", s
     text = re.sub(r"curve: \{[^}]*\}", f"curve: {{type: gcode, file: {name}.ngc{start}{curve_keys}}}", text)
     text = re.sub(r"schedule: \{[^}]*\}", f"schedule: {{type: feedrate, acceleration: 1.0, jerk: {jerk}, "
                                           "rapid_feedrate: 0.05}", text)
-    if not observer:
+    if observer == "corrected":
+        text = text.replace("observer: true", "observer: true\n    observer_plan_correction: true")
+    elif not observer:
         text = text.replace("observer: true", "observer: false")
     text = re.sub(r"    duration: [0-9.]+\n", "", text)
     text = text.replace("    sample_time:", f"{shared}    sample_time:", 1)
@@ -85,6 +88,7 @@ def square(directory: Path):
             ("paper000_b_ismc_h50_newton", ismc, 1e-5, 10.0, True),
             ("paper000_b_ismc_h50_newton", ismc + " without the disturbance estimate (eq. 24-26)", 1e-5, 10.0,
              False),
+            ("paper000_b_ismc_h50_newton", ismc + " with observer_plan_correction", 1e-5, 10.0, "corrected"),
             ("paper000_b_ismc_h50_newton", ismc + ", jerk 0.5", 1e-5, 0.5, True),
             ("gcode_example_part", pidff, 0.0, 10.0, True),
             ("gcode_example_part", pidff, 1e-5, 10.0, True)]

@@ -67,17 +67,22 @@ def _warn(run):
         print(f"warning: {warning}", file=sys.stderr)
 
 
+def _with_settings(config: Path, specs, directory) -> Path:
+    """The experiment file ``config`` with the ``--set KEY=VALUE`` settings ``specs`` applied, written under
+    the same name (the bag's default name) in ``directory`` and validated; ``config`` itself without any."""
+    if not specs:
+        return config
+    from .sweep import settings_file
+    return settings_file(config, specs, directory)
+
+
 def _run(args):
+    import tempfile
     from .errors import BagError, Interrupted, RunError
     from .runner import run_graph
     from .scoring import format_scores, score_bag
-    config = _experiment_path(args.config)
-    settings_directory = None
-    if args.set:        # the file with the settings applied, under the same name (the bag's default name)
-        import tempfile
-        from .sweep import settings_file
-        settings_directory = tempfile.TemporaryDirectory(prefix="contouring_ros_set_")
-        config = settings_file(config, args.set, settings_directory.name)
+    settings_directory = tempfile.TemporaryDirectory(prefix="contouring_ros_set_")
+    config = _with_settings(_experiment_path(args.config), args.set, settings_directory.name)
     try:
         if sum(map(bool, (args.composed, args.group, args.process))) > 1:
             raise ConfigError("--process, --composed and --group are three layouts: give one")
@@ -120,12 +125,14 @@ LONG_RUN_STEPS = 20_000       # simulate shows a progress bar beyond this many s
 
 
 def _simulate(args):
+    import tempfile
     from .config import build_loop, load_experiment, note_while_slow
     from .core.simulation import simulate
     from .scoring import cutting_lines, format_scores, score_run
     from .errors import Diverged
     from .config import program_warnings
-    experiment = load_experiment(_experiment_path(args.config))
+    with tempfile.TemporaryDirectory(prefix="contouring_ros_set_") as settings_directory:
+        experiment = load_experiment(_with_settings(_experiment_path(args.config), args.set, settings_directory))
     loop = build_loop(experiment)
     for warning in program_warnings(loop.curve):
         print(f"warning: {warning}", file=sys.stderr)
@@ -378,6 +385,8 @@ def main(argv=None):
     p.set_defaults(func=_run)
     p = sub.add_parser("simulate", help="run an experiment in-process (no ROS) and print its scores")
     p.add_argument("config")
+    p.add_argument("--set", action="append", metavar="KEY=VALUE",
+                   help="change one key of the experiment for this run, as `run --set` does; repeatable")
     p.set_defaults(func=_simulate)
     experiment_help = "experiment YAML, for bags recorded without one (e.g. by ros2 bag record)"
     p = sub.add_parser("score", help="score bags from their contents alone")

@@ -239,7 +239,7 @@ def resolve_part_program(name: str, where: str):
 def _ismc(s, c):
     ts = c.sample_time
     observer = servo.DisturbanceObserver(s["c"], s["d"], s["gain"], s["time_constant"], ts, c.velocity,
-                                         c.acceleration) if s["observer"] else None
+                                         c.acceleration, s["observer_plan_correction"]) if s["observer"] else None
     return servo.IntegralSlidingModeServo(s["a"], s["b"], s["mu"], s["kappa"], s["gain"], s["time_constant"],
                                           ts, observer, s["output_limit"])
 
@@ -424,6 +424,7 @@ _SERVO_SPECS = {
              "mu": Param("float", check="positive"), "kappa": Param("float", check="positive"),
              "gain": Param("float", check="positive"), "time_constant": Param("float", check="positive"),
              "observer": Param("bool", False), "c": Param("float", 1.0, "positive"),
+             "observer_plan_correction": Param("bool", False),
              "d": Param("float", 1.0, "positive"), "output_limit": LIMIT},
     "direct": {"output_limit": LIMIT},
     "pid": _gains(ki=0.0, kd=0.0),

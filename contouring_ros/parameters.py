@@ -82,7 +82,9 @@ DESCRIPTIONS = {
         "gain": "model actuator gain [m/s per command unit]", "time_constant": f"model time constant {_S}",
         "a": "sliding surface gain a [1/s]", "b": "sliding surface gain b [1/s^2]", "mu": "boundary layer width",
         "kappa": "switching gain", "c": "observer gain c [1/s]", "d": "observer gain d [1/s^2]",
-        "observer": "use the disturbance observer", "k": "sliding gain k", "sigma": "boundary layer sigma",
+        "observer": "use the disturbance observer",
+        "observer_plan_correction": "add to eq. 25 its filter mismatch computed on the reference (not in the paper): "
+                                    "the plan's jerk no longer read as load", "k": "sliding gain k", "sigma": "boundary layer sigma",
         "alphas": "extended state observer gains", "mass": "model mass [kg]", "damping": "model damping [N s/m]",
         "coulomb_positive": "model Coulomb friction forward [N]", "coulomb_negative": "model Coulomb friction back [N]",
         "disturbance_compensation": "subtract the observer's disturbance estimate"},

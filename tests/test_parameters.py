@@ -183,6 +183,33 @@ def test_set_applies_the_sweep_s_keys_to_a_file_the_ros_parser_reads_alike(tmp_p
         assert str(info.value).startswith("--set ") and "\n" not in str(info.value)
 
 
+def test_simulate_with_set_scores_the_changed_experiment(tmp_path):
+    """`contouring-ros simulate CONFIG --set KEY=VALUE` takes the run's key syntax and prints the scores of
+    the changed experiment; a wrong key is one line naming it."""
+    import dataclasses
+
+    from conftest import ROOT, shortened
+    from contouring_ros.config import build_loop, parse_experiment
+    from contouring_ros.core.simulation import simulate
+    from contouring_ros.scoring import score_run
+    path = tmp_path / "short.yaml"
+    path.write_text(shortened(DEFAULT, 0.3))
+    out = subprocess.run([sys.executable, "-m", "contouring_ros.cli", "simulate", str(path), "--set", "ccc.kp=0.0"],
+                         capture_output=True, text=True, cwd=ROOT, timeout=300)
+    assert out.returncode == 0, out.stderr
+    experiment = parse_experiment(path.read_text(), str(path))
+    loop = build_loop(dataclasses.replace(experiment, controller=dict(experiment.controller, kp=0.0)))
+    mce = score_run(loop.curve, simulate(loop)).mce
+    printed = float(next(line for line in out.stdout.splitlines() if line.startswith("MCE")).split()[-1])
+    assert printed == pytest.approx(mce * 1e6, rel=1e-3)
+    plain = subprocess.run([sys.executable, "-m", "contouring_ros.cli", "simulate", str(path)],
+                           capture_output=True, text=True, cwd=ROOT, timeout=300)
+    assert plain.stdout != out.stdout                      # the setting changed the run
+    wrong = subprocess.run([sys.executable, "-m", "contouring_ros.cli", "simulate", str(path), "--set", "ccc.kq=1"],
+                           capture_output=True, text=True, cwd=ROOT, timeout=300)
+    assert wrong.returncode != 0 and "Traceback" not in wrong.stderr and "kq" in wrong.stderr.strip().splitlines()[-1]
+
+
 @pytest.mark.graph
 def test_run_with_set_records_the_changed_experiment(tmp_path):
     """`contouring-ros run CONFIG --set ccc.kp=2.0`: the graph runs the changed experiment (its bag scores as

@@ -66,14 +66,24 @@ class DisturbanceObserver:
     dDelta/dt = -d Delta + d xi                       (26)
 
     c (Omega + V) = c s / (s + c) V is the filtered velocity derivative; the factor c in (25), lost in the
-    paper's text, is restored so that xi equals D for the model (2). Both filters are discretised exactly
-    under a zero-order hold. T is the command applied over the previous step. The filters start in the
-    steady state of a motion with the given initial velocity and acceleration and no disturbance.
+    paper's text, is restored so that xi equals D for the model (2) at constant acceleration. Under a jerk J
+    (a jerk-limited feed plan) eq. 25 pairs the filtered derivative with the unfiltered command and reads
+    xi - D = (tau / k) (c s / (s + c) - s) V, about -(tau / k) J / c, as load.
+
+    ``plan_correction`` (not in the paper): xi gains (tau / k) (R'' - c s / (s + c) R'), the same filter
+    mismatch computed on the reference the axis follows (Omega_R: eq. 24 driven by R'), which cancels the
+    jerk term as far as V follows R' and is zero at constant acceleration. Unlike a Q-filter observer
+    (the filter on T too), D itself still enters xi unfiltered, so a load is taken up as fast as with (25).
+
+    Both filters are discretised exactly under a zero-order hold. T is the command applied over the
+    previous step. The filters start in the steady state of a motion with the given initial velocity and
+    acceleration and no disturbance.
     """
 
     batchable = True
 
-    def __init__(self, c, d, gain, time_constant, sample_time, velocity=0.0, acceleration=0.0):
+    def __init__(self, c, d, gain, time_constant, sample_time, velocity=0.0, acceleration=0.0,
+                 plan_correction: bool = False):
         self.c, self.d = float(c), float(d)
         self.gain, self.time_constant = float(gain), float(time_constant)
         self._omega_decay = math.exp(-self.c * sample_time)
@@ -81,13 +91,19 @@ class DisturbanceObserver:
         self.omega = -float(velocity) + float(acceleration) / self.c
         self.estimate = 0.0
         self.previous_command = _inverse_first_order(velocity, acceleration, self.gain, self.time_constant)
+        self.plan_correction = bool(plan_correction)
+        self.reference_omega = self.omega         # Omega_R: eq. 24 on the reference velocity
 
-    def update(self, velocity: float) -> float:
-        """Return the estimate Delta_k and advance the filters with this step's velocity."""
+    def update(self, velocity: float, ref_vel=0.0, ref_acc=0.0) -> float:
+        """Return the estimate Delta_k and advance the filters with this step's velocity (and, with
+        ``plan_correction``, the reference velocity and acceleration)."""
         estimate = self.estimate
-        xi = (self.time_constant / self.gain) * self.c * (self.omega + velocity) + velocity / self.gain \
-            - self.previous_command
+        lag = self.time_constant / self.gain
+        xi = lag * self.c * (self.omega + velocity) + velocity / self.gain - self.previous_command
         self.omega = self._omega_decay * self.omega - (1.0 - self._omega_decay) * velocity
+        if self.plan_correction:
+            xi = xi + lag * (ref_acc - self.c * (self.reference_omega + ref_vel))
+            self.reference_omega = self._omega_decay * self.reference_omega - (1.0 - self._omega_decay) * ref_vel
         self.estimate = self._delta_decay * estimate + (1.0 - self._delta_decay) * xi
         return estimate
 
@@ -127,7 +143,7 @@ class IntegralSlidingModeServo:
         q = self.q
         self.q = self._q_decay * q + self._q_input * switch
         if self.observer is not None:
-            command -= self.observer.update(velocity)
+            command -= self.observer.update(velocity, ref_vel, ref_acc)
         command += correction
         if has_limit(self.output_limit):
             limited = symmetric_clip(command, self.output_limit)
