@@ -36,8 +36,8 @@ def experiment(directory: Path, base: str, program: str, curve_keys: str = "", s
     """The experiment ``base`` (a scenario of config/) with the part program ``program`` as its reference,
     planned with the example part's bounds (acceleration 1 m/s^2, ``jerk`` [m/s^3], default 10);
     ``curve_keys`` and ``shared`` are added to the curve and /**; ``observer`` False takes the disturbance
-    estimate (paper 000 eq. 24-26) off ISMC servos, "corrected" gives it the plan correction
-    (observer_plan_correction)."""
+    estimate (paper 000 eq. 24-26) off ISMC servos, "paper" keeps it as the paper gives it (without the plan
+    correction a tool path gets by default: observer_plan_correction false)."""
     name = f"{base}_{abs(hash((program, curve_keys, shared, jerk, observer)))}"
     (directory / f"{name}.ngc").write_text(program)
     text = (CONFIG / f"{base}.yaml").read_text()
@@ -46,8 +46,8 @@ def experiment(directory: Path, base: str, program: str, curve_keys: str = "", s
     text = re.sub(r"curve: \{[^}]*\}", f"curve: {{type: gcode, file: {name}.ngc{start}{curve_keys}}}", text)
     text = re.sub(r"schedule: \{[^}]*\}", f"schedule: {{type: feedrate, acceleration: 1.0, jerk: {jerk}, "
                                           "rapid_feedrate: 0.05}", text)
-    if observer == "corrected":
-        text = text.replace("observer: true", "observer: true\n    observer_plan_correction: true")
+    if observer == "paper":
+        text = text.replace("observer: true", "observer: true\n    observer_plan_correction: false")
     elif not observer:
         text = text.replace("observer: true", "observer: false")
     text = re.sub(r"    duration: [0-9.]+\n", "", text)
@@ -84,12 +84,14 @@ def square(directory: Path):
     print("a 50 mm square at F3000 then an arc (acceleration 1, jerk 10 unless said), exact stop at the corners "
           "(corners: the largest contour error of the blocks after the corners at (50, 0), (50, 50), (0, 50)):")
     ismc, pidff = "ISMC, paper 000 (b)", "PID + feedforward, the example part"
-    runs = [("paper000_b_ismc_h50_newton", ismc, 0.0, 10.0, True),
-            ("paper000_b_ismc_h50_newton", ismc, 1e-5, 10.0, True),
+    paper = ismc + " with the paper's estimate (observer_plan_correction: false)"
+    runs = [("paper000_b_ismc_h50_newton", paper, 0.0, 10.0, "paper"),
+            ("paper000_b_ismc_h50_newton", paper, 1e-5, 10.0, "paper"),
             ("paper000_b_ismc_h50_newton", ismc + " without the disturbance estimate (eq. 24-26)", 1e-5, 10.0,
              False),
-            ("paper000_b_ismc_h50_newton", ismc + " with observer_plan_correction", 1e-5, 10.0, "corrected"),
-            ("paper000_b_ismc_h50_newton", ismc + ", jerk 0.5", 1e-5, 0.5, True),
+            ("paper000_b_ismc_h50_newton", ismc + " (the estimate with the plan correction: the default on a "
+             "tool path)", 1e-5, 10.0, True),
+            ("paper000_b_ismc_h50_newton", paper + ", jerk 0.5", 1e-5, 0.5, "paper"),
             ("gcode_example_part", pidff, 0.0, 10.0, True),
             ("gcode_example_part", pidff, 1e-5, 10.0, True)]
     for base, axes, window, jerk, observer in runs:

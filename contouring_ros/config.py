@@ -236,10 +236,24 @@ def resolve_part_program(name: str, where: str):
     return None
 
 
+#: the curve types that are part programs (tool paths planned block by block)
+TOOL_PATH_TYPES = ("gcode", "toolpath")
+
+
+def plan_correction(section: dict, experiment) -> bool:
+    """Whether an ISMC servo's disturbance estimate gets the plan correction: the section's
+    ``observer_plan_correction`` where given, else on a tool path only (whose feed plan has jerk phases:
+    paper 000's own experiments keep the paper's eq. 25)."""
+    given = section["observer_plan_correction"]
+    if given is not None:
+        return bool(given)
+    return experiment is not None and experiment.curve["type"] in TOOL_PATH_TYPES
+
+
 def _ismc(s, c):
     ts = c.sample_time
     observer = servo.DisturbanceObserver(s["c"], s["d"], s["gain"], s["time_constant"], ts, c.velocity,
-                                         c.acceleration, s["observer_plan_correction"]) if s["observer"] else None
+                                         c.acceleration, plan_correction(s, c.experiment)) if s["observer"] else None
     return servo.IntegralSlidingModeServo(s["a"], s["b"], s["mu"], s["kappa"], s["gain"], s["time_constant"],
                                           ts, observer, s["output_limit"])
 
@@ -424,7 +438,7 @@ _SERVO_SPECS = {
              "mu": Param("float", check="positive"), "kappa": Param("float", check="positive"),
              "gain": Param("float", check="positive"), "time_constant": Param("float", check="positive"),
              "observer": Param("bool", False), "c": Param("float", 1.0, "positive"),
-             "observer_plan_correction": Param("bool", False),
+             "observer_plan_correction": Param("bool", None),      # None: true on a tool path, else false
              "d": Param("float", 1.0, "positive"), "output_limit": LIMIT},
     "direct": {"output_limit": LIMIT},
     "pid": _gains(ki=0.0, kd=0.0),
@@ -1192,7 +1206,7 @@ def _validate_globals(where, given: dict) -> dict:
             _fail(where, "schedule", f"cannot build the schedule ({type(error).__name__}: {error})")
         if not out["duration"] <= MAX_DURATION:
             hint = "; check the part program's units (G20 inch, G21 mm) and feeds (F is per minute)" \
-                if out["curve"]["type"] in ("gcode", "toolpath") else ""
+                if out["curve"]["type"] in TOOL_PATH_TYPES else ""
             _fail(where, "schedule", f"the schedule and settle_time take {_show(out['duration'])} s; at most "
                                      f"{MAX_DURATION:g} s of simulated time{hint}")
     if out["sample_time"] > out["duration"]:

@@ -139,7 +139,8 @@ def test_batch_of_in_position_waits_equals_each_run_alone(tmp_path):
     # members of other gains wait other numbers of steps at each corner, and each equals its run alone to 1e-12,
     # its clock's waits included
     from test_in_position import square_experiment
-    path = square_experiment(tmp_path, "paper000_b_ismc_h50_newton", 1e-5, side_mm=2, feed=600, duration=1.2)
+    path = square_experiment(tmp_path, "paper000_b_ismc_h50_newton", 1e-5, side_mm=2, feed=600, duration=1.2,
+                             observer="paper")
     grid = {"x/servo.a": [8.0, 12.5, 20.0], "y/servo.a": [11.1, 20.0]}
     text = path.read_text().replace("file: square.ngc", f"file: {tmp_path / 'square.ngc'}")
 

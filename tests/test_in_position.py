@@ -51,15 +51,16 @@ def test_the_plan_lists_its_exact_stops_with_their_corners():
 def square_experiment(tmp_path, base, window, side_mm=50, feed=3000, duration=None, observer=True):
     """A square of side ``side_mm`` at F``feed`` (mm/min) then an arc, on the axes of scenario ``base``, with
     the in-position window ``window`` [m]; ``observer`` False: its ISMC servos without the disturbance
-    estimate of paper 000 eq. 24-26; "corrected": with the estimate's plan correction (observer_plan_correction)."""
+    estimate of paper 000 eq. 24-26; "paper": with the estimate as the paper gives it (eq. 25 without the plan
+    correction a tool path gets by default, observer_plan_correction)."""
     (tmp_path / "square.ngc").write_text(f"G21 G90 G17\nG1 X{side_mm} Y0 F{feed}\nY{side_mm}\nX0\nY0\n"
                                          f"G2 X{side_mm / 2.5} Y0 R{side_mm / 5}\nM30\n")
     text = (CONFIG / f"{base}.yaml").read_text()
     text = re.sub(r"curve: \{[^}]*\}", "curve: {type: gcode, file: square.ngc}", text)
     text = re.sub(r"schedule: \{[^}]*\}", "schedule: {type: feedrate, acceleration: 1.0, jerk: 10.0}", text)
     text = re.sub(r"    duration: [0-9.]+\n", "", text)
-    if observer == "corrected":
-        text = text.replace("observer: true", "observer: true\n    observer_plan_correction: true")
+    if observer == "paper":
+        text = text.replace("observer: true", "observer: true\n    observer_plan_correction: false")
     elif not observer:
         text = text.replace("observer: true", "observer: false")
     given = f"    duration: {duration}\n" if duration else ""
@@ -70,11 +71,13 @@ def square_experiment(tmp_path, base, window, side_mm=50, feed=3000, duration=No
 
 
 def test_waiting_in_position_lowers_the_contour_error_round_the_corners(tmp_path):
-    """On the ISMC axes of paper 000 (b) the axes lag 0.2 mm as the reference stops at a corner; moving on
-    at once cuts the corner, waiting until they are in position does not."""
+    """On the ISMC axes of paper 000 (b) with the paper's disturbance estimate the axes lag 0.2 mm as the
+    reference stops at a corner; moving on at once cuts the corner, waiting until they are in position does
+    not."""
     runs = {}
     for window in (0.0, 1e-5):
-        loop = build_loop(load_experiment(square_experiment(tmp_path, "paper000_b_ismc_h50_newton", window)))
+        loop = build_loop(load_experiment(square_experiment(tmp_path, "paper000_b_ismc_h50_newton", window,
+                                                            observer="paper")))
         result = simulate(loop)
         runs[window] = loop, result, score_run(loop.curve, result)
     (plain_loop, plain, plain_scores), (loop, waited, scores) = runs[0.0], runs[1e-5]
@@ -148,19 +151,19 @@ def test_exact_stop_corners_on_the_ismc_axes_come_from_the_disturbance_estimate(
     check: with the paper's disturbance estimate the axes overshoot each corner by over 40 um while the
     reference rests there and wait about 200 steps; the same ISMC (eq. 22) without the estimate keeps every
     corner within 5 um and is in position within 2 steps. The overshoot is the estimate's, not the
-    integral sliding surface's or the clock's. With observer_plan_correction the estimate stays and the
-    corners are as without it."""
+    integral sliding surface's or the clock's. With the plan correction (a tool path's default) the estimate
+    stays and the corners are as without it."""
     from contouring_ros.blocks import block_results
     corners = {}
-    for observer in (True, False, "corrected"):
+    for observer in ("paper", False, True):
         loop = build_loop(load_experiment(square_experiment(tmp_path, "paper000_b_ismc_h50_newton", 1e-5,
                                                             observer=observer)))
         rows = block_results(loop.curve, simulate(loop), loop.schedule)
         corners[observer] = [row.max_contour_error for row in rows[1:4]], [steps for _, steps in loop.clock.waits]
-    (paper, paper_waits), (plain, plain_waits) = corners[True], corners[False]
+    (paper, paper_waits), (plain, plain_waits) = corners["paper"], corners[False]
     assert min(paper) > 40e-6 and min(paper_waits) > 150, corners
     assert max(plain) < 5e-6 and max(plain_waits) <= 2, corners
-    corrected, corrected_waits = corners["corrected"]        # the estimate kept, the plan's jerk not read as load
+    corrected, corrected_waits = corners[True]        # the estimate kept, the plan's jerk not read as load
     assert max(corrected) < 5e-6 and max(corrected_waits) <= 2, corners
 
 
@@ -172,7 +175,8 @@ def test_the_graph_waits_as_the_simulation_does(tmp_path):
     from test_graph import _assert_identical
 
     from contouring_ros.runner import run_graph
-    path = square_experiment(tmp_path, "paper000_b_ismc_h50_newton", 1e-5, side_mm=2, feed=600, duration=1.2)
+    path = square_experiment(tmp_path, "paper000_b_ismc_h50_newton", 1e-5, side_mm=2, feed=600, duration=1.2,
+                             observer="paper")
     loop = build_loop(load_experiment(path))
     simulate(loop)
     assert len(loop.clock.waits) >= 2 and all(steps > 5 for _, steps in loop.clock.waits)
