@@ -155,6 +155,21 @@ def test_batch_of_in_position_waits_equals_each_run_alone(tmp_path):
     assert [loop.clock.waits for loop in batch] == [[]] * len(batch)         # the batch ran on copies
 
 
+def test_batch_of_ismc_servos_with_the_plan_correction_equals_each_run_alone(tmp_path):
+    # a tool path's ISMC estimate carries the reference's filter state (observer_plan_correction, the default
+    # there): stacked across members of other gains it gives each member's run alone to 1e-12
+    from test_in_position import square_experiment
+    path = square_experiment(tmp_path, "paper000_b_ismc_h50_newton", 1e-5, side_mm=2, feed=600, duration=1.2)
+    text = path.read_text().replace("file: square.ngc", f"file: {tmp_path / 'square.ngc'}")
+    grid = {"x/servo.a": [8.0, 12.5], "y/servo.c": [20.0, 25.0]}
+
+    def loops():
+        return [build_loop(experiment) for _, experiment in combinations(text, grid)]
+    batch, alone = loops(), loops()
+    assert all(servo.observer.plan_correction for loop in batch for servo in loop.servos)
+    _assert_equal_runs(simulate_batch(batch), [simulate(loop) for loop in alone], tolerance=1e-12)
+
+
 def test_a_feed_plan_in_a_batch_gives_each_members_times_as_alone():
     # the plan shared across a batch: a batch of times (members at different spans, as after waits of their
     # own) gives each time's theta, feed and acceleration as the plan alone, bit for bit
