@@ -773,6 +773,16 @@ def _on_grid(path, stamps: np.ndarray, sample_time: float, n_steps: int | None, 
     return stamps[good]
 
 
+def _graph_named(topic: str) -> bool:
+    """Whether ``topic`` ends as one of the graph's recorded JointState / JointTrajectory topics does
+    (/reference, /contour_error, /ccc/correction, /<axis>/state, /<axis>/command), under any namespace."""
+    return topic.rsplit("/", 1)[-1] in _GRAPH_TOPIC_NAMES
+
+
+_GRAPH_TOPIC_NAMES = {topic.name.rsplit("/", 1)[-1] for topic in graph.recorded_topics(["axis"], True, True)
+                      if topic.type in _KEPT_TYPES}
+
+
 def _read_run(path: Path, keep_payloads: bool, experiment_text: str | None, progress: bool) -> RecordedRun:
     from mcap.records import Channel, Metadata, Schema
     if not path.is_file():
@@ -784,18 +794,24 @@ def _read_run(path: Path, keep_payloads: bool, experiment_text: str | None, prog
     damaged: list = []            # Damage of each part of the file that could not be read
     schemas, keepers = {}, {}     # channel id -> _TopicColumns of the topics scoring needs
     stored_sample_time = None
+    counts, full = {False: 0, True: 0}, {False: False, True: False}   # topics kept, by _graph_named
     for record in _iter_records(path, warnings, progress, damaged):
         if isinstance(record, Schema):
             schemas[record.id] = record
         elif isinstance(record, Channel):
             type_name = schemas[record.schema_id].name if record.schema_id in schemas else None
             if type_name in _KEPT_TYPES and not record.topic.endswith(graph.DIAGNOSTICS):
-                if record.topic not in kept and len(kept) >= _MAX_TOPICS:
-                    if len(kept) == _MAX_TOPICS:
-                        warnings.append(f"{path}: more than {_MAX_TOPICS} JointState and JointTrajectory topics; "
-                                        f"from {record.topic} on, the others are left out")
-                        kept[None] = None
+                # graph-named topics and the others are counted apart: strays listed first cannot crowd out
+                # the run's own topics
+                group = _graph_named(record.topic)
+                if record.topic not in kept and counts[group] >= _MAX_TOPICS:
+                    if not full[group]:
+                        warnings.append(f"{path}: more than {_MAX_TOPICS} JointState and JointTrajectory topics"
+                                        f"{' named as the graph names its own' if group else ''}; from "
+                                        f"{record.topic} on, the others are left out")
+                        full[group] = True
                     continue
+                counts[group] += record.topic not in kept
                 columns = kept.setdefault(record.topic, _TopicColumns(record.topic, type_name))
                 if columns.type_name == type_name:    # a second channel of the topic with another type: not read
                     keepers[record.id] = columns
@@ -816,7 +832,6 @@ def _read_run(path: Path, keep_payloads: bool, experiment_text: str | None, prog
     if not experiment_text:
         raise BagError(f"{path}: the bag holds no experiment ('{EXPERIMENT_METADATA}' metadata); give the "
                        "experiment file that produced it")
-    kept.pop(None, None)
     from .config import MAX_FILE_BYTES
     if len(experiment_text) > MAX_FILE_BYTES:
         raise BagError(f"{path}: its experiment ('{EXPERIMENT_METADATA}' metadata) is {len(experiment_text)} "

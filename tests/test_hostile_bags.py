@@ -155,15 +155,19 @@ def _messages(path):
             yield channel.topic, schema.name, message.log_time, message.data
 
 
-def _rewrite(base, tmp_path, change=None, metadata=None, extra=()):
+def _rewrite(base, tmp_path, change=None, metadata=None, extra=(), first=()):
     """The base bag written again: ``change(topic, log_time, data)`` gives the messages to write instead of
-    each one; ``metadata`` updates the experiment's record; ``extra``: (topic, type, log_time, data) added."""
+    each one; ``metadata`` updates the experiment's record; ``extra``: (topic, type, log_time, data) added;
+    ``first``: the same, with their channels listed before the base bag's."""
     source = base[0]
     records = read_metadata(source)
     experiment = dict(records[bagmod.EXPERIMENT_METADATA])
     experiment.update(metadata or {})
     records[bagmod.EXPERIMENT_METADATA] = experiment
     messages, types = [], {}
+    for topic, type_name, log_time, data in first:
+        types[topic] = type_name
+        messages.append((topic, log_time, data))
     for topic, type_name, log_time, data in _messages(source):
         types[topic] = type_name
         messages += change(topic, log_time, data) if change else [(topic, log_time, data)]
@@ -272,6 +276,10 @@ def test_thousands_of_stray_topics_and_a_huge_stored_experiment_are_bounded(base
     run = read_run(_rewrite(base, tmp_path, extra=stray))
     assert run.complete_steps == base[4]
     assert any("more than 4096 JointState and JointTrajectory topics" in w for w in run.warnings)
+    crowd = [(f"/stray/t{i}", "sensor_msgs/msg/JointState", 0, state) for i in range(4100)]
+    run = read_run(_rewrite(base, tmp_path, first=crowd))     # listed before the run's own: not crowding them out
+    assert run.complete_steps == base[4]
+    assert any("more than 4096 JointState and JointTrajectory topics; from /stray/t4096 on" in w for w in run.warnings)
     text = read_metadata(base[0])[bagmod.EXPERIMENT_METADATA]["yaml"]
     with pytest.raises(BagError, match="an experiment file has at most 1048576"):
         read_run(_rewrite(base, tmp_path, metadata={"yaml": text + "#" * (2 << 20)}))
