@@ -25,11 +25,14 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from . import graph
 from .core import contouring, curves, disturbances, estimators, gcode, plants, servo
 from .core.feed_planning import FeedPlan
 from .core.interpolation import FeedrateSchedule, InPositionClock, UniformSchedule, reference
 from .core.simulation import ControlLoop
 from .errors import ConfigError
+from .experiment.scenarios import resolve_part_program
+from .graph import LOOKAHEAD, graph_namespace
 from .registry import BuildContext, Role
 
 __all__ = ["Experiment", "load_experiment", "parse_experiment", "read_yaml", "experiment_from_data", "build_loop",
@@ -220,20 +223,6 @@ def program_warnings(curve) -> list:
     if program is None:
         return []
     return [f"{Path(curve.source).name}: {warning}" for warning in program.warnings]
-
-
-def resolve_part_program(name: str, where: str):
-    """The part program file ``name``: as given when absolute, else relative to the experiment file
-    ``where``, the scenario directory (config/) or the working directory, the first that exists."""
-    path = Path(name)
-    if path.is_absolute():
-        return path if path.exists() else None
-    from .paper import CONFIG_DIR
-    bases = [Path(where).parent] if where and Path(where).is_file() else []
-    for base in bases + [CONFIG_DIR, Path.cwd()]:
-        if (base / path).exists():
-            return base / path
-    return None
 
 
 def _ismc(s, c):
@@ -1117,7 +1106,6 @@ def split_groups(text: str) -> list:
 
 def _validate_layout(where, out: dict):
     """``layout`` and ``groups`` agree, and every group names nodes of the graph, each once."""
-    from . import graph
     if out["layout"] == "grouped":
         if not split_groups(out["groups"]):
             _fail(where, "groups", "layout grouped needs its groups, e.g. 'x/plant,x/servo; y/plant,y/servo'")
@@ -1361,7 +1349,6 @@ def experiment_for_node(parameters: dict, node: str, role: str, where: str | Non
     try:
         section = _validate_role(where, node, role, own, globals_)
     except ConfigError as error:
-        from .graph import graph_namespace
         namespace = graph_namespace(node, role in ("plant", "servo"))
         if namespace == "/" or "missing required key" not in str(error):
             raise
@@ -1399,7 +1386,6 @@ def namespaced_parameter_file(text: str, namespace: str) -> str:
     key gets the namespace in front (/x/plant: becomes "/m1/x/plant":, which the ROS parameter parser
     matches with the node's fully qualified name); the shared section /** and every value stay as
     written, byte for byte (only the keys' text is replaced, at the positions the YAML parser gives)."""
-    from . import graph
     if namespace in ("", "/"):
         return text
     root = yaml.compose(text, Loader=yaml.SafeLoader)
@@ -1533,6 +1519,9 @@ def build_schedule(experiment: Experiment, curve=None):
     return build_schedule_from(experiment.schedule, curve or build_curve(experiment), experiment.path)
 
 
+BuildContext.schedule_builder = build_schedule
+
+
 def build_disturbance(section: dict):
     return DISTURBANCES.build(section, BuildContext())
 
@@ -1574,7 +1563,6 @@ def build_clock(experiment: Experiment, curve, schedule):
     windows = in_position_windows(experiment)
     if windows is None or not hasattr(schedule, "stops"):
         return None
-    from .graph import LOOKAHEAD
     return InPositionClock(schedule, curve, windows, experiment.sample_time,
                            experiment.schedule["in_position_timeout"], LOOKAHEAD)
 

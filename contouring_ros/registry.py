@@ -29,7 +29,7 @@ from dataclasses import dataclass
 from importlib import metadata
 from typing import Callable
 
-from .errors import ConfigError, ContouringError
+from .errors import ConfigError, ContouringError, RunError
 
 __all__ = ["Entry", "Role", "BuildContext", "ROLES", "entry_from_class"]
 
@@ -54,6 +54,10 @@ class BuildContext:
     """What a factory may need besides its section: the experiment, the curve, the schedule (built when
     first asked for), one axis' name and initial state."""
 
+    #: build_schedule(experiment, curve) -> the schedule, for :attr:`schedule`: set where the schedule
+    #: factories are (:mod:`contouring_ros.config`), which this module does not import
+    schedule_builder: Callable | None = None
+
     def __init__(self, experiment=None, curve=None, axis=None, position=None, velocity=None, acceleration=None,
                  where: str = "", schedule=None):
         self.experiment, self.curve, self.axis, self.where = experiment, curve, axis, where
@@ -63,8 +67,7 @@ class BuildContext:
     @property
     def schedule(self):
         if self._schedule is None:
-            from .config import build_schedule
-            self._schedule = build_schedule(self.experiment, self.curve)
+            self._schedule = BuildContext.schedule_builder(self.experiment, self.curve)
         return self._schedule
 
     @property
@@ -256,7 +259,6 @@ def _guarded(built, where: str) -> None:
 def _checked_step(cls, where: str):
     import numpy as np
 
-    from .errors import RunError
     step = cls.step
 
     def checked(self, *args, **kwargs):
