@@ -16,6 +16,7 @@ import numpy as np
 from tqdm import tqdm
 
 from .bag import RecordedRun
+from .blocks import block_cells, block_headings, block_results, cutting_scores
 from .config import ESTIMATORS, _check_entry, _typed, build_curve, build_estimator, build_schedule, parse_experiment
 from .core.curves import ToolPath
 from .core.geometry import ExactContourError
@@ -832,7 +833,6 @@ def _html_experiments(traces) -> str:
 def _html_blocks(traces) -> str:
     """For tool path runs: the scores of the cutting moves alone and the results per block
     (:mod:`contouring_ros.blocks`)."""
-    from .blocks import block_cells, block_headings, block_results, cutting_scores
     parts = []
     for t in traces:
         if t.curve is None or not hasattr(t.curve, "blocks") or t.experiment is None or t.diverged:

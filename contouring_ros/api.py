@@ -20,6 +20,17 @@ from pathlib import Path
 
 import numpy as np
 
+from .bag import read_run
+from .config import Experiment, build_loop, experiment_from_data, parse_experiment, program_warnings, read_yaml
+from .config import load_experiment as _load_experiment
+from .core.geometry import ExactContourError
+from .core.simulation import simulate as _simulate_loop
+from .errors import ConfigError
+from .experiment.scenarios import experiment_path
+from .export import run_table
+from .scoring import check_experiment_matches, curve_of, score_run
+from .sweep import apply_settings, run_sweep
+
 __all__ = ["Run", "load_experiment", "simulate", "read_bag", "sweep_grid"]
 
 
@@ -52,27 +63,22 @@ class Run:
     def scores(self, from_time: float = 0.0):
         """The run's :class:`~contouring_ros.core.metrics.Scores` (lengths in metres), of the samples at
         t >= ``from_time`` when given."""
-        from .scoring import score_run
         return score_run(self.curve, self.result, from_time)
 
     def exact_contour_error(self) -> np.ndarray:
         """Distance [m] from each step's position to the whole reference curve."""
-        from .core.geometry import ExactContourError
         return ExactContourError(self.curve)(self.result.position, near=self.result.theta).distance
 
     def table(self) -> dict:
         """Column name (with unit and axis) -> per-step array, the columns of ``contouring-ros export``."""
-        from .export import run_table
         return run_table(self.result, self.axes, self.curve)
 
 
 def load_experiment(experiment):
     """A validated Experiment from a path or a scenario name of config/ (an Experiment is returned as is)."""
-    from .config import Experiment, load_experiment as load
     if isinstance(experiment, Experiment):
         return experiment
-    from .cli import _experiment_path
-    return load(_experiment_path(str(experiment)))
+    return _load_experiment(experiment_path(str(experiment)))
 
 
 def _with_settings(experiment, settings: dict | None):
@@ -82,10 +88,6 @@ def _with_settings(experiment, settings: dict | None):
     import copy
 
     import yaml
-
-    from .config import experiment_from_data, read_yaml
-    from .errors import ConfigError
-    from .sweep import apply_settings
     data = apply_settings(copy.deepcopy(read_yaml(experiment.text, experiment.name)), settings)
     try:
         return experiment_from_data(data, f"{experiment.name} with {settings}",
@@ -97,18 +99,13 @@ def _with_settings(experiment, settings: dict | None):
 def simulate(experiment, settings: dict | None = None) -> Run:
     """Simulate an experiment in-process (the node graph gives the same numbers), with ``settings`` applied
     first (grid keys as in sweeps, e.g. {"ccc.kp": 2.0, "x/servo.a": 10}, or {"/ccc": {"type": "none"}})."""
-    from .config import build_loop, program_warnings
-    from .core.simulation import simulate as run
     experiment = _with_settings(load_experiment(experiment), settings)
     loop = build_loop(experiment)
-    return Run(experiment, run(loop), loop.curve, program_warnings(loop.curve))
+    return Run(experiment, _simulate_loop(loop), loop.curve, program_warnings(loop.curve))
 
 
 def read_bag(path, experiment=None) -> Run:
     """A recorded run from its bag (the experiment stored in it, or ``experiment`` for a bag without one)."""
-    from .bag import read_run
-    from .config import parse_experiment
-    from .scoring import check_experiment_matches, curve_of
     text = load_experiment(experiment).text if experiment is not None else None
     recorded = read_run(Path(path), experiment_text=text)
     curve = curve_of(recorded)
@@ -120,5 +117,4 @@ def read_bag(path, experiment=None) -> Run:
 def sweep_grid(experiment, grid: dict, from_time: float = 0.0, workers: int | None = None) -> list:
     """Every combination of ``grid`` (grid key -> values), ranked by MCE then TACE; each row has
     ``settings``, ``scores`` (None for a diverged run) and ``failure``."""
-    from .sweep import run_sweep
     return run_sweep(load_experiment(experiment).text, grid, workers, from_time=from_time)

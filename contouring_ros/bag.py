@@ -22,8 +22,9 @@ from array import array
 import numpy as np
 
 from . import cdr, graph
-from .core.simulation import SimulationResult, first_divergence, step_time
-from .errors import BagError, ContouringError
+from .config import BOUNDS, MAX_FILE_BYTES, RESERVED_AXIS_NAMES, _AXIS_NAME, build_curve, build_schedule, parse_experiment
+from .core.simulation import SimulationResult, first_divergence, path_bound, step_time
+from .errors import BagError, ConfigError, ContouringError
 
 __all__ = ["message_definition", "BagWriter", "RecordedRun", "read_run", "read_metadata", "node_reports", "write_simulation",
            "EXPERIMENT_METADATA", "RUN_METADATA"]
@@ -676,8 +677,6 @@ def read_run(path, keep_payloads: bool = False, experiment_text: str | None = No
 def _bag_experiment(path, experiment_text: str, warnings: list):
     """The parsed experiment of a bag (None, with a warning, when it does not validate here: e.g. a part
     program it names is not on this machine)."""
-    from .config import parse_experiment
-    from .errors import ConfigError
     try:
         return parse_experiment(experiment_text, "the bag's experiment")
     except (ConfigError, ValueError, OSError) as error:
@@ -688,7 +687,6 @@ def _bag_experiment(path, experiment_text: str, warnings: list):
 def _checked_sample_time(path, stored, experiment, warnings: list) -> float:
     """The sample time of a bag: the experiment's, and the metadata's (``stored``, a string or None) only as
     long as it is a sample time the validator would take and agrees with the experiment's."""
-    from .config import BOUNDS
     low, high = BOUNDS["GLOBALS"]["sample_time"]
     value = None
     if stored is not None:
@@ -735,7 +733,6 @@ def _graph_namespace(path, kept: dict, warnings: list) -> str:
 def _check_joint_names(path, joint_names, experiment, given: bool = False) -> list:
     """The axes a bag's /reference names (its joint names but the last, which must be theta): refused in one
     line when they are none, repeat one, are not axis names, or are not the experiment's axes."""
-    from .config import RESERVED_AXIS_NAMES, _AXIS_NAME
     names = list(joint_names)
     axes = names[:-1]
     shown = ", ".join(repr(name) for name in names[:10]) + (", ..." if len(names) > 10 else "")
@@ -832,7 +829,6 @@ def _read_run(path: Path, keep_payloads: bool, experiment_text: str | None, prog
     if not experiment_text:
         raise BagError(f"{path}: the bag holds no experiment ('{EXPERIMENT_METADATA}' metadata); give the "
                        "experiment file that produced it")
-    from .config import MAX_FILE_BYTES
     if len(experiment_text) > MAX_FILE_BYTES:
         raise BagError(f"{path}: its experiment ('{EXPERIMENT_METADATA}' metadata) is {len(experiment_text)} "
                        f"characters; an experiment file has at most {MAX_FILE_BYTES}")
@@ -932,9 +928,6 @@ def _lost_steps(damage: Damage, complete_ns: np.ndarray, sample_time: float, las
 def _divergence_bound(experiment_text: str) -> float | None:
     """The bound of the experiment's whole path (as the simulation checks it); None (the recorded
     reference's own size) when the experiment cannot be built."""
-    from .config import build_curve, build_schedule, parse_experiment
-    from .core.simulation import path_bound
-    from .errors import ContouringError
     try:
         experiment = parse_experiment(experiment_text, "the bag's experiment")
         curve = build_curve(experiment)
@@ -948,8 +941,6 @@ def write_simulation(path, experiment, result) -> Path:
 
     Used to record long runs without the node graph (benchmarks, sweeps) and as a second writer in tests.
     """
-    from .config import build_schedule
-    from .core.simulation import step_time
     axes = list(experiment.axes)
     ts_ns = int(round(experiment.sample_time * 1e9))
     names = axes + [graph.THETA_NAME]

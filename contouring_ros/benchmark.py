@@ -37,9 +37,16 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from .errors import write_atomically
+from .claims import claim_files, load_claims
+from .config import CONTROLLERS, ESTIMATORS, REQUIRED, SERVOS, build_loop, read_yaml
+from .core.simulation import simulate
+from .errors import ConfigError, Diverged, write_atomically
 from .executors import pool as executor
-from .tuning import Protocol, experiment_for, gain_keys, interval, machine_settings, pareto_front, run_outcomes, tune, worst_case
+from .experiment.scenarios import CONFIG_DIR
+from .tuning import (
+    Protocol, REALISTIC, SATURATION_MARGIN, experiment_for, gain_keys, interval, machine_settings,
+    pareto_front, run_outcomes, tune, worst_case
+)
 
 __all__ = ["GOAL", "Family", "Combination", "Excluded", "Row", "Reference",
            "scenario_families", "select_families", "plan", "run_benchmark", "write_csv", "draw_heatmap",
@@ -66,7 +73,6 @@ class Family:
 
 
 def _read(path) -> dict:
-    from .config import read_yaml
     return read_yaml(Path(path).read_text(), str(path))
 
 
@@ -90,8 +96,6 @@ def _name(files: list, taken: set) -> str:
 
 def scenario_families(config_dir=None, claims_dir=None) -> list:
     """Every scenario of the paper files in ``config_dir``, in paper and file order."""
-    from .claims import claim_files, load_claims
-    from .paper import CONFIG_DIR
     config_dir = Path(config_dir or CONFIG_DIR)
     paths = sorted(config_dir.glob("paper???_*.yaml"))
     data = {p.stem: _read(p) for p in paths}
@@ -126,7 +130,6 @@ def select_families(families: list, patterns: list | None) -> list:
     patterns: the papers' own experiments (not the claims' mechanism scenarios)."""
     if not patterns:
         return [f for f in families if MECHANISM not in f.name]
-    from .errors import ConfigError
     chosen = [f for f in families if any(fnmatch.fnmatch(n, p) for p in patterns for n in [f.name, *f.files])]
     if not chosen:
         raise ConfigError(f"--scenarios {' '.join(patterns)}: no scenario matches (scenarios: "
@@ -192,7 +195,6 @@ def _controller_seed(family: Family, controller: str):
     """(the sections the controller's gains may be scaled from, the proposed file's first; None) or (None, why
     there are none). Each combination takes the first of them that it validates with (e.g. a task-frame
     controller's approximation must match the estimator)."""
-    from .config import CONTROLLERS, REQUIRED
     params = CONTROLLERS.entry(controller).params
     sections = [_params(family.data[f], "/ccc") for f in family.files]
     own = []
@@ -234,9 +236,6 @@ def _experiment(family: Family, sections: dict, where: str, settings: dict | Non
 
 def _probe(family: Family, sections: dict) -> str:
     """'' when the combination runs its first steps, else why not (an error other than divergence)."""
-    from .config import build_loop
-    from .core.simulation import simulate
-    from .errors import ConfigError, Diverged
     base = family.data[family.proposed]["/**"]["ros__parameters"]
     try:
         experiment = _experiment(family, sections, family.name, {"duration": 5 * float(base["sample_time"])})
@@ -256,7 +255,6 @@ def plan(family: Family, catalogue: dict | None = None) -> tuple:
     """(combinations, excluded) of a scenario: every estimator x controller x servo set (see the module
     docstring), the ones that cannot be paired with the reason. ``catalogue``: estimator type -> the section
     an estimator the scenario does not use starts from (default: the first of each type in config/)."""
-    from .config import CONTROLLERS, ESTIMATORS, SERVOS
     catalogue = catalogue if catalogue is not None else _catalogue_estimators(scenario_families())
     servo_sets = _servo_sets(family)
     direct = {label: all(SERVOS.entry(s["law"]).direct for s in servos.values())
@@ -500,7 +498,6 @@ def _column(combination: Combination) -> tuple:
 
 
 def _column_order(rows: list) -> list:
-    from .config import CONTROLLERS, ESTIMATORS
     controllers, estimators = CONTROLLERS.names(), ESTIMATORS.names()
     pairs = {_column(r.combination) for r in rows if r.combination}
     return sorted(pairs, key=lambda p: (controllers.index(p[0]) if p[0] in controllers else 99,
@@ -750,7 +747,6 @@ def benchmark_report(rows: list, families: list, protocol: Protocol, seconds: fl
                      pareto: dict | None = None) -> str:
     """reports/benchmark.md: header, the protocol, per paper the best combination against the proposed
     method with intervals and the findings, per scenario every combination, the pairs that cannot be made."""
-    from .tuning import REALISTIC, SATURATION_MARGIN
     notes, pareto = notes or {}, pareto or {}
     compatible = [r for r in rows if r.combination]
     runs = sum(len(r.tuned.evaluations) + r.tuned.robustness_runs + len(r.tuned.draws) + 1
@@ -831,7 +827,6 @@ def main_benchmark(patterns=None, protocol: Protocol | None = None, out="reports
                    say=None, command: str = "contouring-ros benchmark", scheduler: str | None = None) -> tuple:
     """Run the benchmark and write benchmark.md, benchmark.csv, benchmark_heatmap.png and one
     benchmark_pareto_paper<N>.png per paper into ``out``."""
-    from .paper import CONFIG_DIR
     import resource
     protocol = protocol or Protocol()
     start = time.perf_counter()

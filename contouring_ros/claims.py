@@ -60,8 +60,12 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from .config import load_experiment, read_yaml
 from .errors import ConfigError, write_atomically
-from .paper import CONFIG_DIR
+from .executors import pool as executor
+from .experiment.scenarios import CONFIG_DIR
+from .sweep import experiments_for, grid_key_location, score_experiments
+from .tuning import draw_settings, interval, machine_settings, run_outcomes
 
 __all__ = ["VERDICTS", "METRICS", "DRAWS", "MISMATCH", "SCALES", "verdict", "interval_verdict", "robustness",
            "Decisive", "Plan", "plan_pair", "Measured", "peak_commands", "Pair", "MapAxis", "RegimeMap", "Claim", "CCCHelps", "PaperClaims",
@@ -330,8 +334,6 @@ def load_claims(path) -> PaperClaims:
 
 
 def _experiment(name: str, settings: dict | None = None):
-    from .config import load_experiment
-    from .sweep import experiments_for
     experiment = load_experiment(CONFIG_DIR / f"{name}.yaml")
     if not settings:
         return experiment
@@ -352,7 +354,6 @@ class ScenarioScores:
 
     def need(self, requests: list) -> None:
         """Simulate every (scenario, settings, from_time) not yet scored, on the process pool."""
-        from .sweep import score_experiments
         missing = {}
         for name, settings, from_time in requests:
             key = self._key(name, settings, from_time)
@@ -375,20 +376,17 @@ class ScenarioScores:
 
 
 def _scenario_data(name: str) -> dict:
-    from .config import read_yaml
     return read_yaml((CONFIG_DIR / f"{name}.yaml").read_text(), name)
 
 
 def _peak_command(name: str, from_time: float) -> tuple:
     """The largest |command| per axis of the scenario's ideal run (() where it diverged)."""
-    from .tuning import run_outcomes
     outcome = run_outcomes(_scenario_data(name), {}, [{}], from_time, name)[0]
     return outcome.peak_command if outcome.ok else ()
 
 
 def peak_commands(names: list, from_time: dict, workers: int | None = None, scheduler: str | None = None) -> dict:
     """name -> its ideal run's peak command per axis, on a process pool (or the Dask cluster at ``scheduler``)."""
-    from .executors import pool as executor
     names = list(dict.fromkeys(names))
     if not names:
         return {}
@@ -419,7 +417,6 @@ class Plan:
 
 def plan_pair(claim: "Claim", pair: Pair, peak: tuple, draws: int = DRAWS, machine: str = "realistic",
               sensitivity: bool = True) -> Plan:
-    from .tuning import draw_settings, machine_settings
     data = (_scenario_data(pair.proposed), _scenario_data(pair.baseline))
     made = machine_settings(data[0], machine, peak)
     if machine == "ideal":
@@ -479,7 +476,6 @@ class ClaimResult:
 
     def value(self, reading: str, side: int, metric: str | None = None):
         """The median of the side's metric over the draws (realistic machine)."""
-        from .tuning import interval
         m = self.measured.get(reading)
         if m is None:
             return None
@@ -495,7 +491,6 @@ class ClaimResult:
 
     def interval(self, reading: str, metric: str | None = None) -> tuple:
         """(median, 2.5%, 97.5%) of the per-draw ratios (None each where no draw has one)."""
-        from .tuning import interval
         ratios = [r for r in self.draw_ratios(reading, metric) if r is not None]
         if not ratios:
             return None, None, None
@@ -611,7 +606,6 @@ def map_ratios(claim: Claim, spec: RegimeMap, workers: int | None = None, progre
                scheduler: str | None = None) -> dict:
     """Proposed / baseline MCE and TACE (and the claim's metric) over the map's grid: metric -> (ny, nx) array
     (NaN where a run diverged), plus 'failures' (ny, nx) of reasons."""
-    from .sweep import experiments_for, score_experiments
     pair = claim.pair(spec.pair)
     if pair is None:
         raise ConfigError(f"claims {claim.paper}/{claim.id}: its map sweeps the {spec.pair} pair, which it lacks")
@@ -633,8 +627,6 @@ def map_ratios(claim: Claim, spec: RegimeMap, workers: int | None = None, progre
 
 def _base_value(name: str, key: str):
     """The value a grid key has in a scenario file (None where the file leaves it to a default)."""
-    from .config import read_yaml
-    from .sweep import grid_key_location
     target, path = grid_key_location(read_yaml((CONFIG_DIR / f"{name}.yaml").read_text(), name), key)
     for part in path:
         if not isinstance(target, dict) or part not in target:

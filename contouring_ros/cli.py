@@ -8,26 +8,11 @@ import argparse
 import json
 import os
 import sys
+import tempfile
 from pathlib import Path
 
-from .errors import ConfigError, ContouringError
-
-DEFAULT_EXPERIMENT = "config/paper000_b_ismc_h50_newton.yaml"
-
-
-def _experiment_path(name: str) -> Path:
-    """An experiment file as given, else the packaged scenario of that name (config/<name>[.yaml])."""
-    path = Path(name)
-    if path.exists():
-        return path
-    from .paper import CONFIG_DIR
-    for candidate in (CONFIG_DIR / path.name, CONFIG_DIR / f"{path.name}.yaml"):
-        if candidate.exists():
-            return candidate
-    if not path.suffix and len(path.parts) == 1:      # meant as a scenario name
-        raise ConfigError(f"{name}: no such file, nor a scenario of that name in {CONFIG_DIR} (names like "
-                          f"{Path(DEFAULT_EXPERIMENT).stem}; the file names there without .yaml)")
-    return path
+from .errors import BagError, ConfigError, ContouringError, Diverged, Interrupted, RunError
+from .experiment.scenarios import DEFAULT_EXPERIMENT, experiment_path as _experiment_path
 
 
 def _seconds(text: str) -> float:
@@ -77,8 +62,6 @@ def _with_settings(config: Path, specs, directory) -> Path:
 
 
 def _run(args):
-    import tempfile
-    from .errors import BagError, Interrupted, RunError
     from .runner import run_graph
     from .scoring import format_scores, score_bag
     settings_directory = tempfile.TemporaryDirectory(prefix="contouring_ros_set_")
@@ -125,11 +108,9 @@ LONG_RUN_STEPS = 20_000       # simulate shows a progress bar beyond this many s
 
 
 def _simulate(args):
-    import tempfile
     from .config import build_loop, load_experiment, note_while_slow
     from .core.simulation import simulate
     from .scoring import cutting_lines, format_scores, score_run
-    from .errors import Diverged
     from .config import program_warnings
     with tempfile.TemporaryDirectory(prefix="contouring_ros_set_") as settings_directory:
         experiment = load_experiment(_with_settings(_experiment_path(args.config), args.set, settings_directory))

@@ -19,7 +19,13 @@ from pathlib import Path
 from . import graph
 from .config import load_experiment
 from .errors import ContouringError, RunError
-from .nodes.lockstep import COMPOSED_LOOP
+from .nodes.ccc import CCCNode
+from .nodes.contour_estimator import ContourEstimatorNode
+from .nodes.interpolator import InterpolatorNode
+from .nodes.lockstep import COMPOSED_LOOP, interrupted_code, realtime_loop, track_signals, wait_on, wait_until
+from .nodes.plant import PlantNode
+from .nodes.recorder import REALTIME_GRACE, RecorderNode
+from .nodes.servo import ServoNode
 from .runner import group_label, override_arguments, shared_overrides, write_parameter_file
 
 __all__ = ["main"]
@@ -33,19 +39,12 @@ REALTIME_SPIN = 0.0003   # s
 REALTIME_SWITCH_INTERVAL = 0.0001   # s
 
 def _node_classes():
-    from .nodes.ccc import CCCNode
-    from .nodes.contour_estimator import ContourEstimatorNode
-    from .nodes.interpolator import InterpolatorNode
-    from .nodes.plant import PlantNode
-    from .nodes.recorder import RecorderNode
-    from .nodes.servo import ServoNode
     return {"interpolator": InterpolatorNode, "plant": PlantNode, "servo": ServoNode,
             "contour_estimator": ContourEstimatorNode, "ccc": CCCNode, "recorder": RecorderNode}
 
 
 def _lean_spin_once(nodes, wait_set, handles, timeout_ns: int):
     """One turn of the lean loop over every node's subscriptions: wait, take, dispatch."""
-    from .nodes.lockstep import wait_on
     wait_on(wait_set, handles, timeout_ns)
     for node in nodes:
         node.take_all(node.admitted)
@@ -144,8 +143,6 @@ def _run_realtime(nodes, label: str):
     servos); the recorder, if one of them, takes what arrives after each tick."""
     import rclpy
     from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
-    from .nodes.lockstep import realtime_loop, wait_until
-    from .nodes.recorder import REALTIME_GRACE
     lockstep_nodes = [node for node in nodes if node.role != "recorder"]
     recorder = nodes[-1] if nodes[-1].role == "recorder" else None
     for node in lockstep_nodes:
@@ -196,7 +193,6 @@ def main(argv=None) -> int:
                         "grouped layout; default every node)")
     parser.add_argument("--namespace", default="/", help="the graph's namespace (default: the root)")
     args = parser.parse_args(sys.argv[1:] if argv is None else argv)
-    from .nodes.lockstep import interrupted_code, track_signals
     received = track_signals()
     try:
         run_composed(args.experiment, args.bag, args.executor, args.start_time,

@@ -15,21 +15,32 @@ and what was expected. The nodes validate the parameters they receive with the s
 from __future__ import annotations
 
 import math
-import os
 import re
-import stat
 import sys
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import fields, replace
 from pathlib import Path
 
 import numpy as np
 import yaml
 
+from . import graph
 from .core import contouring, curves, disturbances, estimators, gcode, plants, servo
 from .core.feed_planning import FeedPlan
 from .core.interpolation import FeedrateSchedule, InPositionClock, UniformSchedule, reference
 from .core.simulation import ControlLoop
 from .errors import ConfigError
+from .experiment.model import Experiment
+from .experiment.ros_yaml import _PARAMETER_NAME, _read_file, read_yaml
+from .experiment.ros_yaml import _ros_scalar as _ros_scalar
+from .experiment.scenarios import resolve_part_program
+from .experiment.schema import (
+    BOUNDS, GLOBAL_SECTION, LIMIT, MAX_DURATION, MAX_PROGRAM_BYTES, MAX_STEPS, NUMERIC_KINDS, ROS_PARAMETERS, Param,
+    _fail, _gains, _mapping, _printable, _show, _typed)
+# re-exported: where they were defined before contouring_ros.experiment
+from .experiment.schema import DEFAULT_BOUNDS as DEFAULT_BOUNDS, MAX_DEPTH as MAX_DEPTH, MAX_EVENTS as MAX_EVENTS
+from .experiment.schema import MAX_FILE_BYTES as MAX_FILE_BYTES, MAX_ITEMS as MAX_ITEMS, MAX_TEXT as MAX_TEXT
+from .experiment.schema import RENAMED_KEYS as RENAMED_KEYS, REQUIRED as REQUIRED
+from .graph import LOOKAHEAD, graph_namespace
 from .registry import BuildContext, Role
 
 __all__ = ["Experiment", "load_experiment", "parse_experiment", "read_yaml", "experiment_from_data", "build_loop",
@@ -38,32 +49,10 @@ __all__ = ["Experiment", "load_experiment", "parse_experiment", "read_yaml", "ex
            "initial_state", "controller_uses_state", "check_ccc_takes_state", "GLOBAL_SECTION", "node_sections", "section_from_parameters",
            "experiment_for_node", "namespaced_parameter_file"]
 
-GLOBAL_SECTION = "/**"
-ROS_PARAMETERS = "ros__parameters"
-REQUIRED = object()
 ROS_BUILTIN_PARAMETERS = {"use_sim_time", "start_type_description_service"}  # every rclpy node declares these
 
 
-@dataclass(frozen=True)
-class Param:
-    """One expected key: its kind, default (REQUIRED if none), and the range it must lie in."""
-
-    kind: str                     # float | int | str | bool | floats | strings | dict
-    default: object = REQUIRED
-    check: str | None = None      # positive | nonnegative
-    choices: dict | tuple | None = None   # kind "dict" with a 'type': the registry of its types; kind "str": the
-                                          # names allowed
-    help: str = ""
-    bounds: tuple | None = None   # (low, high), inclusive, for every number of the value (BOUNDS sets them;
                                   # without: DEFAULT_BOUNDS of its kind)
-
-
-LIMIT = Param("float", 0.0, "nonnegative", help="output limit in command units, 0: none (anti-windup when hit)")
-
-
-def _gains(**defaults):
-    gains = {name: Param("float", defaults.get(name, REQUIRED), "nonnegative") for name in ("kp", "ki", "kd")}
-    return {**gains, "output_limit": LIMIT}
 
 
 TIMINGS = ("lockstep", "realtime")
@@ -220,20 +209,6 @@ def program_warnings(curve) -> list:
     if program is None:
         return []
     return [f"{Path(curve.source).name}: {warning}" for warning in program.warnings]
-
-
-def resolve_part_program(name: str, where: str):
-    """The part program file ``name``: as given when absolute, else relative to the experiment file
-    ``where``, the scenario directory (config/) or the working directory, the first that exists."""
-    path = Path(name)
-    if path.is_absolute():
-        return path if path.exists() else None
-    from .paper import CONFIG_DIR
-    bases = [Path(where).parent] if where and Path(where).is_file() else []
-    for base in bases + [CONFIG_DIR, Path.cwd()]:
-        if (base / path).exists():
-            return base / path
-    return None
 
 
 #: the curve types that are part programs (tool paths planned block by block)
@@ -562,60 +537,6 @@ ROLE_TYPES = {"plant": ("model", PLANTS), "servo": ("law", SERVOS),
 # nodes whose section may be left out, with the keys they take
 OPTIONAL_NODES = {"interpolator": {}, "recorder": {"bag": Param("str", ""), "experiment_file": Param("str", "")}}
 
-# --- bounds: every number a file gives lies in a stated range, so no run starts that cannot end or fit --------
-MAX_FILE_BYTES = 1 << 20        # an experiment file (UTF-8 text) is at most 1 MiB
-MAX_PROGRAM_BYTES = 256 << 20   # a part program at most 256 MiB (a million short blocks take tens of MB)
-MAX_DEPTH = 16                  # levels of YAML nesting (the shipped files use 6)
-MAX_STEPS = 10_000_000          # control steps of one run: duration / sample_time + 1
-MAX_DURATION = 3600.0           # s of simulated time
-MAX_ITEMS = 4096                # items of one list
-MAX_EVENTS = 20_000             # YAML parser events of one file (values, keys, collections); a scenario has ~300
-MAX_TEXT = 256                  # characters of one string value
-NUMERIC_KINDS = ("float", "int", "floats")
-DEFAULT_BOUNDS = {"float": (-1e12, 1e12), "floats": (-1e12, 1e12), "int": (-2 ** 31, 2 ** 31 - 1)}
-_GAIN, _POSITIVE, _LIMIT = (0.0, 1e12), (1e-12, 1e12), (0.0, 1e12)
-_SIZE, _COORDINATE = (1e-9, 1e3), (-1e3, 1e3)              # m
-_MASS, _DAMPING, _FORCE = (1e-9, 1e9), (0.0, 1e9), (0.0, 1e9)
-_AXIS_GAIN, _TIME_CONSTANT = (1e-9, 1e9), (1e-6, 1e3)      # command units -> m/s (or N); s
-# registry -> {key: (low, high)} for that key in every type of the registry, or {"type.key": ...} for one type
-BOUNDS = {
-    "GLOBALS": {"sample_time": (1e-5, 1.0), "duration": (0.0, MAX_DURATION), "settle_time": (0.0, MAX_DURATION),
-                "stall_timeout": (1e-3, 3600.0), "graph_timeout": (1e-3, 86400.0), "start_time": (0.0, 1e10),
-                "divergence_factor": (0.0, 1e6), "max_lag": (1e-6, 3600.0),
-                "in_position": (0.0, 1e-2)},
-    "CURVES": {"a": _SIZE, "b": _SIZE, "radius": _SIZE, "scale": _SIZE, "length": (1e-9, 1e6), "h": (-1e3, 1e3),
-               "c": (-1e3, 1e3), "omega": (-1e4, 1e4), "center": _COORDINATE, "start": _COORDINATE,
-               "end": _COORDINATE, "x": _COORDINATE, "y": _COORDINATE, "z": _COORDINATE,
-               "contour_error_window": (0.0, 1e6), "blend_tolerance": (0.0, 1e-2)},
-    "SCHEDULES": {"theta_start": (-1e6, 1e6), "theta_end": (-1e6, 1e6), "duration": (1e-6, MAX_DURATION),
-                  "feedrate": (1e-6, 100.0), "acceleration": (1e-6, 1e5), "normal_acceleration": (0.0, 1e5),
-                  "samples": (2, 1_000_000), "jerk": (0.0, 1e7), "rapid_feedrate": (0.0, 100.0),
-                  "axis_feedrate": (1e-6, 100.0), "axis_acceleration": (1e-6, 1e5), "axis_jerk": (1e-6, 1e7),
-                  "contour_tolerance": (0.0, 1e-2), "tracking_lag": (0.0, 10.0), "exact_stop_dwell": (0.0, 60.0),
-                  "feed_override": (1.0, 1000.0), "in_position_timeout": (1e-3, 60.0)},
-    "DISTURBANCES": {"value": (-1e9, 1e9), "amplitude": (-1e9, 1e9), "offset": (-1e9, 1e9),
-                     "frequency": (1e-6, 1e5), "phase": (-1e3, 1e3), "std": (0.0, 1e9), "seed": (0, 2 ** 32 - 1)},
-    "PLANTS": {"gain": _AXIS_GAIN, "time_constant": _TIME_CONSTANT, "mass": _MASS, "damping": _DAMPING,
-               "coulomb_positive": _FORCE, "coulomb_negative": _FORCE, "saturation": _LIMIT,
-               "encoder_resolution": (0.0, 1.0), "measurement_noise": (0.0, 1.0), "noise_seed": (0, 2 ** 32 - 1),
-               "command_delay": (0, plants.MAX_COMMAND_DELAY)},
-    "SERVOS": {"kp": _GAIN, "ki": _GAIN, "kd": _GAIN, "kp_position": _GAIN, "kp_velocity": _GAIN,
-               "ki_velocity": _GAIN, "output_limit": _LIMIT, "gain": _AXIS_GAIN, "time_constant": _TIME_CONSTANT,
-               "pid_feedforward.time_constant": (0.0, 1e3), "a": _POSITIVE, "b": _POSITIVE, "mu": _POSITIVE,
-               "kappa": _POSITIVE, "c": _POSITIVE, "d": _POSITIVE, "k": _POSITIVE, "sigma": _POSITIVE,
-               "alphas": _GAIN, "mass": _MASS, "damping": _DAMPING, "coulomb_positive": _FORCE,
-               "coulomb_negative": _FORCE},
-    "ESTIMATORS": {"foot_point_search.max_iterations": (1, 1000), "newton.max_iterations": (1, 10_000),
-                   "tolerance": (1e-15, 1.0), "k_prime": _POSITIVE, "c_prime": _POSITIVE, "inner_step": (0.0, 1.0),
-                   "theta0": (-1e6, 1e6), "branch_check_samples": (0, 10_000),
-                   "branch_check_tolerance": (1e-15, 1e3)},
-    "CONTROLLERS": {"kp": _GAIN, "ki": _GAIN, "kd": _GAIN, "output_limit": _LIMIT, "mass": _MASS,
-                    "damping": _DAMPING, "gain": _AXIS_GAIN, "coulomb_positive": _FORCE, "coulomb_negative": _FORCE,
-                    "f_t": (1e-6, 1e5), "f_n": (1e-6, 1e5), "f_b": (1e-6, 1e5), "zeta": (1e-6, 1e3), "kc": _GAIN,
-                    "min_feedrate": (0.0, 100.0), "coupling": (-1e12, 1e12), "alpha": _POSITIVE,
-                    "gamma_mass": _GAIN, "gamma_damping": _GAIN, "mass0": _MASS, "damping0": _DAMPING},
-}
-
 
 def _registries() -> dict:
     """BOUNDS' registry names -> {type name: its Params} (GLOBALS as one type)."""
@@ -657,457 +578,9 @@ for _name, _role in _ROLES_BY_BOUNDS.items():
     _role.on_register = _plugin_params(BOUNDS[_name])
 
 
-@dataclass(frozen=True)
-class Experiment:
-    """A validated experiment. Sections are plain dicts with every default filled in."""
-
-    path: str
-    text: str
-    sample_time: float
-    duration: float
-    axes: tuple
-    curve: dict
-    schedule: dict
-    initial_state: str
-    network: bool = False
-    stall_timeout: float = 10.0
-    graph_timeout: float = 300.0
-    divergence_factor: float = 10.0
-    on_invalid_input: str = "stop"
-    timing: str = "lockstep"
-    start_time: float = 0.0
-    max_lag: float = 0.02
-    on_overrun: str = "stop"
-    layout: str = "process"
-    groups: str = ""
-    ccc_takes_state: bool = True
-    in_position: tuple = (1e-5,)                   # m, one or one per axis (0: exact stops do not wait)
-    namespaced_clock: bool = False
-    plants: dict = field(default_factory=dict)     # axis -> plant section
-    servos: dict = field(default_factory=dict)     # axis -> servo section
-    estimator: dict = field(default_factory=dict)
-    controller: dict = field(default_factory=dict)
-    info: dict = field(default_factory=dict)       # 'experiment' and 'paper' blocks, free-form
-
-    @property
-    def n_steps(self) -> int:
-        """Steps k = 0 .. n_steps - 1 cover t = 0 .. duration inclusive."""
-        return int(round(self.duration / self.sample_time)) + 1
-
-    @property
-    def name(self) -> str:
-        return str(self.info.get("experiment", {}).get("name", Path(self.path).stem))
-
-
-try:    # libyaml's parser (the one the ROS 2 parameter parser uses) when PyYAML has it: 5x faster
-    from yaml._yaml import CParser as _CParser
-except ImportError:
-    _CParser = None
-_LOADER_BASES = (yaml.composer.Composer, _CParser, yaml.constructor.SafeConstructor, yaml.resolver.Resolver) \
-    if _CParser is not None else (yaml.SafeLoader,)
-
-
-class _NoAliasLoader(*_LOADER_BASES):
-    """YAML loader that refuses anchors/aliases, so no file can expand without bound, and reads every
-    exponent float (1e-3, 4.86e7) as a number, as YAML 1.2 and the ROS parameter parser do.
-
-    It also refuses explicit tags (!!float 1: the ROS parser ignores them) and nesting deeper than MAX_DEPTH,
-    and names the key of every problem it finds; :meth:`check_ros` holds a document to the ROS parser."""
-
-    _path: list
-    _depth = 0
-
-    def __init__(self, text: str):
-        if _CParser is None:
-            yaml.SafeLoader.__init__(self, text)
-            return
-        _CParser.__init__(self, text)
-        yaml.composer.Composer.__init__(self)
-        yaml.constructor.SafeConstructor.__init__(self)
-        yaml.resolver.Resolver.__init__(self)
-
-    def _refuse(self, mark, message: str, path=None):
-        key = _key_name(self._path if path is None else path)
-        raise ConfigError(f"{key + ': ' if key else ''}line {mark.line + 1}: {message}")
-
-    def compose_node(self, parent, index):
-        if not hasattr(self, "_path"):
-            self._path = []
-        event = self.peek_event()
-        label = None if parent is None or index is None else (index.value if isinstance(index, yaml.ScalarNode)
-                                                               else f"[{index}]")
-        if label is not None:
-            self._path.append(label)
-        self._depth += 1
-        try:
-            if self.check_event(yaml.AliasEvent):
-                self._refuse(event.start_mark, "YAML aliases (*name) are not allowed in experiment files")
-            if self._depth > MAX_DEPTH:
-                self._refuse(event.start_mark, f"nested deeper than {MAX_DEPTH} levels")
-            tag = getattr(event, "tag", None)
-            if tag not in (None, "!"):
-                self._refuse(event.start_mark, f"explicit YAML tags ({_show(tag)}) are not allowed in experiment "
-                                               "files (the ROS 2 parser ignores them)")
-            return super().compose_node(parent, index)
-        finally:
-            self._depth -= 1
-            if label is not None:
-                self._path.pop()
-
-    def fetch_flow_collection_start(self, TokenClass):
-        # the scanner's own nesting ([[[[... or {a: {a: ...), refused before its cost grows with the depth
-        if self.flow_level >= MAX_DEPTH:
-            self._refuse(self.get_mark(), f"nested deeper than {MAX_DEPTH} levels")
-        super().fetch_flow_collection_start(TokenClass)
-
-    def check_ros(self, root):
-        """Refuse what the ROS 2 parameter parser (rcl_yaml_param_parser) reads differently from this
-        loader, or refuses: a scalar of another type or value (bare y/n read as booleans, 1:30, 1_000,
-        integers beyond 64 bits, ~ and null, dates, 0x1p3, nan, denormals), an empty value, list or
-        mapping, a list of mixed types or of lists or mappings, a key that is not a plain ASCII name."""
-        if not isinstance(root, yaml.MappingNode):
-            return
-        for section_key, section in root.value:
-            if not isinstance(section, yaml.MappingNode):
-                continue
-            for body_key, body in section.value:
-                if isinstance(body, yaml.MappingNode):
-                    self._check_ros_mapping(body, [section_key.value, body_key.value])
-
-    def _check_ros_mapping(self, node, path):
-        if not node.value:
-            self._refuse(node.start_mark, "an empty mapping: ROS 2 gives it no value (leave the key out)", path)
-        for key_node, value_node in node.value:
-            here = path + [key_node.value if isinstance(key_node, yaml.ScalarNode) else "?"]
-            key = self._construct(key_node, here) if isinstance(key_node, yaml.ScalarNode) else None
-            if not isinstance(key, str):
-                self._refuse(key_node.start_mark, f"the key {_show(getattr(key_node, 'value', key_node))} is read "
-                                                  f"as {_described(key)}, ROS 2 reads a name: quote it", here)
-            if not _PARAMETER_NAME.match(key):
-                self._refuse(key_node.start_mark, "a parameter name is 1 to 64 ASCII letters, digits and _ "
-                                                  "(not starting with a digit)", here)
-            if isinstance(value_node, yaml.MappingNode):
-                self._check_ros_mapping(value_node, here)
-            elif isinstance(value_node, yaml.SequenceNode):
-                self._check_ros_sequence(value_node, here)
-            else:
-                self._check_ros_scalar(value_node, here)
-
-    def _check_ros_sequence(self, node, path):
-        if not node.value:
-            self._refuse(node.start_mark, "an empty list: ROS 2 cannot give it a type (leave the key out or "
-                                          "give at least one item)", path)
-        if len(node.value) > MAX_ITEMS:
-            self._refuse(node.start_mark, f"expected at most {MAX_ITEMS} items, got {len(node.value)}", path)
-        kinds = []
-        for index, item in enumerate(node.value):
-            if not isinstance(item, yaml.ScalarNode):
-                what = "list" if isinstance(item, yaml.SequenceNode) else "mapping"
-                self._refuse(item.start_mark, f"item {index + 1} is a {what}: a ROS 2 list parameter holds plain "
-                                              "values only", path)
-            kinds.append(self._check_ros_scalar(item, path, index))
-        if len(set(kinds)) > 1:
-            if set(kinds) == {"integer", "double"}:
-                first = kinds.index("integer")
-                self._refuse(node.start_mark, f"a list of integers and decimals (item {first + 1} is "
-                                              f"{_show(node.value[first].value)}): ROS 2 refuses a list of mixed "
-                                              "types; write every number with a decimal point", path)
-            self._refuse(node.start_mark, f"a list of mixed types ({', '.join(dict.fromkeys(kinds))}) as ROS 2 "
-                                          "reads it: ROS 2 refuses it; quote names that read as booleans (y, n, "
-                                          "on, off ...)", path)
-
-    def _construct(self, node, path):
-        try:
-            return self.construct_object(node)
-        except (ValueError, OverflowError) as error:     # e.g. an integer of more than 4300 digits
-            self._refuse(node.start_mark, f"cannot read {_show(node.value)} ({_printable(error, 100)})", path)
-
-    def _check_ros_scalar(self, node, path, index=None) -> str:
-        kind, ros = _ros_scalar(node.value, node.style)
-        where = "" if index is None else f"item {index + 1}: "
-        if kind == "empty":
-            self._refuse(node.start_mark, f"{where}no value (ROS 2 refuses an empty value)", path)
-        ours = self._construct(node, path)
-        agree = {"bool": lambda: type(ours) is bool and ours == ros,
-                 "integer": lambda: type(ours) is int and ours == ros,
-                 "double": lambda: type(ours) is float and (ours == ros or (math.isnan(ours) and math.isnan(ros))),
-                 "string": lambda: type(ours) is str and ours == ros}[kind]()
-        if not agree:
-            hint = {"bool": f"quote it ('{node.value}') for a name", "string": "write a plain number, or quote it "
-                    "for a name", "integer": "quote it for a name", "double": "write a plain decimal number, or "
-                    "quote it for a name"}[kind]
-            if kind == "double" and type(ours) is int:
-                hint = "integers are 64-bit in ROS 2"
-            if ours is None:
-                hint = "give a value or leave the key out"
-            self._refuse(node.start_mark, f"{where}ROS 2 reads {_show(node.value)} as {_described(ros, kind)}, not "
-                                          f"as {_described(ours)}: {hint}", path)
-        return kind
-
-
-_NoAliasLoader.add_implicit_resolver(
-    "tag:yaml.org,2002:float", re.compile(r"^[-+]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)[eE][-+]?[0-9]+$"),
-    list("-+0123456789."))
-_PARAMETER_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]{0,63}$")
 _AXIS_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]{0,31}$")
 _EXPERIMENT_NAME = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.-]{0,99}$")
 RESERVED_AXIS_NAMES = {"theta", "contour_error", "foot_point_parameter"}   # other joint names of the messages
-_PLAIN_INTEGER = re.compile(r"^[-+]?(?:0|[1-9][0-9]{0,17})$")
-_PLAIN_DECIMAL = re.compile(r"^[-+]?(?:[0-9]+\.[0-9]*|\.[0-9]+)(?:[eE][-+]?[0-9]{1,3})?$")
-_ROS_TRUE = {"Y", "y", "yes", "Yes", "YES", "true", "True", "TRUE", "on", "On", "ON"}
-_ROS_FALSE = {"N", "n", "no", "No", "NO", "false", "False", "FALSE", "off", "Off", "OFF"}
-_ROS_SPECIAL_FLOATS = {".nan": math.nan, ".NaN": math.nan, ".NAN": math.nan, ".inf": math.inf, ".Inf": math.inf,
-                       ".INF": math.inf, "+.inf": math.inf, "+.Inf": math.inf, "+.INF": math.inf,
-                       "-.inf": -math.inf, "-.Inf": -math.inf, "-.INF": -math.inf}
-
-
-def _ros_scalar(value: str, style) -> tuple:
-    """How rcl_yaml_param_parser reads one scalar (its get_value: booleans, then C strtol with base 0, then
-    strtod, else a string; quoted scalars are strings): (kind, value), kind bool | integer | double |
-    string | empty."""
-    if style in ("'", '"'):
-        return "string", value
-    if value == "":
-        return "empty", None
-    if value in _ROS_TRUE or value in _ROS_FALSE:
-        return "bool", value in _ROS_TRUE
-    if value in _ROS_SPECIAL_FLOATS:
-        return "double", _ROS_SPECIAL_FLOATS[value]
-    if _PLAIN_INTEGER.match(value):     # the common forms, read as strtol / strtod read them, without a C call
-        return "integer", int(value)
-    if _PLAIN_DECIMAL.match(value):
-        number = float(value)
-        mantissa = re.split("[eE]", value)[0]
-        if math.isfinite(number) and (abs(number) >= sys.float_info.min or not re.search("[1-9]", mantissa)):
-            return "double", number       # (strtod: a range error for a denormal or an overflow)
-    integer = _c_strtol(value)
-    if integer is not None:
-        return "integer", integer
-    number = _c_strtod(value)
-    if number is not None:
-        return "double", number
-    return "string", value
-
-
-def _libc():
-    global _LIBC
-    if _LIBC is None:
-        try:
-            import ctypes
-            libc = ctypes.CDLL(None, use_errno=True)
-            libc.strtoll.restype, libc.strtod.restype = ctypes.c_longlong, ctypes.c_double
-            libc.strtoll.argtypes = [ctypes.c_char_p, ctypes.POINTER(ctypes.c_void_p), ctypes.c_int]
-            libc.strtod.argtypes = [ctypes.c_char_p, ctypes.POINTER(ctypes.c_void_p)]
-            _LIBC = (ctypes, libc)
-        except (OSError, AttributeError):
-            _LIBC = False
-    return _LIBC
-
-
-_LIBC = None
-
-
-def _c_parse(value: str, call):
-    """Run strtoll/strtod on ``value`` as rcl does: the number if it takes the whole text without a range
-    error (errno), else None."""
-    ctypes, libc = _libc()
-    raw = value.encode()
-    if b"\0" in raw:
-        return None
-    buffer = ctypes.create_string_buffer(raw)
-    end = ctypes.c_void_p()
-    ctypes.set_errno(0)
-    number = call(libc, buffer, ctypes.byref(end))
-    if ctypes.get_errno() != 0 or end.value is None or end.value - ctypes.addressof(buffer) != len(raw):
-        return None
-    return number
-
-
-def _c_strtol(value: str):
-    if _libc():
-        return _c_parse(value, lambda libc, text, end: libc.strtoll(text, end, 0))
-    match = re.fullmatch(r"\s*([+-]?)(0[xX][0-9a-fA-F]+|0[0-7]*|[1-9][0-9]*)", value)   # no C library: the same rules
-    if not match:
-        return None
-    digits = match.group(2)
-    number = int(digits, 16 if digits[:2].lower() == "0x" else 8 if digits.startswith("0") else 10)
-    number = -number if match.group(1) == "-" else number
-    return number if -2 ** 63 <= number < 2 ** 63 else None
-
-
-def _c_strtod(value: str):
-    if _libc():
-        return _c_parse(value, lambda libc, text, end: libc.strtod(text, end))
-    if not re.fullmatch(r"\s*[+-]?((\d+\.?\d*|\.\d+)([eE][+-]?\d+)?|inf(inity)?|nan)", value, re.IGNORECASE):
-        return None
-    number = float(value)
-    return number if math.isnan(number) or (math.isinf(number) == ("inf" in value.lower())
-                                             and (number == 0 or abs(number) >= sys.float_info.min)) else None
-
-
-def _described(value, kind=None) -> str:
-    kind = kind or {bool: "bool", int: "integer", float: "double", str: "string"}.get(type(value))
-    if value is None:
-        return "null"
-    if kind == "bool":
-        return f"the boolean {str(value).lower()}"
-    if kind == "integer":
-        return f"the integer {_show(value)}"
-    if kind == "double":
-        return f"the number {value!r}"
-    if kind == "string":
-        return f"the string {_show(value)}"
-    return f"a {type(value).__name__} ({_show(value)})"
-
-
-def _show(value, limit: int = 60) -> str:
-    """repr of a value for a one-line message, cut to ``limit`` characters."""
-    text = repr(value) if not isinstance(value, int) or value.bit_length() < 100 else \
-        f"an integer of {value.bit_length()} bits"
-    return text if len(text) <= limit else text[:limit - 3] + "..."
-
-
-def _printable(text, limit: int = 300) -> str:
-    """``text`` on one line: control characters escaped, cut to ``limit`` characters."""
-    text = "".join(c if c.isprintable() else repr(c)[1:-1] for c in str(text))
-    return text if len(text) <= limit else text[:limit - 3] + "..."
-
-
-def _key_name(path) -> str:
-    """The key a path of YAML keys names, as messages name it: 'curve.a' in the shared section, '/x/plant.gain'
-    in a node's, list items as [i]."""
-    if not path:
-        return ""
-    section, rest = str(path[0]), [str(part) for part in path[1:]]
-    if rest and rest[0] == ROS_PARAMETERS:
-        rest = rest[1:]
-    parts = [] if section == GLOBAL_SECTION and rest else [section]
-    for part in rest:
-        parts.append(part if not parts or not part.startswith("[") else parts.pop() + part)
-    return _printable(".".join(parts), 80)
-
-
-def _fail(where: str, key: str, message: str):
-    where, key, message = _printable(where), _printable(key, 80), _printable(message, 400)
-    raise ConfigError(f"{where}: {key}: {message}" if key else f"{where}: {message}")
-
-
-def _value(where, key, spec: Param, value):
-    """Check one value against its spec and return it normalised."""
-    kind = spec.kind
-    if kind in ("float", "int", "floats") and isinstance(value, int) and not isinstance(value, bool) and \
-            value.bit_length() > 63:
-        _fail(where, key, f"expected a value from {(spec.bounds or DEFAULT_BOUNDS[kind])[0]:g} to "
-                          f"{(spec.bounds or DEFAULT_BOUNDS[kind])[1]:g}, got {_show(value)}")
-    if kind == "float":
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            _fail(where, key, f"expected a number, got {_show(value)}")
-        value = float(value)
-    elif kind == "int":
-        if isinstance(value, bool) or not isinstance(value, int):
-            _fail(where, key, f"expected an integer, got {_show(value)}")
-    elif kind == "bool":
-        if not isinstance(value, bool):
-            _fail(where, key, f"expected true or false, got {_show(value)}")
-    elif kind == "str":
-        if not isinstance(value, str):
-            _fail(where, key, f"expected a string, got {_show(value)}")
-        _check_text(where, key, value)
-        if spec.choices is not None and value not in spec.choices:
-            _fail(where, key, f"expected one of {', '.join(spec.choices)}, got {_show(value)}")
-    elif kind == "floats":
-        if not isinstance(value, (list, tuple)) or not value or any(
-                isinstance(v, bool) or not isinstance(v, (int, float)) for v in value):
-            _fail(where, key, f"expected a list of numbers, got {_show(value)}")
-        if len(value) > MAX_ITEMS:
-            _fail(where, key, f"expected at most {MAX_ITEMS} items, got {len(value)}")
-        for index, v in enumerate(value):
-            if isinstance(v, int) and v.bit_length() > 63:
-                _fail(where, key, f"item {index + 1}: expected a number from {(spec.bounds or DEFAULT_BOUNDS[kind])[0]:g}"
-                                  f" to {(spec.bounds or DEFAULT_BOUNDS[kind])[1]:g}, got {_show(v)}")
-        value = [float(v) for v in value]
-    elif kind == "strings":
-        if not isinstance(value, (list, tuple)) or not value or any(not isinstance(v, str) for v in value):
-            _fail(where, key, f"expected a non-empty list of names, got {_show(value)}")
-        if len(value) > MAX_ITEMS:
-            _fail(where, key, f"expected at most {MAX_ITEMS} items, got {len(value)}")
-        for v in value:
-            _check_text(where, key, v)
-        value = list(value)
-    elif kind == "dict":
-        if not isinstance(value, dict):
-            _fail(where, key, f"expected a mapping, got {_show(value)}")
-        if spec.choices is not None:
-            value = _typed(where, key, "type", spec.choices, value)
-    if spec.check == "positive" and not value > 0:
-        _fail(where, key, f"expected a positive value, got {_show(value)}")
-    if spec.check == "nonnegative" and not value >= 0:
-        _fail(where, key, f"expected a value >= 0, got {_show(value)}")
-    if kind in ("float", "floats") and not np.all(np.isfinite(value)):
-        _fail(where, key, f"expected finite numbers, got {_show(value)}")
-    if kind in NUMERIC_KINDS:
-        _check_bounds(where, key, spec, value)
-    return value
-
-
-def _check_bounds(where, key, spec: Param, value):
-    """Every number of ``value`` within the spec's bounds (or its kind's), and no float denormal."""
-    low, high = spec.bounds or DEFAULT_BOUNDS[spec.kind]
-    for index, number in enumerate(value if spec.kind == "floats" else [value]):
-        item = f"item {index + 1} " if spec.kind == "floats" else ""
-        if spec.kind != "int" and number != 0 and abs(number) < sys.float_info.min:
-            _fail(where, key, f"{item}{number!r} is a denormal number (below {sys.float_info.min:.3g} in size)")
-        if not low <= number <= high:
-            _fail(where, key, f"{item}expected a value from {low:g} to {high:g}, got {_show(number)}")
-
-
-def _check_text(where, key, text: str):
-    """A string value: at most MAX_TEXT characters, no control characters (NUL, newlines ...)."""
-    if len(text) > MAX_TEXT:
-        _fail(where, key, f"expected at most {MAX_TEXT} characters, got {len(text)}")
-    if not text.isprintable():
-        _fail(where, key, f"control characters (NUL, line breaks ...) are not allowed, got {_show(text)}")
-
-
-# keys renamed between versions: old name -> (new name, what changed); an experiment file that still uses the
-# old name is told the new one (where the section has it) instead of "unknown key"
-RENAMED_KEYS = {
-    "iterations": ("max_iterations", "the Newton estimator iterates each step until it is within `tolerance`, "
-                                     "at most max_iterations times"),
-}
-
-
-def _mapping(where, prefix, specs: dict, given: dict, skip=()) -> dict:
-    """Validate a mapping against ``specs``: unknown keys, missing required keys, each value."""
-    out = {}
-    for key in given:
-        if key not in specs and key not in skip:
-            renamed = RENAMED_KEYS.get(key)
-            if renamed is not None and renamed[0] in specs:
-                _fail(where, f"{prefix}{key}", f"`{key}` is now `{renamed[0]}` ({renamed[1]}): rename the key")
-            known = ", ".join(sorted(specs)) or "none"
-            _fail(where, f"{prefix}{key}", f"unknown key (expected one of: {known})")
-    for key, spec in specs.items():
-        if key in given:
-            out[key] = _value(where, f"{prefix}{key}", spec, given[key])
-        elif spec.default is REQUIRED:
-            _fail(where, f"{prefix}{key}", "missing required key")
-        else:
-            out[key] = spec.default if spec.kind != "dict" or spec.choices is None else \
-                _typed(where, f"{prefix}{key}", "type", spec.choices, dict(spec.default))
-    return out
-
-
-def _typed(where, prefix, type_key, registry: dict, given: dict) -> dict:
-    """Validate a section that names its implementation with ``type_key`` (type, law, model)."""
-    name = given.get(type_key)
-    if name is None:
-        _fail(where, f"{prefix}.{type_key}", f"missing required key (one of: {', '.join(registry)})")
-    if name not in registry:
-        _fail(where, f"{prefix}.{type_key}", f"unknown name {name!r} (expected one of: {', '.join(registry)})")
-    out = _mapping(where, f"{prefix}.", registry[name], given, skip=(type_key,))
-    out[type_key] = name
-    return out
 
 
 def _ros_parameters(where, node: str, body) -> dict:
@@ -1132,7 +605,6 @@ def split_groups(text: str) -> list:
 
 def _validate_layout(where, out: dict):
     """``layout`` and ``groups`` agree, and every group names nodes of the graph, each once."""
-    from . import graph
     if out["layout"] == "grouped":
         if not split_groups(out["groups"]):
             _fail(where, "groups", "layout grouped needs its groups, e.g. 'x/plant,x/servo; y/plant,y/servo'")
@@ -1261,69 +733,6 @@ def parse_experiment(text: str, where: str = "<experiment>", ros: bool = False) 
     return experiment_from_data(read_yaml(text, where, ros), where, text)
 
 
-def read_yaml(text: str, where: str = "<experiment>", ros: bool = False):
-    """The data of an experiment's YAML ``text`` (aliases and explicit tags refused, nesting at most
-    MAX_DEPTH levels, exponent floats read as numbers).
-
-    ``ros``: the text is a parameter file the nodes will read (load_experiment): refuse every value that the
-    ROS 2 parameter parser reads differently or refuses (_NoAliasLoader.check_ros), naming its key.
-    """
-    where = _printable(where)
-    if len(text) > MAX_FILE_BYTES:
-        raise ConfigError(f"{where}: too large ({len(text)} characters; an experiment is at most "
-                          f"{MAX_FILE_BYTES} bytes)")
-    deep = _too_deep_flow(text)
-    if deep is not None:      # [[[[... (libyaml's time grows with the square of the depth): name the key from
-        text = text[:deep + 1]     # the text up to the bracket too deep, which the loader refuses at once
-    loader = _NoAliasLoader(text)
-    try:
-        events = _CParser(text).raw_parse() if _CParser is not None and deep is None else 0   # counted in C
-        if events > MAX_EVENTS:
-            raise ConfigError(f"more than {MAX_EVENTS} YAML values and collections ({events} parser events); an "
-                              "experiment has a few hundred")
-        node = loader.get_single_node()
-        if node is not None and ros:
-            loader.check_ros(node)
-        data = loader.construct_document(node) if node is not None else None
-    except ConfigError as error:
-        raise ConfigError(f"{where}: {_printable(error, 400)}") from None
-    except yaml.YAMLError as error:
-        mark = getattr(error, "problem_mark", None)
-        line = f"line {mark.line + 1}: " if mark is not None else ""
-        problem = getattr(error, "problem", None) or str(error).splitlines()[0]
-        key = _key_name(getattr(loader, "_path", []))
-        raise ConfigError(f"{where}: {key + ': ' if key else ''}{line}not valid YAML ({_printable(problem, 200)})") \
-            from None
-    except RecursionError:
-        raise ConfigError(f"{where}: nested too deeply (at most {MAX_DEPTH} levels)") from None
-    except (ValueError, OverflowError) as error:     # e.g. an integer of more than 4300 digits
-        key = _key_name(getattr(loader, "_path", []))
-        raise ConfigError(f"{where}: {key + ': ' if key else ''}cannot read a value "
-                          f"({_printable(error, 200)})") from None
-    finally:
-        loader.dispose()
-    if deep is not None:
-        raise ConfigError(f"{where}: line {text.count(chr(10)) + 1}: nested deeper than {MAX_DEPTH} levels")
-    return data
-
-
-_QUOTED_OR_COMMENT = re.compile(r'"(?:[^"\\\n]|\\.)*"|\'(?:[^\'\n]|\'\')*\'|(?:^|(?<=\s))#[^\n]*', re.MULTILINE)
-
-
-def _too_deep_flow(text: str):
-    """Where the flow collections ([...], {...}) of ``text`` first nest deeper than MAX_DEPTH (quoted strings
-    and comments aside), or None."""
-    if text.count("[") + text.count("{") <= MAX_DEPTH:
-        return None
-    blank = _QUOTED_OR_COMMENT.sub(lambda match: re.sub(r"[^\n]", " ", match.group()), text)
-    depth = 0
-    for match in re.finditer(r"[\[\]{}]", blank):
-        depth += 1 if match.group() in "[{" else -1
-        if depth > MAX_DEPTH:
-            return match.start()
-    return None
-
-
 def experiment_from_data(data, where: str = "<experiment>", text: str = "") -> Experiment:
     """Validate an experiment already read from YAML (``text``, if given, is kept as its source)."""
     if not isinstance(data, dict) or not data:
@@ -1376,7 +785,6 @@ def experiment_for_node(parameters: dict, node: str, role: str, where: str | Non
     try:
         section = _validate_role(where, node, role, own, globals_)
     except ConfigError as error:
-        from .graph import graph_namespace
         namespace = graph_namespace(node, role in ("plant", "servo"))
         if namespace == "/" or "missing required key" not in str(error):
             raise
@@ -1414,7 +822,6 @@ def namespaced_parameter_file(text: str, namespace: str) -> str:
     key gets the namespace in front (/x/plant: becomes "/m1/x/plant":, which the ROS parameter parser
     matches with the node's fully qualified name); the shared section /** and every value stay as
     written, byte for byte (only the keys' text is replaced, at the positions the YAML parser gives)."""
-    from . import graph
     if namespace in ("", "/"):
         return text
     root = yaml.compose(text, Loader=yaml.SafeLoader)
@@ -1475,40 +882,6 @@ def _program_path_in_text(text: str, given: str, resolved: str) -> str:
     return pattern.sub(lambda match: match.group(1) + quoted, text)
 
 
-def _read_file(path: Path, where: str, limit: int = MAX_FILE_BYTES,
-               what: str = "an experiment is a YAML file") -> bytes:
-    """The bytes of a regular file of at most ``limit`` bytes (an experiment's MAX_FILE_BYTES, a part
-    program's MAX_PROGRAM_BYTES); FIFOs, devices, sockets and directories are refused before they are
-    opened (a FIFO would block, /dev/zero never end)."""
-    try:
-        info = path.stat()
-    except (OSError, ValueError) as error:   # ValueError: a NUL in the path
-        raise ConfigError(f"{where}: cannot read ({getattr(error, 'strerror', None) or error})") from None
-    kinds = ((stat.S_ISDIR, "a directory"), (stat.S_ISFIFO, "a FIFO"), (stat.S_ISCHR, "a character device"),
-             (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket"))
-    for test, kind in kinds:
-        if test(info.st_mode):
-            raise ConfigError(f"{where}: not a regular file ({kind}); {what}")
-    if not stat.S_ISREG(info.st_mode):
-        raise ConfigError(f"{where}: not a regular file; {what}")
-    if info.st_size > limit:
-        raise ConfigError(f"{where}: too large ({info.st_size} bytes; {what.split(' is ')[0]} is at most {limit})")
-    try:   # O_NONBLOCK: should the path have become a FIFO since, opening it does not wait for a writer
-        descriptor = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOCTTY", 0))
-    except OSError as error:
-        raise ConfigError(f"{where}: cannot read ({error.strerror})") from None
-    with os.fdopen(descriptor, "rb") as stream:
-        if not stat.S_ISREG(os.fstat(stream.fileno()).st_mode):
-            raise ConfigError(f"{where}: not a regular file; {what}")
-        try:
-            raw = stream.read(limit + 1)
-        except OSError as error:
-            raise ConfigError(f"{where}: cannot read ({error.strerror})") from None
-    if len(raw) > limit:
-        raise ConfigError(f"{where}: too large (more than {limit} bytes)")
-    return raw
-
-
 def section_from_parameters(parameters: dict) -> dict:
     """Nest flat ROS parameter names ('curve.type') back into the mapping the file had."""
     nested: dict = {}
@@ -1547,6 +920,9 @@ def build_schedule_from(section: dict, curve, where: str = "schedule"):
 
 def build_schedule(experiment: Experiment, curve=None):
     return build_schedule_from(experiment.schedule, curve or build_curve(experiment), experiment.path)
+
+
+BuildContext.schedule_builder = build_schedule
 
 
 def build_disturbance(section: dict):
@@ -1590,7 +966,6 @@ def build_clock(experiment: Experiment, curve, schedule):
     windows = in_position_windows(experiment)
     if windows is None or not hasattr(schedule, "stops"):
         return None
-    from .graph import LOOKAHEAD
     return InPositionClock(schedule, curve, windows, experiment.sample_time,
                            experiment.schedule["in_position_timeout"], LOOKAHEAD)
 

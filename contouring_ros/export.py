@@ -11,8 +11,10 @@ from pathlib import Path
 
 import numpy as np
 
+from .bag import read_run
 from .core.geometry import ExactContourError
 from .errors import BagError, write_atomically
+from .scoring import curve_of
 
 __all__ = ["run_table", "write_csv", "write_parquet", "export_bag"]
 
@@ -64,8 +66,6 @@ def write_parquet(columns: dict, path) -> Path:
 def export_bag(bag, csv_dir=None, parquet_dir=None, experiment_text: str | None = None) -> tuple:
     """Export a bag's complete steps to ``csv_dir``/<bag stem>.csv and/or ``parquet_dir``/<bag stem>.parquet.
     Returns (written paths, the reader's warnings)."""
-    from .bag import read_run
-    from .scoring import curve_of
     run = read_run(bag, experiment_text=experiment_text)
     columns = run_table(run.result, run.axes, curve_of(run))
     stem = Path(bag).stem

@@ -24,6 +24,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .core.estimators import ContourEstimate
+from .core.interpolation import Reference
 from .errors import ConfigError
 
 __all__ = ["Topic", "topics", "node_names", "NodeSpec", "node_specs", "CONTOUR_ERROR_NAME", "FOOT_POINT_NAME", "THETA_NAME",
@@ -224,7 +226,6 @@ def step_to_stamp(k: int, sample_time_ns: int) -> tuple:
 
 def reference_from_msg(msg, n_axes: int):
     """The core Reference of one /reference message (works on rclpy and decoded bag messages)."""
-    from .core.interpolation import Reference
     point = msg.points[0]
     pos, vel, acc = point.positions, point.velocities, point.accelerations
     return Reference(theta=pos[n_axes], theta_dot=vel[n_axes], theta_ddot=acc[n_axes],
@@ -234,7 +235,6 @@ def reference_from_msg(msg, n_axes: int):
 
 def estimate_from_msg(msg, n_axes: int):
     """The core ContourEstimate of one /contour_error message."""
-    from .core.estimators import ContourEstimate
     values = msg.position
     return ContourEstimate(theta=values[n_axes + 1], vector=np.asarray(values[:n_axes], dtype=float),
                            signed=values[n_axes])

@@ -7,33 +7,11 @@ from pathlib import Path
 from .config import build_loop, load_experiment
 from .core.simulation import simulate
 from .errors import write_atomically
-from .scoring import score_run
+from .experiment.scenarios import CONFIG_DIR, available_papers, scenario_files
+from .runner import run_graph
+from .scoring import score_bag, score_run
 
 __all__ = ["CONFIG_DIR", "available_papers", "scenario_files", "paper_rows", "paper_report", "write_report"]
-
-def _config_dir() -> Path:
-    """config/ of the source tree, else share/contouring_ros/config of an installed (colcon) package."""
-    source = Path(__file__).resolve().parent.parent / "config"
-    if source.is_dir():
-        return source
-    import os
-    for prefix in filter(None, os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep)):
-        installed = Path(prefix) / "share" / "contouring_ros" / "config"
-        if installed.is_dir():
-            return installed
-    return source
-
-
-CONFIG_DIR = _config_dir()
-
-
-def scenario_files(paper: str, config_dir=CONFIG_DIR) -> list:
-    return sorted(Path(config_dir).glob(f"paper{paper}_*.yaml"))
-
-
-def available_papers(config_dir=CONFIG_DIR) -> list:
-    """The paper numbers that have scenario files, e.g. ['000', '003']."""
-    return sorted({path.name[5:8] for path in Path(config_dir).glob("paper???_*.yaml")})
 
 
 def paper_rows(paper: str, graph: bool = False, progress=None) -> list:
@@ -47,8 +25,6 @@ def paper_rows(paper: str, graph: bool = False, progress=None) -> list:
         ours = score_run(loop.curve, simulate(loop))
         through_graph = None
         if graph:
-            from .runner import run_graph
-            from .scoring import score_bag
             say(f"{path.name}: running the node graph")
             through_graph = score_bag(run_graph(path))[0]
         rows.append((path.stem, experiment.info["experiment"].get("description", ""), experiment.info["paper"],

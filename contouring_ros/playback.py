@@ -56,7 +56,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from . import cdr, graph
-from .bag import _iter_records
+from .bag import _iter_records, _summary_chunks
 from .errors import BagError
 
 __all__ = ["play_bag", "installed_message_class", "UnplayableType", "WINDOW", "SETTLE", "ACK_TIMEOUT",
@@ -147,7 +147,6 @@ def _index(path: Path, warnings: list) -> _Index:
     summary section past its size cap, or one that does not check, is not used), or from one pass over a
     bag without."""
     from mcap.records import Channel, Schema
-    from .bag import _summary_chunks
     index = _Index()
     with open(path, "rb") as stream:
         _, chunks, records = _summary_chunks(stream, path.stat().st_size, path, [])

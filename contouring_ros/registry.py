@@ -55,6 +55,10 @@ class BuildContext:
     """What a factory may need besides its section: the experiment, the curve, the schedule (built when
     first asked for), one axis' name and initial state."""
 
+    #: build_schedule(experiment, curve) -> the schedule, for :attr:`schedule`: set where the schedule
+    #: factories are (:mod:`contouring_ros.config`), which this module does not import
+    schedule_builder: Callable | None = None
+
     def __init__(self, experiment=None, curve=None, axis=None, position=None, velocity=None, acceleration=None,
                  where: str = "", schedule=None):
         self.experiment, self.curve, self.axis, self.where = experiment, curve, axis, where
@@ -64,8 +68,7 @@ class BuildContext:
     @property
     def schedule(self):
         if self._schedule is None:
-            from .config import build_schedule
-            self._schedule = build_schedule(self.experiment, self.curve)
+            self._schedule = BuildContext.schedule_builder(self.experiment, self.curve)
         return self._schedule
 
     @property

@@ -4,7 +4,9 @@ from __future__ import annotations
 import numpy as np
 
 from .bag import RecordedRun, read_run
+from .blocks import cutting_scores
 from .config import build_curve, parse_experiment
+from .core.geometry import ExactContourError
 from .core.metrics import Scores, score
 from .errors import BagError, ScoreError
 
@@ -41,7 +43,6 @@ def cutting_lines(curve, result, schedule: dict) -> list:
     """For a tool path run: one line with the scores of its cutting moves alone (G1 / G2 / G3, the start-up
     and rapids left out: :mod:`contouring_ros.blocks`), then the contour-tolerance verdict on them (where the
     schedule has a tolerance); for any other run the verdict on the whole run, if any."""
-    from .blocks import cutting_scores
     cutting = cutting_scores(curve, result)
     if cutting is None:
         held = tolerance_line(schedule, score_run(curve, result).mce) if schedule.get("contour_tolerance") else None
@@ -67,12 +68,10 @@ def check_experiment_matches(run: RecordedRun, curve, path) -> None:
     """Refuse (BagError, one line) an experiment given for a bag that it did not produce: other axes, or a
     curve the recorded /reference does not lie on (checked at up to 200 steps spread over the run, to within
     1e-9 of the path's size + 1 nm)."""
-    from .config import parse_experiment
     experiment = parse_experiment(run.experiment_text, "--experiment")
     if list(experiment.axes) != list(run.axes):
         raise BagError(f"{path}: --experiment {experiment.name} has axes {', '.join(experiment.axes)}; the bag "
                        f"has {', '.join(run.axes)}")
-    from .core.geometry import ExactContourError
     reference = run.result.reference_position
     rows = np.unique(np.linspace(0, len(reference) - 1, min(200, len(reference))).astype(int))
     distance = ExactContourError(curve, window=0.0)(reference[rows]).distance

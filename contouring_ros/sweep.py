@@ -20,10 +20,11 @@ from pathlib import Path
 import numpy as np
 
 
-from .config import GLOBAL_SECTION, ROS_PARAMETERS, build_loop, experiment_from_data, read_yaml
+from .config import GLOBAL_SECTION, ROS_PARAMETERS, build_loop, experiment_from_data, load_experiment, read_yaml, recorded_text
 from .core.batch import batch_problem, simulate_batch, structure
 from .core.simulation import first_divergence, simulate
 from .errors import ConfigError, Diverged, ScoreError, write_atomically
+from .executors import pool as executor
 from .scoring import score_run
 
 __all__ = ["parse_grid", "apply_settings", "settings_file", "experiments_for", "combinations", "SweepRow", "score_experiments",
@@ -79,7 +80,6 @@ def settings_file(path, specs: list, directory) -> Path:
     one value each) applied, written as ``directory``/<same name> for the nodes to read; validated like any
     experiment file, the ROS 2 parameter parser's reading included (ConfigError naming the setting)."""
     import yaml
-    from .config import load_experiment, recorded_text
 
     class _Quoted(yaml.SafeDumper):
         """Every string double-quoted: the ROS parser then reads 'y' or 'on' as the strings they are."""
@@ -246,7 +246,6 @@ def score_experiments(experiments: list, workers: int | None = None, progress: b
     in-process simulation on a process pool (or the Dask cluster at ``scheduler``,
     :func:`contouring_ros.executors.pool`), vectorised where it can be."""
     from tqdm import tqdm
-    from .executors import pool as executor
     out = [None] * len(experiments)
     with executor(workers, scheduler) as (pool, workers), \
             tqdm(total=len(experiments), desc=desc, disable=not progress, leave=False) as bar:

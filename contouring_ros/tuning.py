@@ -68,6 +68,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import config
+from .config import CONTROLLERS, experiment_from_data
+from .core.margins import axis_loop, coupled_loop, margins, quick_robustness
+from .errors import ConfigError
+from .sweep import _score_one, apply_settings, simulate_experiments
+
 __all__ = ["REALISTIC", "SATURATION_MARGIN", "PLANT_PARAMETERS", "GAIN_KEYS", "Protocol", "Outcome",
            "Evaluation", "Tuned", "gain_keys", "anchors", "machine_settings", "perturbations", "draw_settings",
            "experiment_for", "experiment_margins", "worst_margins", "loop_robustness", "MS_LIMIT", "run_outcomes", "worst_case", "minimise",
@@ -187,7 +193,6 @@ def gain_keys(controller: str, section: dict) -> tuple:
     if controller in GAIN_KEYS:
         keys = GAIN_KEYS[controller]
     else:
-        from .config import CONTROLLERS
         params = CONTROLLERS.entry(controller).params
         keys = tuple(k for k, p in params.items() if p.kind in ("float", "floats") and k.startswith("k"))
     return tuple(k for k in keys if section.get(k) is not None)
@@ -307,7 +312,6 @@ def _outcomes(experiments: list, from_time: float, limits: list) -> list:
     """An :class:`Outcome` per experiment, ``limits[i]`` the actuator limits of experiment i's axes: those of
     one structure run as one vectorised batch where every class has a batch path
     (:func:`contouring_ros.sweep.simulate_experiments`), the others one by one."""
-    from .sweep import simulate_experiments
     with np.errstate(all="ignore"):
         loops, results, _, failures = simulate_experiments(experiments)
         return [Outcome(failure=failure) if result is None else _figures(loop, result, from_time, limit)
@@ -315,7 +319,6 @@ def _outcomes(experiments: list, from_time: float, limits: list) -> list:
 
 
 def _figures(loop, result, from_time: float, limits: tuple) -> Outcome:
-    from .sweep import _score_one
     scores, failure = _score_one(loop, result, from_time)
     if scores is None:
         return Outcome(failure=failure)
@@ -337,8 +340,6 @@ def _limits(data: dict, settings: dict) -> tuple:
 def experiment_for(data: dict, sections: dict, settings: dict, where: str):
     """The validated experiment of ``data`` (a parsed experiment file) with the node ``sections`` and the
     grid ``settings`` applied (ConfigError when refused)."""
-    from .config import experiment_from_data
-    from .sweep import apply_settings
     here = apply_settings(apply_settings(copy.deepcopy(data), sections), settings)
     return experiment_from_data(here, where)
 
@@ -346,7 +347,6 @@ def experiment_for(data: dict, sections: dict, settings: dict, where: str):
 def run_outcomes(data: dict, sections: dict, settings_list: list, from_time: float, where: str) -> list:
     """An :class:`Outcome` per settings mapping: :func:`experiment_for` each, simulated in-process (batched
     where the classes allow, :func:`_outcomes`)."""
-    from .errors import ConfigError
     out, experiments, places = [], [], []
     for settings in settings_list:
         try:
@@ -373,8 +373,6 @@ def _loops(experiment) -> dict:
     (:func:`contouring_ros.core.margins.axis_loop`) and with the experiment's contour controller
     (:func:`~contouring_ros.core.margins.coupled_loop`: each axis as if the others were identical to it, on
     a straight line); None where the law is not linear time-invariant feedback."""
-    from . import config
-    from .core.margins import axis_loop, coupled_loop
     ts = float(experiment.sample_time)
     controller = config.build_controller(experiment, config.build_curve(experiment))
     out = {}
@@ -388,7 +386,6 @@ def _loops(experiment) -> dict:
 def experiment_margins(experiment) -> dict:
     """The margins of every axis of an experiment: {axis: {"axis": LoopMargins | None, "coupled": ...}} of
     the loops of :func:`_loops`."""
-    from .core.margins import margins
     ts = float(experiment.sample_time)
     return {axis: {name: None if loop is None else margins(loop, ts) for name, loop in loops.items()}
             for axis, loops in _loops(experiment).items()}
@@ -514,7 +511,6 @@ def loop_robustness(experiment) -> tuple | None:
     The loop is each axis coupled with a linear contour controller (:func:`experiment_margins`'s "coupled");
     allowed is :data:`MS_LIMIT`, or the axis loop's own Ms where the drive's servo alone already exceeds it
     (a contour controller must then not make it worse)."""
-    from .core.margins import quick_robustness
     worst = None
     for loops in _loops(experiment).values():
         if loops["coupled"] is None:
@@ -537,7 +533,6 @@ def tune(data: dict, sections: dict, keys: tuple, machine: dict, noise_limit: fl
     robustness as the paper's own design is enough, where that design itself degrades by more than
     robust_factor (otherwise only points far worse than the paper's would pass, and their error is large
     enough to hide any degradation)."""
-    from .errors import ConfigError
     ccc = sections["/ccc"]
     file_gains = {k: ccc[k] for k in keys}
     tuned = Tuned(file_gains=file_gains)

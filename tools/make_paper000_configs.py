@@ -4,9 +4,10 @@ The scenarios differ only in the parabola depth h, the traversal time T, the ser
 estimator/controller pair, so they are generated from one template to keep them consistent. Run it
 after changing the template: python tools/make_paper000_configs.py
 """
+import sys
 from pathlib import Path
 
-from scenario_template import shared_section
+from scenario_template import shared_section, with_adds
 
 HEADER = """\
 # Paper 000 (Ghaffari & Ulsoy, Newton-based CEE and robust CCC), section {section}.
@@ -102,8 +103,8 @@ CASES = [
 CONSTANT_LOAD = "{type: constant, value: 1.5e-4}"    # the faithful load: D_i = +0.15 paper units
 
 
-def main():
-    out = Path(__file__).resolve().parent.parent / "config"
+def main(out=None):
+    out = Path(out) if out else Path(__file__).resolve().parent.parent / "config"
     for stem, section, title, h, T, servo, (estimator, ccc), mce, tace in CASES:
         text = HEADER.format(section=section, title=title, mce=mce, tace=tace, tolerance=TOLERANCE,
                              max_iterations=MAX_ITERATIONS) + "\n" + \
@@ -112,7 +113,7 @@ def main():
                 stem, title, {"source": f"000 section {section}", "mce_um": mce, "tace_um": tace}, ["x", "y"],
                 f"{{type: parabola, a: 0.02, h: {h}}}",
                 f"{{type: uniform, theta_start: -0.02, theta_end: 0.02, duration: {T}}}"))
-        (out / f"{stem}.yaml").write_text(text)
+        (out / f"{stem}.yaml").write_text(with_adds(stem, text))
         print(out / f"{stem}.yaml")
 
 
@@ -211,8 +212,8 @@ MECH_CASES = [
 ]
 
 
-def write_mechanism_scenarios():
-    out = Path(__file__).resolve().parent.parent / "config"
+def write_mechanism_scenarios(out=None):
+    out = Path(out) if out else Path(__file__).resolve().parent.parent / "config"
     common = MECH_COMMON.format(newton=", ".join(line.strip() for line in NEWTON[0].splitlines()[1:]))
     for stem, header, title, h, T, servo, (estimator, ccc), disturbance in MECH_CASES:
         text = header.format(title=title) + common + "\n" + BODY.format(
@@ -221,10 +222,10 @@ def write_mechanism_scenarios():
             shared=shared_section(stem, title, {"source": "000 mechanism scenario (no paper figure)"}, ["x", "y"],
                                   f"{{type: parabola, a: 0.02, h: {h}}}",
                                   f"{{type: uniform, theta_start: -0.02, theta_end: 0.02, duration: {T}}}"))
-        (out / f"{stem}.yaml").write_text(text)
+        (out / f"{stem}.yaml").write_text(with_adds(stem, text))
         print(out / f"{stem}.yaml")
 
 
 if __name__ == "__main__":
-    main()
-    write_mechanism_scenarios()
+    main(*sys.argv[1:2])       # the output directory, default config/
+    write_mechanism_scenarios(*sys.argv[1:2])

@@ -20,9 +20,10 @@ Every file's header says what it reads into the paper and why its numbers were c
 also listed in config/claims/paper001.yaml.
 """
 import math
+import sys
 from pathlib import Path
 
-from scenario_template import shared_section
+from scenario_template import shared_section, with_adds
 
 SCREW = 228.0                     # 2 pi / lead [rad/m] of the x ball screw (see the header)
 J_X, B_X_ROT = 0.05916, 0.01725   # x: kg m^2, N m s/rad
@@ -174,12 +175,12 @@ def write(out, name, section, title, compared, paper, radius, feedrate, revoluti
     header = HEADER.format(section=section, title=title, compared=compared,
                            readings=READINGS.format(**fields), extra=("#\n" + extra.format(**fields)) if extra else "")
     path = out / f"{name}.yaml"
-    path.write_text(header + "\n" + BODY.format(**fields))
+    path.write_text(with_adds(name, header + "\n" + BODY.format(**fields)))
     print(path)
 
 
-def main():
-    out = Path(__file__).resolve().parent.parent / "config"
+def main(out=None):
+    out = Path(out) if out else Path(__file__).resolve().parent.parent / "config"
     for case, (radius, feedrate) in CASES.items():
         for key, (label, ccc) in CONTROLLERS.items():
             mce, rms = PAPER[case, key]
@@ -215,4 +216,4 @@ def main():
 
 
 if __name__ == "__main__":
-    main()
+    main(*sys.argv[1:2])       # the output directory, default config/

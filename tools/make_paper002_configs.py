@@ -11,9 +11,10 @@ tangential velocity tracking CCC (C3). Two experiments, each with the three meth
 The claims these files test are in config/claims/paper002.yaml. Run after changing the template:
 python tools/make_paper002_configs.py
 """
+import sys
 from pathlib import Path
 
-from scenario_template import shared_section
+from scenario_template import shared_section, with_adds
 
 READINGS = """\
 # Readings these files had to choose (the paper's equations and Tables 1-2 are lost from its text; the same
@@ -115,8 +116,8 @@ EXPERIMENTS = {
 }
 
 
-def main():
-    out = Path(__file__).resolve().parent.parent / "config"
+def main(out=None):
+    out = Path(out) if out else Path(__file__).resolve().parent.parent / "config"
     for prefix, experiment, header, acceleration, source in EXPERIMENTS.values():
         for key, (label, servo, estimator, ccc) in METHODS.items():
             name = f"{prefix}_{key}"
@@ -130,9 +131,10 @@ def main():
                                     f"    settle_time: {SETTLE_TIME}  # s past the schedule's end: every method "
                                     "finishes the path\n")
             fields = dict(title=title, servo=servo, estimator=estimator, ccc=ccc, shared=shared)
-            (out / f"{name}.yaml").write_text(header.format(**fields) + READINGS + "\n" + BODY.format(**fields))
+            (out / f"{name}.yaml").write_text(with_adds(name, header.format(**fields) + READINGS + "\n"
+                                                           + BODY.format(**fields)))
             print(out / f"{name}.yaml")
 
 
 if __name__ == "__main__":
-    main()
+    main(*sys.argv[1:2])       # the output directory, default config/

@@ -9,9 +9,10 @@ error, natural local only its cubic remainder); each header says what physics ma
 The claims they back are in config/claims/paper003.yaml. Run after changing the templates:
 python tools/make_paper003_configs.py
 """
+import sys
 from pathlib import Path
 
-from scenario_template import shared_section
+from scenario_template import shared_section, with_adds
 
 HEADER = """\
 # Paper 003 (Meng, Lou & Zhou, natural local approximation based contouring control), section IV-A.
@@ -163,7 +164,8 @@ def write_xy_stage(out: Path):
                 fields["shared"] = shared_section(
                     name, title, {"source": f"003 section IV-C, Table {spec['table_number']}", "mce_um": mce,
                                   "rms_um": rms}, ["x", "y"], spec["curve"], spec["schedule"])
-                (out / f"{name}.yaml").write_text(XY_HEADER.format(**fields) + "\n" + XY_BODY.format(**fields))
+                (out / f"{name}.yaml").write_text(with_adds(name, XY_HEADER.format(**fields) + "\n"
+                                                               + XY_BODY.format(**fields)))
                 print(out / f"{name}.yaml")
 
 
@@ -217,13 +219,13 @@ def write_xy_mechanism(out: Path):
                 "sampling, the saturation and the approximation.",
                 "The controller uses this identified model (M, B, K and the\n#   friction, eq. 25); the plant's "
                 "damping differs (below).")
-            (out / f"{name}.yaml").write_text(header + XY_MECHANISM.format(**fields) + "\n"
-                                              + XY_BODY.format(**fields))
+            (out / f"{name}.yaml").write_text(with_adds(name, header + XY_MECHANISM.format(**fields) + "\n"
+                                                         + XY_BODY.format(**fields)))
             print(out / f"{name}.yaml")
 
 
-def main():
-    out = Path(__file__).resolve().parent.parent / "config"
+def main(out=None):
+    out = Path(out) if out else Path(__file__).resolve().parent.parent / "config"
     write_xy_stage(out)
     write_xy_mechanism(out)
     for mechanism in (False, True):
@@ -242,9 +244,9 @@ def main():
                     name, title, {"source": "003 section IV-A", "tace_um": PAPER[approximation, f_n]}, ["x", "y", "z"],
                     "{type: helix, a: 0.03, b: 0.01, c: 0.1, omega: 6.283185307179586, length: 4.5}",
                     "{type: uniform, theta_start: 0.0, theta_end: 4.0, duration: 4.0}")
-                (out / f"{name}.yaml").write_text(HEADER.format(**fields) + "\n" + BODY.format(**fields))
+                (out / f"{name}.yaml").write_text(with_adds(name, HEADER.format(**fields) + "\n" + BODY.format(**fields)))
                 print(out / f"{name}.yaml")
 
 
 if __name__ == "__main__":
-    main()
+    main(*sys.argv[1:2])       # the output directory, default config/

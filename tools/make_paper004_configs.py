@@ -14,9 +14,10 @@ Besides the paper's four runs (the faithful reading) it writes:
   acting: the PID CCC's kp raised to the x axis' sliding mode stiffness, with and without the CCC.
 Every file's header says what it reads into the paper and why its numbers were chosen.
 """
+import sys
 from pathlib import Path
 
-from scenario_template import shared_section
+from scenario_template import shared_section, with_adds
 
 GRAVITY = 9.81          # m/s^2
 CCC_KP = 2.66e4         # (M_x / K_fx) c_x k_x = 5.8 / 10.9 * 500 * 100 = 26606: see MECH_CCC below
@@ -150,8 +151,8 @@ def scenarios():
     return out
 
 
-def main():
-    out = Path(__file__).resolve().parent.parent / "config"
+def main(out=None):
+    out = Path(out) if out else Path(__file__).resolve().parent.parent / "config"
     for name, curve, eso, ccc, load, what, extra, compared, paper in scenarios():
         case = CASES[curve]
         title = f"{case['label']}, {what}"
@@ -164,9 +165,9 @@ def main():
         fields = dict(case, title=title, compared=compared, extra=extra, eso=str(eso).lower(), ccc=ccc,
                       z_offset=f", offset: {load}" if load else "")
         fields["shared"] = shared_section(name, title, numbers, ["x", "y", "z"], case["curve"], case["schedule"])
-        (out / f"{name}.yaml").write_text(HEADER.format(**fields) + "\n" + BODY.format(**fields))
+        (out / f"{name}.yaml").write_text(with_adds(name, HEADER.format(**fields) + "\n" + BODY.format(**fields)))
         print(out / f"{name}.yaml")
 
 
 if __name__ == "__main__":
-    main()
+    main(*sys.argv[1:2])       # the output directory, default config/

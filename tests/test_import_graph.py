@@ -1,0 +1,108 @@
+"""The package's own import graph, read from the code with ast: no circle among the module-level imports, and
+no function-local import of a contouring_ros module except the few listed below, each for a stated reason
+(an optional or heavy dependency, or a process that must stay light), never to dodge a circle."""
+import ast
+import graphlib
+from pathlib import Path
+
+from conftest import ROOT
+
+PACKAGE = "contouring_ros"
+
+# (importing module, imported module or "*" for any) -> why the import is made inside a function
+LOCAL_IMPORTS_ALLOWED = {
+    ("contouring_ros", "contouring_ros.api"):
+        "the top level loads the Python API on first attribute use (PEP 562), so a node's process does not",
+    ("contouring_ros.cli", "*"):
+        "the command line loads a subcommand's modules only when it runs: --help, argument errors and run's "
+        "launch start without numpy, scipy and the validation",
+    ("contouring_ros.executors", "contouring_ros.executors"):
+        "runs on a Dask worker: imports the worker's own installed copy to report its source digest",
+}
+
+
+def _modules() -> dict:
+    """{dotted module name: path} of every module of the package."""
+    modules = {}
+    for path in sorted((ROOT / PACKAGE).rglob("*.py")):
+        parts = path.relative_to(ROOT).with_suffix("").parts
+        modules[".".join(parts[:-1] if parts[-1] == "__init__" else parts)] = path
+    return modules
+
+
+def _targets(module: str, path: Path, node, modules: dict) -> list:
+    """The package modules one import statement names."""
+    if isinstance(node, ast.Import):
+        return [alias.name for alias in node.names if alias.name in modules]
+    if node.level:
+        package = module.split(".") if path.name == "__init__.py" else module.split(".")[:-1]
+        package = package[:len(package) - node.level + 1]
+        base = ".".join(package + ([node.module] if node.module else []))
+    else:
+        base = node.module or ""
+    targets = []
+    for alias in node.names:
+        name = f"{base}.{alias.name}"
+        target = name if name in modules else base
+        if target in modules and target not in targets:
+            targets.append(target)
+    return targets
+
+
+def _imports() -> tuple:
+    """({module: {package modules it imports at module level}}, [(module, imported, line) made in a function])."""
+    modules = _modules()
+    top, local = {}, []
+    for module, path in modules.items():
+        top[module] = set()
+
+        def visit(node, in_function):
+            for child in ast.iter_child_nodes(node):
+                inside = in_function or isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef, ast.Lambda))
+                if isinstance(child, (ast.Import, ast.ImportFrom)):
+                    for target in _targets(module, path, child, modules):
+                        if in_function:
+                            local.append((module, target, child.lineno))
+                        else:
+                            top[module].add(target)
+                visit(child, inside)
+        visit(ast.parse(path.read_text(encoding="utf-8"), str(path)), False)
+    return top, local
+
+
+def _allowed(module: str, target: str) -> bool:
+    for importer, imported in LOCAL_IMPORTS_ALLOWED:
+        if importer != module:
+            continue
+        if imported in ("*", target) or (imported.endswith(".*") and target.startswith(imported[:-1])):
+            return True
+    return False
+
+
+def test_the_graph_is_read_from_the_package():
+    top, _ = _imports()
+    assert {"contouring_ros.config", "contouring_ros.registry", "contouring_ros.core.simulation"} <= set(top)
+    assert "contouring_ros.registry" in top["contouring_ros.config"]
+
+
+def test_module_level_imports_have_no_circle():
+    top, _ = _imports()
+    try:
+        graphlib.TopologicalSorter(top).prepare()
+    except graphlib.CycleError as error:
+        raise AssertionError(f"import circle: {' -> '.join(error.args[1])}") from None
+
+
+def test_function_local_imports_of_the_package_have_a_stated_reason():
+    _, local = _imports()
+    unlisted = [f"{module}:{line} imports {target}" for module, target, line in local if not _allowed(module, target)]
+    assert not unlisted, "function-local imports without a reason in LOCAL_IMPORTS_ALLOWED:\n" + "\n".join(unlisted)
+
+
+def test_every_allowed_entry_is_used_and_has_a_reason():
+    _, local = _imports()
+    for (importer, imported), reason in LOCAL_IMPORTS_ALLOWED.items():
+        assert reason.strip(), (importer, imported)
+        assert any(module == importer and _allowed(importer, target) and
+                   (imported in ("*", target) or (imported.endswith(".*") and target.startswith(imported[:-1])))
+                   for module, target, _ in local), f"unused entry {importer} -> {imported}"
