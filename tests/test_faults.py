@@ -1,5 +1,6 @@
 """Faults: dead, frozen or killed nodes, signals to the runner, bad values, divergence, windup, cross-talk."""
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -28,9 +29,9 @@ def _node_processes(marker: str) -> list:
     return [int(pid) for pid in out.stdout.split()]
 
 
-def _run_and_signal(experiment, bag, node_name, sig, after: float):
-    """Run the graph; ``after`` seconds into the lockstep send ``sig`` to ``node_name``. Returns the
-    RunError and the seconds from the signal to the runner's report."""
+def _run_and_signal(experiment, bag, node_name, sig, after: float, domain_id: int | None = None):
+    """Run the graph (on ``domain_id``, else a free one); ``after`` seconds into the lockstep send ``sig`` to
+    ``node_name``. Returns the RunError and the seconds from the signal to the runner's report."""
     sent = {}
 
     def started(nodes):
@@ -48,7 +49,7 @@ def _run_and_signal(experiment, bag, node_name, sig, after: float):
         threading.Thread(target=send, daemon=True).start()
 
     with pytest.raises(RunError) as info:
-        run_graph(experiment, bag, on_started=started)
+        run_graph(experiment, bag, on_started=started, domain_id=domain_id)
     return info.value, time.monotonic() - sent["time"]
 
 
@@ -56,9 +57,11 @@ def _run_and_signal(experiment, bag, node_name, sig, after: float):
 def test_killed_node_stops_the_run_and_the_bag_scores_up_to_the_failure(tmp_path):
     bag = tmp_path / "killed.mcap"
     shared_memory_before = _shared_memory_files()
-    error, delay = _run_and_signal(DEFAULT, bag, "/y/servo", signal.SIGKILL, 0.5)
+    with DomainLease() as lease:
+        domain = lease.domain_id
+    error, delay = _run_and_signal(DEFAULT, bag, "/y/servo", signal.SIGKILL, 0.5, domain)
     # the killed node could not release its Fast DDS segments: the runner removed them
-    assert not _leaked_shared_memory(shared_memory_before)
+    assert not _leaked_shared_memory(shared_memory_before, [domain])
     assert "/y/servo was killed by SIGKILL" in str(error)
     assert delay < 1.0 + 5.5        # noticed within a second; the rest get SIGINT and up to 5 s to close
     run = read_run(bag)
@@ -260,10 +263,20 @@ def _shared_memory_in_use() -> set:
     return {name.removesuffix(" (deleted)") for name in used}
 
 
-def _leaked_shared_memory(before: set) -> set:
-    """Fast DDS files in /dev/shm that were not there ``before``, are ours and no live process uses: what
-    this test's runs left behind. Another Fast DDS program running beside the suite is no leak of ours."""
-    new = _shared_memory_files() - before
+def _port_domain(name: str) -> int | None:
+    """The ROS domain of a Fast DDS shared-memory port file (``fastrtps_port<N>[_el|_mutex]``): its port
+    number N is a UDP-style port, 7400 + 250 x domain + offset (offsets below 250); None for other files."""
+    match = re.fullmatch(r"fastrtps_port(\d+)(_.*)?", name)
+    return (int(match.group(1)) - 7400) // 250 if match else None
+
+
+def _leaked_shared_memory(before: set, domains) -> set:
+    """Fast DDS port files in /dev/shm that were not there ``before``, belong to the ROS ``domains`` this
+    test's runs used and no live process uses: a participant of these runs left behind (a participant's
+    port file stays when it cannot release its segments). Files of another Fast DDS program running
+    beside the suite, on other domains, are no leak of ours; segment files named at random cannot be told
+    apart, so they are not judged."""
+    new = {name for name in _shared_memory_files() - before if _port_domain(name) in set(domains)}
     if not new:
         return set()
     used, leaked = _shared_memory_in_use(), set()
@@ -290,13 +303,15 @@ def test_soak_in_process_50_runs_identical():
 def test_soak_graph_10_runs_identical_and_nothing_leaked(tmp_path, write_experiment):
     path = write_experiment(shortened(DEFAULT, 1.0), "soak.yaml")
     before_shm = _shared_memory_files()
-    scores = set()
+    scores, domains = set(), []
     for i in range(10):
-        bag = run_graph(path, tmp_path / f"soak{i}.mcap")
+        with DomainLease() as lease:           # a free domain, then held by the run itself
+            domains.append(lease.domain_id)
+        bag = run_graph(path, tmp_path / f"soak{i}.mcap", domain_id=domains[-1])
         scores.add(score_bag(bag)[0])
     assert len(scores) == 1
     assert _node_processes(str(path)) == []
-    assert not _leaked_shared_memory(before_shm)
+    assert not _leaked_shared_memory(before_shm, domains)
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["soak.yaml"] + [f"soak{i}.mcap" for i in range(10)])
 
 
