@@ -17,11 +17,11 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 import rclpy  # noqa: E402
-from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 
 from contouring_ros import cdr  # noqa: E402
 from contouring_ros.nodes.lockstep import GRAPH_QOS  # noqa: E402
+from contouring_ros.rclpy_adapter import SubscriptionWaitSet, taker  # noqa: E402
 
 
 def main():
@@ -54,16 +54,14 @@ def main():
         node.destroy_node()
         rclpy.try_shutdown()
         return
-    wait_set = _rclpy.WaitSet(1, 0, 0, 0, 0, 0, node.context.handle)
+    wait_set, take = SubscriptionWaitSet([subscription], node.context), taker(subscription, JointState)
     received, start, cpu = -1, time.perf_counter(), time.process_time()
     if role == "ping":
         send(0)
     while received < rounds - 1:
-        wait_set.clear_entities()
-        wait_set.add_subscription(subscription.handle)
         wait_set.wait(1_000_000_000)
         while True:
-            taken = subscription.handle.take_message(JointState, True)
+            taken = take()
             if taken is None:
                 break
             stamp = cdr.stamp_ns(taken[0])

@@ -19,10 +19,11 @@ from pathlib import Path
 from . import graph
 from .config import load_experiment
 from .errors import ContouringError, RunError
+from .rclpy_adapter import SubscriptionWaitSet
 from .nodes.ccc import CCCNode
 from .nodes.contour_estimator import ContourEstimatorNode
 from .nodes.interpolator import InterpolatorNode
-from .nodes.lockstep import COMPOSED_LOOP, interrupted_code, realtime_loop, track_signals, wait_on, wait_until
+from .nodes.lockstep import COMPOSED_LOOP, interrupted_code, realtime_loop, track_signals, wait_until
 from .nodes.plant import PlantNode
 from .nodes.recorder import REALTIME_GRACE, RecorderNode
 from .nodes.servo import ServoNode
@@ -43,9 +44,14 @@ def _node_classes():
             "contour_estimator": ContourEstimatorNode, "ccc": CCCNode, "recorder": RecorderNode}
 
 
-def _lean_spin_once(nodes, wait_set, handles, timeout_ns: int):
+def _wait_set(nodes) -> SubscriptionWaitSet:
+    """One persistent wait set over every subscription of ``nodes``."""
+    return SubscriptionWaitSet([sub for node in nodes for sub in node.subscriptions()], nodes[0].node.context)
+
+
+def _lean_spin_once(nodes, wait_set, timeout_ns: int):
     """One turn of the lean loop over every node's subscriptions: wait, take, dispatch."""
-    wait_on(wait_set, handles, timeout_ns)
+    wait_set.wait(timeout_ns)
     for node in nodes:
         node.take_all(node.admitted)
 
@@ -94,12 +100,10 @@ def run_composed(experiment_path: str, bag: str, executor_kind: str = "lean", st
         for node in nodes:
             node.start()
         if executor_kind == "lean" or experiment.timing == "realtime":
-            from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
-            handles = [sub.handle for node in nodes for _, sub, _, _ in node._inputs]
-            wait_set = _rclpy.WaitSet(max(len(handles), 1), 0, 0, 0, 0, 0, nodes[0].node.context.handle)
+            wait_set = _wait_set(nodes)
 
             def spin_once(timeout_sec):
-                _lean_spin_once(nodes, wait_set, handles, int(timeout_sec * 1e9))
+                _lean_spin_once(nodes, wait_set, int(timeout_sec * 1e9))
         else:
             spin_once = executor.spin_once
         if experiment.timing == "realtime":
@@ -142,13 +146,11 @@ def _run_realtime(nodes, label: str):
     tick k on all subscriptions, then tick each node in graph order (interpolator, plants, estimator, CCC,
     servos); the recorder, if one of them, takes what arrives after each tick."""
     import rclpy
-    from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
     lockstep_nodes = [node for node in nodes if node.role != "recorder"]
     recorder = nodes[-1] if nodes[-1].role == "recorder" else None
     for node in lockstep_nodes:
         node.realtime_setup()
-    handles = [sub.handle for node in nodes for _, sub, _, _ in node._inputs]
-    wait_set = _rclpy.WaitSet(max(len(handles), 1), 0, 0, 0, 0, 0, nodes[0].node.context.handle)
+    wait_set = _wait_set(nodes)
     context = nodes[0].node.context
     record = (lambda: recorder.take_all(recorder.admitted)) if recorder is not None else None
 
@@ -166,7 +168,7 @@ def _run_realtime(nodes, label: str):
         recorder.writer.write_only_while(idle)
     try:
         if lockstep_nodes:
-            realtime_loop(lockstep_nodes, label, wait_set, handles, take, spin=REALTIME_SPIN, after_tick=record,
+            realtime_loop(lockstep_nodes, label, wait_set, take, spin=REALTIME_SPIN, after_tick=record,
                           idle=idle)
     finally:
         sys.setswitchinterval(switch_interval)
@@ -178,7 +180,7 @@ def _run_realtime(nodes, label: str):
     end = max(time.time() + 1.0, experiment.start_time + experiment.n_steps * experiment.sample_time
               + REALTIME_GRACE)
     while not recorder.complete() and time.time() < end and rclpy.ok(context=context):
-        wait_until(time.time() + 0.01, wait_set, handles, take, context)
+        wait_until(time.time() + 0.01, wait_set, take, context)
     recorder.finished = True
 
 

@@ -491,7 +491,7 @@ _register(CONTROLLERS, {
                                                        "damping0"))})
 # built-in controllers that compute every axis' whole command (their servos must be 'direct', and only theirs;
 # a plugin says so with whole_command on its entry)
-WHOLE_COMMAND_CONTROLLERS = {name for name, entry in CONTROLLERS._entries.items() if entry.whole_command}
+WHOLE_COMMAND_CONTROLLERS = {name for name, entry in CONTROLLERS.registered().items() if entry.whole_command}
 GLOBALS = {
     "experiment": Param("dict", {}),
     "paper": Param("dict", {}),
@@ -714,7 +714,7 @@ def _validate_combination(where, estimator: dict, controller: dict, servos: dict
     for axis, section in servos.items():
         direct = SERVOS.entry(section["law"]).direct
         if whole and not direct:
-            laws = " or ".join(repr(name) for name, e in SERVOS._entries.items() if e.direct)
+            laws = " or ".join(repr(name) for name, e in SERVOS.registered().items() if e.direct)
             _fail(where, f"/{axis}/servo.law", f"the {controller['type']} controller computes the whole command: "
                                                f"every servo law must be {laws}")
         if not whole and direct:

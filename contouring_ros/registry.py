@@ -138,6 +138,10 @@ class Role(Mapping):
         self._entries[entry.name] = entry
         return entry
 
+    def registered(self) -> dict:
+        """{name: Entry} of the types registered so far (no entry point is listed or loaded)."""
+        return dict(self._entries)
+
     def builtin(self) -> dict:
         """{name: params} of the types registered so far (no entry point is listed or loaded)."""
         return {name: entry.params for name, entry in self._entries.items()}

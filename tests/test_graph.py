@@ -251,7 +251,7 @@ def test_wait_until_returns_at_the_deadline_when_spinning():
     try:
         for spin in (0.0, 0.005):
             deadline = time.time() + 0.02
-            wait_until(deadline, None, [], lambda: None, context, spin=spin)
+            wait_until(deadline, None, lambda: None, context, spin=spin)
             assert 0.0 <= time.time() - deadline < 0.005 * machine_pace()     # a busy machine wakes it later
     finally:
         rclpy.shutdown(context=context)

@@ -23,11 +23,11 @@ import numpy as np
 import rclpy
 from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException
-from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from .. import cdr, graph
+from ..rclpy_adapter import SubscriptionWaitSet, take_request, taker
 from ..config import experiment_for_node, in_position_windows
 from ..parameters import descriptor, node_parameters
 from ..errors import ConfigError, ContouringError, RunError
@@ -102,6 +102,7 @@ class LockstepNode:
         self._topics = {t.name: t for t in graph.recorded_topics(
             self.axes, self.experiment.ccc_takes_state, in_position_windows(self.experiment) is not None)}
         self._inputs = []          # (topic name, subscription, msg class, decoder)
+        self._takers = []          # (topic name, the subscription's take: rclpy_adapter.taker)
         self._decoded_keys = {}    # input topic -> its key in _DECODED
         self._outputs = {}         # topic name -> publisher
         self._pending = {}         # step -> {topic: msg}
@@ -137,9 +138,7 @@ class LockstepNode:
         self._next_service_turn = now + SERVICE_PERIOD
         for service in self.node.services:
             while True:
-                with service.handle:
-                    taken = service.handle.service_take_request(service.srv_type.Request)
-                request, header = taken if taken is not None else (None, None)
+                request, header = take_request(service)
                 if header is None:
                     break
                 service.send_response(service.callback(request, service.srv_type.Response()), header)
@@ -156,6 +155,7 @@ class LockstepNode:
         callback = (lambda data, topic=topic: self.on_message(topic, data)) if self.callbacks else (lambda _: None)
         sub = self.node.create_subscription(cls, self.wire_name(topic), callback, qos, raw=True)
         self._inputs.append((topic, sub, cls, _DECODERS.get(type_name) if used else None))
+        self._takers.append((topic, taker(sub, cls)))
         self._decoded_keys[topic] = self.decoded_key(topic)
         if self._topics[topic].every_step:
             # one publisher per graph topic, matched before it publishes (wait_for_graph), reliable and
@@ -167,6 +167,14 @@ class LockstepNode:
         pub = self.node.create_publisher(message_class(self._topics[topic].type), self.wire_name(topic), GRAPH_QOS)
         self._outputs[topic] = pub
         return pub
+
+    def subscriptions(self) -> list:
+        """The subscriptions of the node's inputs, in the order they were added."""
+        return [sub for _, sub, _, _ in self._inputs]
+
+    def wait_set(self) -> SubscriptionWaitSet:
+        """A persistent wait set over the node's inputs (one per loop, made once)."""
+        return SubscriptionWaitSet(self.subscriptions(), self.node.context)
 
     def wire_name(self, topic: str) -> str:
         """The name on the wire of the graph's ``topic`` (/x/state is /m1/x/state under /m1)."""
@@ -237,9 +245,9 @@ class LockstepNode:
         """Take every message waiting on the inputs and pass each to ``handle(topic, data)``
         (default :meth:`file_message`; the composed layout passes :meth:`on_message`)."""
         handle = handle or self.file_message
-        for topic, sub, cls, _ in self._inputs:
+        for topic, take in self._takers:
             while True:
-                taken = sub.handle.take_message(cls, True)
+                taken = take()
                 if taken is None:
                     break
                 data = taken[0]
@@ -406,11 +414,10 @@ class LockstepNode:
         ``stall_timeout`` seconds (an experiment key) without progress the node gives up with
         ``describe_stall()`` as the reason.
         """
-        wait_set = _rclpy.WaitSet(len(self._inputs), 0, 0, 0, 0, 0, self.node.context.handle)
-        handles = [sub.handle for _, sub, _, _ in self._inputs]
+        wait_set = self.wait_set()
         last_progress = next_log = time.monotonic()
         while not done():
-            wait_on(wait_set, handles, 200_000_000)
+            wait_set.wait(200_000_000)
             self.serve_requests()
             if time.monotonic() >= next_log + PROGRESS_PERIOD:
                 next_log = time.monotonic()
@@ -452,6 +459,11 @@ class LockstepNode:
         if self._extra_work:
             self.node.get_logger().warning(f"{SLOW_TICK_ENV}: every tick takes {self._extra_work * 1e3:g} ms "
                                            "longer (an overrun rehearsal)")
+        return self._first_tick
+
+    @property
+    def first_tick(self) -> int:
+        """The first realtime tick this node handles (set by :meth:`realtime_setup`)."""
         return self._first_tick
 
     def keep_newest(self, topic: str, data: bytes):
@@ -501,9 +513,7 @@ class LockstepNode:
         self.wait_for_graph()
         self.start()
         self.realtime_setup()
-        handles = [sub.handle for _, sub, _, _ in self._inputs]
-        wait_set = _rclpy.WaitSet(max(len(handles), 1), 0, 0, 0, 0, 0, self.node.context.handle)
-        realtime_loop([self], self.name, wait_set, handles, lambda: self.take_all(self.keep_newest),
+        realtime_loop([self], self.name, self.wait_set(), lambda: self.take_all(self.keep_newest),
                       after_tick=self.serve_requests)
 
     def realtime_counters(self) -> dict:
@@ -576,15 +586,6 @@ class LockstepNode:
         self.node.destroy_node()
 
 
-def wait_on(wait_set, handles, timeout_ns: int):
-    """Wait up to ``timeout_ns`` until one of the subscriptions ``handles`` has a message (the persistent
-    wait set is refilled each time, as rcl requires)."""
-    wait_set.clear_entities()
-    for handle in handles:
-        wait_set.add_subscription(handle)
-    wait_set.wait(timeout_ns)
-
-
 def slow_tick_seconds(name: str) -> float:
     """Extra seconds each realtime tick of node ``name`` takes, from the environment variable SLOW_TICK_ENV
     ("NODE=SECONDS[,NODE=SECONDS ...]", e.g. "/x/servo=0.005"; 0 for a node it does not name). A rehearsal
@@ -600,10 +601,11 @@ def slow_tick_seconds(name: str) -> float:
     return 0.0
 
 
-def realtime_loop(nodes, label: str, wait_set, handles, take, spin: float = 0.0, after_tick=None, idle=None):
+def realtime_loop(nodes, label: str, wait_set, take, spin: float = 0.0, after_tick=None, idle=None):
     """Tick ``nodes`` on the wall clock, in order, every Ts from the experiment's ``start_time``: one node in
     its own process (:meth:`LockstepNode.spin_realtime`) or a group sharing one thread
-    (:mod:`contouring_ros.composed`). Between ticks wait on ``handles`` and ``take()`` what arrives; after
+    (:mod:`contouring_ros.composed`). Between ticks wait on ``wait_set`` (a
+    :class:`~contouring_ros.rclpy_adapter.SubscriptionWaitSet`) and ``take()`` what arrives; after
     each tick call ``after_tick()``. ``label`` names the loop in the overrun error. ``idle``, a threading.Event,
     is set while the loop waits for its next tick and cleared while it ticks (:func:`wait_until`).
 
@@ -619,17 +621,17 @@ def realtime_loop(nodes, label: str, wait_set, handles, take, spin: float = 0.0,
     # a full collection over it stalls a tick 10-20 ms on this machine, after the freeze about nothing
     gc.collect()
     gc.freeze()
-    first = tick = min(node._first_tick for node in nodes)
+    first = tick = min(node.first_tick for node in nodes)
     while tick < experiment.n_steps:
         due = nodes[0].tick_time(tick)
-        wait_until(due, wait_set, handles, take, context, spin=spin, idle=idle)
+        wait_until(due, wait_set, take, context, spin=spin, idle=idle)
         lag = time.time() - due
         if lag > experiment.max_lag:
             if experiment.on_overrun == "stop":
                 raise RunError(overrun_message(nodes, label, tick, lag, start=tick == first))
             now = min(int((time.time() - experiment.start_time) / experiment.sample_time), experiment.n_steps - 1)
             for node in nodes:
-                node.skipped_ticks += max(0, now - max(tick, node._first_tick))
+                node.skipped_ticks += max(0, now - max(tick, node.first_tick))
             tick = max(tick, now)
         for node in nodes:
             node.realtime_tick(tick)
@@ -655,25 +657,28 @@ def overrun_message(nodes, label: str, tick: int, lag: float, start: bool = Fals
             f"{experiment.max_lag * 1e3:g} ms{busiest}): the machine cannot keep up; try {remedy}")
 
 
-def wait_until(deadline: float, wait_set, handles, take, context, spin: float = 0.0, idle=None):
-    """Until the wall clock reaches ``deadline``, wait on the subscriptions and ``take()`` what arrives.
+def wait_until(deadline: float, wait_set, take, context, spin: float = 0.0, idle=None):
+    """Until the wall clock reaches ``deadline``, wait on the subscriptions of ``wait_set`` (a
+    :class:`~contouring_ros.rclpy_adapter.SubscriptionWaitSet`; None or one without subscriptions: sleep) and
+    ``take()`` what arrives.
 
     With ``spin`` > 0 the last ``spin`` seconds are busy-waited (taking what arrives), so the return is not
     late by a timed wait's wake-up latency (about 0.1 ms here) at the cost of that much CPU per call.
     ``idle`` (a threading.Event) is set while the thread blocks in the wait, for work that should run only
     then (the composed layout's bag writer thread).
     """
+    inputs = bool(wait_set)
     while True:
         remaining = deadline - time.time()
         if remaining <= 0.0:
             return
         if remaining <= spin:
-            if handles:
+            if inputs:
                 take()
-        elif handles:
+        elif inputs:
             if idle is not None:
                 idle.set()
-            wait_on(wait_set, handles, int((remaining - spin) * 1e9))
+            wait_set.wait(int((remaining - spin) * 1e9))
             if idle is not None:
                 idle.clear()
             take()

@@ -1,0 +1,155 @@
+"""contouring_ros.rclpy_adapter: the only module that uses rclpy's internals; its check at import; its take and
+wait on a real rclpy node."""
+from __future__ import annotations
+
+import ast
+import importlib.util
+import re
+import time
+from importlib import metadata
+
+import pytest
+
+from conftest import ROOT
+
+from contouring_ros import rclpy_adapter
+
+ADAPTER = ROOT / "contouring_ros" / "rclpy_adapter.py"
+#: what only the adapter may name: rclpy's C extension and the private calls made on its objects
+PRIVATE_RCLPY = re.compile(r"implementation_singleton|rclpy_implementation|\b_rclpy\b|\btake_message\b|"
+                           r"\bservice_take_request\b|\bservice_send_response\b|\bWaitSet\b|\.handle\b")
+
+
+def _sources():
+    """Every module of the package and of bench/ but the adapter, with its path relative to the root."""
+    paths = sorted((ROOT / "contouring_ros").rglob("*.py")) + sorted((ROOT / "bench").glob("*.py"))
+    return [(path.relative_to(ROOT), path.read_text(encoding="utf-8")) for path in paths if path != ADAPTER]
+
+
+def test_only_the_adapter_uses_rclpy_internals():
+    found = [f"{path}:{number}: {line.strip()}" for path, text in _sources()
+             for number, line in enumerate(text.splitlines(), 1) if PRIVATE_RCLPY.search(line)]
+    for path, text in _sources():
+        for node in ast.walk(ast.parse(text, str(path))):
+            if isinstance(node, ast.ImportFrom) and (node.module or "").split(".")[0] == "rclpy":
+                names = (node.module or "").split(".") + [alias.name for alias in node.names]
+                if any(name.startswith("_") for name in names):
+                    found.append(f"{path}:{node.lineno}: {ast.unparse(node)}")
+    assert not found, "rclpy internals outside contouring_ros/rclpy_adapter.py:\n" + "\n".join(found)
+
+
+def test_no_private_attribute_is_read_across_objects():
+    """``x._name`` only on ``self`` or ``cls``: another object's (ours or rclpy's) is read through its public
+    methods and properties."""
+    found = []
+    for path, text in [*_sources(), (ADAPTER.relative_to(ROOT), ADAPTER.read_text(encoding="utf-8"))]:
+        for node in ast.walk(ast.parse(text, str(path))):
+            if isinstance(node, ast.Attribute) and node.attr.startswith("_") and not node.attr.startswith("__") \
+                    and not (isinstance(node.value, ast.Name) and node.value.id in ("self", "cls")):
+                found.append(f"{path}:{node.lineno}: {ast.unparse(node)}")
+    assert not found, "private attributes read across objects:\n" + "\n".join(found)
+
+
+def _import_adapter_afresh():
+    """Execute the adapter's module anew (as its import would), outside sys.modules."""
+    spec = importlib.util.spec_from_file_location("rclpy_adapter_probe", ADAPTER)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_the_import_names_the_rclpy_found_and_the_one_written_for_when_an_internal_is_missing(monkeypatch):
+    from rclpy.impl.implementation_singleton import rclpy_implementation
+    assert _import_adapter_afresh().missing_internals() == []
+    monkeypatch.delattr(rclpy_implementation, "WaitSet")
+    with pytest.raises(ImportError) as raised:
+        _import_adapter_afresh()
+    message = str(raised.value)
+    assert message == (f"contouring_ros needs rclpy internals that {rclpy_adapter.installed_version()} lacks "
+                       "(WaitSet); it was written for rclpy 7.1 (ROS 2 Jazzy)")
+    assert "\n" not in message
+
+
+def test_a_missing_method_is_named_too():
+    from rclpy.impl.implementation_singleton import rclpy_implementation
+
+    class Service:
+        pass
+
+    implementation = type("Implementation", (), {"WaitSet": rclpy_implementation.WaitSet,
+                                                 "Subscription": rclpy_implementation.Subscription,
+                                                 "Service": Service})
+    assert rclpy_adapter.missing_internals(implementation) == ["Service.service_take_request"]
+    with pytest.raises(ImportError, match=r"lacks \(Service.service_take_request\); it was written for rclpy 7.1"):
+        rclpy_adapter.check_internals(implementation)
+
+
+def test_the_installed_version_comes_from_the_package_metadata(monkeypatch):
+    assert rclpy_adapter.installed_version().startswith(rclpy_adapter.RCLPY_DISTRIBUTIONS)
+
+    def no_metadata(name):
+        raise metadata.PackageNotFoundError(name)
+
+    monkeypatch.setattr(metadata, "version", no_metadata)
+    assert rclpy_adapter.installed_version() == "rclpy of unknown version"
+
+
+@pytest.mark.graph
+def test_take_wait_and_take_request_on_a_real_node(monkeypatch):
+    """In this process, on a domain of its own: one message published, waited for and taken serialised; one
+    request at the node's parameter service taken and answered."""
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.signals import SignalHandlerOptions
+    from rcl_interfaces.srv import ListParameters
+    from sensor_msgs.msg import JointState
+
+    from contouring_ros import cdr
+    from contouring_ros.nodes.lockstep import GRAPH_QOS
+    from contouring_ros.runner import DomainLease, private_environment
+
+    with DomainLease() as lease:
+        for key, value in private_environment(lease.domain_id).items():
+            monkeypatch.setenv(key, value)
+        context = Context()
+        rclpy.init(context=context, domain_id=lease.domain_id, signal_handler_options=SignalHandlerOptions.NO)
+        try:
+            node = rclpy.create_node("adapter_probe", context=context)
+            publisher = node.create_publisher(JointState, "/probe", GRAPH_QOS)
+            subscription = node.create_subscription(JointState, "/probe", lambda _: None, GRAPH_QOS, raw=True)
+            wait_set, take = rclpy_adapter.SubscriptionWaitSet([subscription], context), \
+                rclpy_adapter.taker(subscription, JointState)
+            assert len(wait_set) == 1 and take() is None
+            deadline = time.monotonic() + 10.0
+            while subscription.get_publisher_count() < 1 and time.monotonic() < deadline:
+                time.sleep(0.01)
+            data = cdr.encode_joint_state(1, 2, ["x"], [0.5], [0.25])
+            publisher.publish(data)
+            taken = None
+            while taken is None and time.monotonic() < deadline:
+                wait_set.wait(100_000_000)
+                taken = take()
+            assert taken is not None, "the message published was not taken"
+            assert bytes(taken[0]) == data and taken[1]["publication_sequence_number"] == 1
+            assert take() is None
+
+            service = next(s for s in node.services if s.srv_name.endswith("/list_parameters"))
+            assert rclpy_adapter.take_request(service) == (None, None)
+            client = node.create_client(ListParameters, service.srv_name)
+            assert client.wait_for_service(timeout_sec=10.0)
+            future = client.call_async(ListParameters.Request())
+            request = header = None
+            while header is None and time.monotonic() < deadline:
+                request, header = rclpy_adapter.take_request(service)
+                time.sleep(0.01)
+            assert isinstance(request, ListParameters.Request)
+            service.send_response(service.callback(request, ListParameters.Response()), header)
+            executor = SingleThreadedExecutor(context=context)
+            executor.add_node(node)
+            executor.spin_until_future_complete(future, timeout_sec=10.0)
+            assert future.done() and "use_sim_time" in future.result().result.names
+            executor.shutdown()
+            node.destroy_node()
+        finally:
+            rclpy.try_shutdown(context=context)
