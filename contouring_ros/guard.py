@@ -62,20 +62,21 @@ def guard(built, where: str, role: str) -> None:
 
 def _checked(method, name: str, where: str):
     def checked(self, *args, **kwargs):
+        k = None
         if name in STEP_METHODS:
             state = getattr(self, "__dict__", None)
             k = state.get("_plugin_steps", 0) if state is not None else 0
             if state is not None:
                 state["_plugin_steps"] = k + 1
-            at = f"at step {k}"
-        else:
-            at = f"in {name}({_brief(args)})"
+
+        def at() -> str:              # only on failure: formatting the arguments costs more than the call
+            return f"at step {k}" if k is not None else f"in {name}({_brief(args)})"
         try:
             out = method(self, *args, **kwargs)
         except (Exception, SystemExit) as error:
             if isinstance(error, ContouringError):
                 raise
-            raise RunError(f"{where} failed {at}: {type(error).__name__}: {one_line(error)}") from None
+            raise RunError(f"{where} failed {at()}: {type(error).__name__}: {one_line(error)}") from None
         if out is None:                       # a plant's step: its state is checked by measure()
             return out
         if hasattr(out, "theta") and hasattr(out, "vector"):          # a contour estimate
@@ -84,7 +85,7 @@ def _checked(method, name: str, where: str):
             parts = (("value", out),)
         for part, value in parts:
             if not all_finite(value):
-                raise PluginNotFinite(f"{where} returned a {part} that is not a finite number {at} "
+                raise PluginNotFinite(f"{where} returned a {part} that is not a finite number {at()} "
                                       f"({_shown(value)})")
         return out
 
