@@ -204,7 +204,7 @@ def _stop(nodes, grace: float = 5.0):
 SHARED_MEMORY = Path("/dev/shm")
 
 
-def _mapped_or_open_files() -> set:
+def shared_memory_in_use() -> set:
     """Every /dev/shm path some live process has open or mapped (from /proc; what we can read)."""
     held = set()
     for proc in Path("/proc").iterdir():
@@ -240,7 +240,7 @@ def clean_shared_memory(since: float) -> int:
                 continue
     if not candidates:
         return 0
-    held, removed = _mapped_or_open_files(), 0
+    held, removed = shared_memory_in_use(), 0
     for path in candidates:
         if str(path) not in held:
             try:

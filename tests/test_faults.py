@@ -17,7 +17,7 @@ from contouring_ros.core.estimators import BranchCheck, NewtonEstimator
 from contouring_ros.core.interpolation import UniformSchedule, reference
 from contouring_ros.core.simulation import simulate
 from contouring_ros.errors import RunError
-from contouring_ros.runner import DomainLease, run_graph
+from contouring_ros.runner import DomainLease, run_graph, shared_memory_in_use
 from contouring_ros.scoring import score_bag, score_run
 from conftest import DEFAULT, ROOT, machine_pace, shortened, sigint_as_from_a_terminal
 
@@ -246,23 +246,6 @@ def _shared_memory_files() -> set:
         if os.path.isdir("/dev/shm") else set()
 
 
-def _shared_memory_in_use() -> set:
-    """Names of /dev/shm files that a live process maps or holds open (Fast DDS maps its segments and
-    semaphores and holds its _el lock files open): those of other programs running meanwhile."""
-    used = set()
-    for pid in filter(str.isdigit, os.listdir("/proc")):
-        try:
-            with open(f"/proc/{pid}/maps") as maps:
-                used.update(line.rsplit("/dev/shm/", 1)[1].strip() for line in maps if "/dev/shm/" in line)
-            for fd in os.listdir(f"/proc/{pid}/fd"):
-                target = os.readlink(f"/proc/{pid}/fd/{fd}")
-                if target.startswith("/dev/shm/"):
-                    used.add(target[len("/dev/shm/"):])
-        except OSError:          # gone meanwhile, or not ours to read
-            continue
-    return {name.removesuffix(" (deleted)") for name in used}
-
-
 def _port_domain(name: str) -> int | None:
     """The ROS domain of a Fast DDS shared-memory port file (``fastrtps_port<N>[_el|_mutex]``): its port
     number N is a UDP-style port, 7400 + 250 x domain + offset (offsets below 250); None for other files."""
@@ -279,7 +262,7 @@ def _leaked_shared_memory(before: set, domains) -> set:
     new = {name for name in _shared_memory_files() - before if _port_domain(name) in set(domains)}
     if not new:
         return set()
-    used, leaked = _shared_memory_in_use(), set()
+    used, leaked = {os.path.basename(path) for path in shared_memory_in_use()}, set()
     for name in new - used:
         try:
             if os.stat(f"/dev/shm/{name}").st_uid == os.getuid():
