@@ -67,3 +67,16 @@ def recorded_bag(folder: Path, duration: float, name: str) -> tuple:
         complete, chunks, _ = bag._summary_chunks(stream, len(data), path, [])
     return result, path, data, (complete, chunks)
 
+
+
+def cli_with_file_size_limit(args, limit_bytes: int, cwd=ROOT):
+    """The CLI with every file it writes capped at ``limit_bytes`` (RLIMIT_FSIZE: a write past it fails
+    with EFBIG, as a full disk fails one with ENOSPC)."""
+    import resource
+    import subprocess
+    import sys
+
+    def limit():
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit_bytes, limit_bytes))
+    return subprocess.run([sys.executable, "-m", "contouring_ros.cli", *args], cwd=cwd, capture_output=True,
+                          text=True, preexec_fn=limit, timeout=300)

@@ -12,7 +12,7 @@ from contouring_ros.core.simulation import simulate
 from contouring_ros.errors import BagError
 from contouring_ros.export import export_bag
 from contouring_ros.scoring import score_bag, score_run
-from conftest import CONFIG, DEFAULT, ROOT, shortened
+from conftest import CONFIG, DEFAULT, ROOT, cli_with_file_size_limit, shortened
 
 
 @pytest.fixture(scope="module")
@@ -58,23 +58,12 @@ def test_experiment_of_another_curve_or_other_axes_is_refused(bag):
         score_bag(path, (CONFIG / "paper004_saddle_eso.yaml").read_text())
 
 
-def _cli_with_file_size_limit(args, limit_bytes, cwd):
-    """The CLI with every file it writes capped at ``limit_bytes`` (RLIMIT_FSIZE: a write past it fails
-    with EFBIG, as a full disk fails one with ENOSPC)."""
-    import resource
-
-    def limit():
-        resource.setrlimit(resource.RLIMIT_FSIZE, (limit_bytes, limit_bytes))
-    return subprocess.run([sys.executable, "-m", "contouring_ros.cli", *args], cwd=cwd, capture_output=True,
-                          text=True, preexec_fn=limit, timeout=300)
-
-
 @pytest.mark.parametrize("command", ["export", "plot"])
 def test_a_full_disk_gives_one_line_and_leaves_no_truncated_file(bag, tmp_path, command):
     path, _, _ = bag
     out = tmp_path / "out"
     args = ["export", str(path), "--csv", str(out)] if command == "export" else ["plot", str(path), "--out", str(out)]
-    done = _cli_with_file_size_limit(args, 4096, ROOT)
+    done = cli_with_file_size_limit(args, 4096, ROOT)
     assert done.returncode != 0
     assert "Traceback" not in done.stderr
     errors = [line for line in done.stderr.splitlines() if line.startswith("error:")]
@@ -100,7 +89,7 @@ def test_an_export_that_fails_keeps_the_whole_file_already_there(bag, tmp_path):
     out = tmp_path / "out"
     out.mkdir()
     (out / "short.csv").write_text("a whole earlier export\n")
-    done = _cli_with_file_size_limit(["export", str(path), "--csv", str(out)], 4096, ROOT)
+    done = cli_with_file_size_limit(["export", str(path), "--csv", str(out)], 4096, ROOT)
     assert done.returncode != 0 and "Traceback" not in done.stderr
     assert (out / "short.csv").read_text() == "a whole earlier export\n"
     assert sorted(p.name for p in out.iterdir()) == ["short.csv"]

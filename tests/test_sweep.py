@@ -9,7 +9,7 @@ from contouring_ros.core.simulation import simulate
 from contouring_ros.errors import ConfigError
 from contouring_ros.scoring import score_run
 from contouring_ros.sweep import parse_grid, run_sweep, write_sweep_csv
-from conftest import DEFAULT, shortened
+from conftest import DEFAULT, cli_with_file_size_limit, shortened
 
 
 def test_sweep_ranks_every_combination_and_matches_single_runs(tmp_path):
@@ -49,19 +49,11 @@ def test_grid_values_are_read_like_the_experiment_file():
 def test_a_sweep_csv_that_cannot_be_written_leaves_the_earlier_file_whole(tmp_path):
     """Reports and tables are written beside their path and renamed (errors.write_atomically): a full disk
     (here RLIMIT_FSIZE: every write past 300 bytes fails, as ENOSPC does) gives one line and keeps what was there."""
-    import resource
-    import subprocess
-    import sys
     experiment = tmp_path / "short.yaml"
     experiment.write_text(shortened(DEFAULT, 0.02))
     out = tmp_path / "sweep.csv"
     out.write_text("a whole earlier sweep\n")
-
-    def limit():
-        resource.setrlimit(resource.RLIMIT_FSIZE, (300, 300))
-    done = subprocess.run([sys.executable, "-m", "contouring_ros.cli", "sweep", str(experiment), "--grid",
-                           "ccc.kp=1,2", "--out", str(out)], capture_output=True, text=True, preexec_fn=limit,
-                          timeout=300)
+    done = cli_with_file_size_limit(["sweep", str(experiment), "--grid", "ccc.kp=1,2", "--out", str(out)], 300)
     assert done.returncode != 0 and "Traceback" not in done.stderr, done.stderr
     errors = [line for line in done.stderr.splitlines() if line.startswith("error:")]
     assert len(errors) == 1 and str(out) in errors[0] and "cannot write it" in errors[0], done.stderr
