@@ -295,6 +295,19 @@ def cli(site: Path, cwd: Path, *args, timeout: float = 300) -> subprocess.Comple
                           capture_output=True, text=True, timeout=timeout)
 
 
+def simulate_failure_line(site: Path, tmp_path: Path, text: str, named: str) -> str:
+    """``simulate`` of the experiment ``text`` with the plugins of ``site``: it must fail (exit 1 or 2) in one
+    line, without a traceback, naming ``named``; that line."""
+    experiment = tmp_path / "hostile.yaml"
+    experiment.write_text(text)
+    done = cli(site, tmp_path, "simulate", str(experiment))
+    assert done.returncode in (1, 2), (done.returncode, done.stdout, done.stderr)
+    assert "Traceback" not in done.stderr
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and named in lines[0], done.stderr
+    return lines[0]
+
+
 @pytest.mark.parametrize("name, fragment", [
     ("raising", "failed at step 5: ZeroDivisionError: division by zero"),
     ("exiting", "failed at step 5: SystemExit: 0"),
@@ -304,14 +317,9 @@ def cli(site: Path, cwd: Path, *args, timeout: float = 300) -> subprocess.Comple
 ])
 def test_a_plugin_failing_in_simulate_ends_in_one_line_naming_it_and_the_step(hostile_site, tmp_path, name,
                                                                                fragment):
-    experiment = tmp_path / "hostile.yaml"
-    experiment.write_text(with_estimator(shortened(DEFAULT, 0.05), f"  ros__parameters:\n    type: {name}\n"))
-    done = cli(hostile_site, tmp_path, "simulate", str(experiment))
-    assert done.returncode in (1, 2), (done.returncode, done.stdout, done.stderr)
-    assert "Traceback" not in done.stderr
-    lines = done.stderr.strip().splitlines()
-    assert len(lines) == 1 and f"plugin {name!r} (contouring_ros.estimators: " in lines[0], done.stderr
-    assert fragment in lines[0], lines[0]
+    line = simulate_failure_line(hostile_site, tmp_path, with_estimator(
+        shortened(DEFAULT, 0.05), f"  ros__parameters:\n    type: {name}\n"), f"plugin {name!r} (contouring_ros.estimators: ")
+    assert fragment in line, line
 
 
 @pytest.mark.parametrize("name, fragment", [
@@ -365,14 +373,9 @@ def test_a_curve_schedule_plant_or_disturbance_plugin_failing_ends_in_one_line_n
     """Plugins of every role run under the guard: an exception or a value that is not finite (a NaN curve
     point, a NaN plant state, an infinite load) ends simulate in one line naming the plugin and the call."""
     (old, new), fragment = ROLE_CASES[name]
-    experiment = tmp_path / "hostile.yaml"
-    experiment.write_text(with_replaced(shortened(DEFAULT, 0.05), old, new))
-    done = cli(hostile_site, tmp_path, "simulate", str(experiment))
-    assert done.returncode in (1, 2), (done.returncode, done.stdout, done.stderr)
-    assert "Traceback" not in done.stderr
-    lines = done.stderr.strip().splitlines()
-    assert len(lines) == 1 and f"plugin {name!r} (contouring_ros." in lines[0], done.stderr
-    assert fragment in lines[0], lines[0]
+    line = simulate_failure_line(hostile_site, tmp_path, with_replaced(shortened(DEFAULT, 0.05), old, new),
+                                 f"plugin {name!r} (contouring_ros.")
+    assert fragment in line, line
 
 
 def test_a_plugin_value_that_is_not_finite_is_a_diverged_row_of_a_sweep(hostile_site, tmp_path):
