@@ -52,20 +52,27 @@ def _warn(run):
         print(f"warning: {warning}", file=sys.stderr)
 
 
-def _with_settings(config: Path, specs, directory) -> Path:
+@contextlib.contextmanager
+def _with_settings(config: Path, specs):
     """The experiment file ``config`` with the ``--set KEY=VALUE`` settings ``specs`` applied, written under
-    the same name (the bag's default name) in ``directory`` and validated; ``config`` itself without any."""
+    the same name (the bag's default name) in a temporary folder and validated, for the ``with`` block;
+    ``config`` itself without any."""
     if not specs:
-        return config
+        yield config
+        return
     from .sweep import settings_file
-    return settings_file(config, specs, directory)
+    with tempfile.TemporaryDirectory(prefix="contouring_ros_set_") as directory:
+        yield settings_file(config, specs, directory)
 
 
 def _run(args):
+    with _with_settings(_experiment_path(args.config), args.set) as config:
+        _run_config(args, config)
+
+
+def _run_config(args, config: Path):
     from .runner import run_graph
     from .scoring import format_scores, score_bag
-    settings_directory = tempfile.TemporaryDirectory(prefix="contouring_ros_set_")
-    config = _with_settings(_experiment_path(args.config), args.set, settings_directory.name)
     try:
         if sum(map(bool, (args.composed, args.group, args.process))) > 1:
             raise ConfigError("--process, --composed and --group are three layouts: give one")
@@ -112,8 +119,8 @@ def _simulate(args):
     from .core.simulation import simulate
     from .scoring import cutting_lines, format_scores, score_run
     from .config import program_warnings
-    with tempfile.TemporaryDirectory(prefix="contouring_ros_set_") as settings_directory:
-        experiment = load_experiment(_with_settings(_experiment_path(args.config), args.set, settings_directory))
+    with _with_settings(_experiment_path(args.config), args.set) as config:
+        experiment = load_experiment(config)
     loop = build_loop(experiment)
     for warning in program_warnings(loop.curve):
         print(f"warning: {warning}", file=sys.stderr)
