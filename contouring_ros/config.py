@@ -485,10 +485,12 @@ _register(CONTROLLERS, {
     "adaptive_tnb": lambda s, c: contouring.AdaptiveTNBCCC(c.curve, s["coupling"], s["alpha"], s["gamma_mass"],
                                                            s["gamma_damping"], s["mass0"], s["damping0"],
                                                            c.sample_time),
-}, task_frame_pd={"whole_command": True, "check": _check_task_frame_pd, "combination": _task_frame_estimator},
-    tvt={"whole_command": True},
+}, task_frame_pd={"whole_command": True, "check": _check_task_frame_pd, "combination": _task_frame_estimator,
+                  "needs_state": contouring.TaskFramePD.needs_state},
+    tvt={"whole_command": True, "needs_state": contouring.TangentialVelocityCCC.needs_state},
     adaptive_tnb={"check": _per_axis("adaptive_tnb", ("coupling", "gamma_mass", "gamma_damping", "mass0",
-                                                       "damping0"))})
+                                                       "damping0")),
+                  "needs_state": contouring.AdaptiveTNBCCC.needs_state})
 # built-in controllers that compute every axis' whole command (their servos must be 'direct', and only theirs;
 # a plugin says so with whole_command on its entry)
 WHOLE_COMMAND_CONTROLLERS = {name for name, entry in CONTROLLERS.registered().items() if entry.whole_command}

@@ -12,8 +12,11 @@ entry point names either an :class:`Entry` or a class; a class gives
   ``acceleration``),
 - optionally ``check_section(section, axes)`` -> None or (key, message): a constraint on its own section,
 - controllers: ``whole_command = True`` when it computes every axis' whole command (servos then 'direct'),
+  ``needs_state = True`` when it uses the reference and the axis states (the CCC node then takes them),
+  ``gains``: the keys the benchmark tunes (default: its float keys whose names start with 'k'),
   ``check_combination(estimator, controller, servos)`` -> None or (key, message);
-  servos: ``direct = True`` when it passes the controller's output through.
+  servos: ``direct = True`` when it passes the controller's output through;
+  plants: ``varied``: the physical parameters the benchmark's robustness checks and mismatch draws vary.
 
 Entry points are listed once per role (importlib.metadata) and each is imported when its type is first
 looked up, so a plugin that fails to load stops only what names it, with one line naming the plugin.
@@ -48,6 +51,9 @@ class Entry:
     combination: Callable | None = None   # controllers: (estimator, controller, servos) -> None | (key, message)
     whole_command: bool = False           # controllers: computes every axis' whole command
     direct: bool = False                  # servos: passes the contour controller's output through
+    needs_state: bool = False             # controllers: uses the reference and the axis states
+    gains: tuple | None = None            # the keys the benchmark's tuning varies (None: the float keys named k*)
+    varied: tuple = ()                    # plants: the physical parameters robustness and mismatch draws vary
     origin: str = "contouring_ros"        # the package (or entry point) it comes from
 
 
@@ -114,7 +120,8 @@ def entry_from_class(name: str, cls, origin: str = "") -> Entry:
     return Entry(name=name, params=dict(getattr(cls, "params", {}) or {}), build=build,
                  check=getattr(cls, "check_section", None), combination=getattr(cls, "check_combination", None),
                  whole_command=bool(getattr(cls, "whole_command", False)), direct=bool(getattr(cls, "direct", False)),
-                 origin=origin or getattr(cls, "__module__", ""))
+                 needs_state=bool(getattr(cls, "needs_state", False)), gains=getattr(cls, "gains", None),
+                 varied=tuple(getattr(cls, "varied", ()) or ()), origin=origin or getattr(cls, "__module__", ""))
 
 
 class Role(Mapping):
