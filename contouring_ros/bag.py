@@ -22,7 +22,7 @@ from array import array
 import numpy as np
 
 from . import cdr, graph
-from .config import BOUNDS, MAX_FILE_BYTES, RESERVED_AXIS_NAMES, _AXIS_NAME, build_curve, build_schedule, parse_experiment
+from .config import GLOBALS, MAX_FILE_BYTES, RESERVED_AXIS_NAMES, _AXIS_NAME, build_curve, build_schedule, parse_experiment
 from .core.simulation import SimulationResult, first_divergence, path_bound, step_time
 from .errors import BagError, ConfigError, ContouringError
 
@@ -687,7 +687,7 @@ def _bag_experiment(path, experiment_text: str, warnings: list):
 def _checked_sample_time(path, stored, experiment, warnings: list) -> float:
     """The sample time of a bag: the experiment's, and the metadata's (``stored``, a string or None) only as
     long as it is a sample time the validator would take and agrees with the experiment's."""
-    low, high = BOUNDS["GLOBALS"]["sample_time"]
+    low, high = GLOBALS["sample_time"].bounds
     value = None
     if stored is not None:
         try:

@@ -35,7 +35,7 @@ from typing import Callable
 from .errors import ConfigError, ContouringError, one_line
 from .guard import guard
 
-__all__ = ["Entry", "Role", "BuildContext", "ROLES", "entry_from_class"]
+__all__ = ["Entry", "Role", "BuildContext", "ROLES", "entry_from_class", "section_arguments"]
 
 ROLES = ("curve", "schedule", "plant", "disturbance", "servo", "estimator", "controller")
 
@@ -93,6 +93,11 @@ class BuildContext:
         return getattr(self, name) if name in _CONTEXT_NAMES else None
 
 
+def section_arguments(section: dict, type_key: str = "type") -> dict:
+    """A validated section's keys besides its type name: the keyword arguments of a constructor."""
+    return {key: value for key, value in section.items() if key != type_key}
+
+
 _CONTEXT_NAMES = ("experiment", "curve", "schedule", "sample_time", "axes", "n_axes", "axis", "position",
                   "velocity", "acceleration")
 
@@ -129,8 +134,9 @@ class Role(Mapping):
     :meth:`entry` giving the whole :class:`Entry`. Built-ins are registered with :meth:`register`; entry
     points of ``contouring_ros.<role>s`` are listed when a name is first looked up."""
 
-    def __init__(self, role: str, type_key: str = "type"):
+    def __init__(self, role: str, type_key: str = "type", description: str = ""):
         self.role, self.type_key, self.group = role, type_key, f"contouring_ros.{role}s"
+        self.description = description or f"{role} {type_key}"      # what the type key means (descriptors)
         self._entries: dict = {}
         self._pending: dict | None = None     # entry point name -> EntryPoint, not loaded yet
         self.on_register: Callable | None = None    # called with each plugin Entry as it loads (bounds)
@@ -209,11 +215,12 @@ class Role(Mapping):
         raise ConfigError(f"{self.role} {self.type_key} {name!r} is unknown (expected one of: "
                           f"{', '.join(self.names())})")
 
-    def build(self, section: dict, context: BuildContext):
+    def build(self, section: dict, context: BuildContext | None = None):
         """The core object of a validated ``section``. A plugin's object is built, and its methods run, under a
         guard (:mod:`contouring_ros.guard`): what it raises (SystemExit included) or returns that is not
         finite becomes one RunError line naming the plugin, the step or the argument, and what failed."""
         entry = self.entry(section[self.type_key])
+        context = context if context is not None else BuildContext()
         if entry.origin == "contouring_ros":
             return entry.build(section, context)
         where = f"plugin {entry.name!r} ({self.group}: {entry.origin})"

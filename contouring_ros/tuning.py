@@ -15,7 +15,7 @@ from the encoder), and an actuator limit: the paper's where its file states one,
 ideal machine. A key the scenario file sets itself is kept. The ideal machine (none of these) stays
 available for comparison.
 
-Search. Every gain of the controller (:data:`GAIN_KEYS`) is a variable of its own on a log10 scale,
+Search. Every gain of the controller (:func:`gain_keys`) is a variable of its own on a log10 scale,
 :attr:`Protocol.decades` decades either side of its anchor: the file's value, or for a gain that is 0 in the
 file an anchor from its sibling (ki: 30 kp, kd: 1e-3 kp) so that it is free to become non-zero; the lower
 end of the span means 0 (off). The same budget of evaluations for every method. The file's own gains are the first
@@ -69,12 +69,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import config
-from .config import CONTROLLERS, experiment_from_data
+from .config import CONTROLLERS, PLANTS, experiment_from_data
 from .core.margins import axis_loop, coupled_loop, margins, quick_robustness
 from .errors import ConfigError
 from .sweep import _score_one, apply_settings, simulate_experiments
 
-__all__ = ["REALISTIC", "SATURATION_MARGIN", "PLANT_PARAMETERS", "GAIN_KEYS", "Protocol", "Outcome",
+__all__ = ["REALISTIC", "SATURATION_MARGIN", "varied_parameters", "Protocol", "Outcome",
            "Evaluation", "Tuned", "gain_keys", "anchors", "machine_settings", "perturbations", "draw_settings",
            "experiment_for", "experiment_margins", "worst_margins", "loop_robustness", "MS_LIMIT", "run_outcomes", "worst_case", "minimise",
            "nelder_mead_restarts", "tune", "interval", "pareto_front"]
@@ -84,13 +84,6 @@ REALISTIC = {"encoder_resolution": 1e-7, "measurement_noise": 5e-8, "command_del
              "velocity_measurement": "encoder"}
 #: the actuator limit, where the paper states none: this times the proposed method's largest command
 SATURATION_MARGIN = 2.0
-#: the physical parameters of each plant type that robustness and model-mismatch draws vary
-PLANT_PARAMETERS = {"first_order_velocity": ("gain", "time_constant"),
-                    "mass_damper": ("mass", "damping", "gain")}
-#: the gains tuned per controller type; a controller not listed: its float parameters whose names start with 'k'
-GAIN_KEYS = {"variable_gain": ("kp", "ki", "kd"), "unit_vector": ("kp", "ki", "kd"), "tvt": ("kc",),
-             "task_frame_pd": ("f_t", "f_n", "f_b"),
-             "adaptive_tnb": ("coupling", "alpha", "gamma_mass", "gamma_damping"), "none": ()}
 #: the anchor of a gain that is 0 in the file, relative to its sibling (same units as the PID's)
 SIBLING_ANCHOR = {"ki": ("kp", 30.0), "kd": ("kp", 1e-3)}
 MS_LIMIT = 2.0      # peak sensitivity a linear loop may reach (Åström & Hägglund: 1.4-2)
@@ -189,13 +182,20 @@ class Tuned:
 
 
 def gain_keys(controller: str, section: dict) -> tuple:
-    """The gains of a controller section that the tuning varies (those the section sets)."""
-    if controller in GAIN_KEYS:
-        keys = GAIN_KEYS[controller]
-    else:
-        params = CONTROLLERS.entry(controller).params
-        keys = tuple(k for k, p in params.items() if p.kind in ("float", "floats") and k.startswith("k"))
+    """The gains of a controller section that the tuning varies (those the section sets): its catalogue
+    entry's ``gains``; where the entry names none (a plugin's), its float parameters whose names start
+    with 'k'."""
+    entry = CONTROLLERS.entry(controller)
+    keys = entry.gains
+    if keys is None:
+        keys = tuple(k for k, p in entry.params.items() if p.kind in ("float", "floats") and k.startswith("k"))
     return tuple(k for k in keys if section.get(k) is not None)
+
+
+def varied_parameters(model) -> tuple:
+    """The physical parameters of a plant type that robustness runs and model-mismatch draws vary: its
+    catalogue entry's ``varied`` (none for a type not known)."""
+    return PLANTS.entry(model).varied if isinstance(model, str) and model in PLANTS else ()
 
 
 def _magnitude(value) -> float:
@@ -268,12 +268,12 @@ def machine_settings(data: dict, kind: str, peak_command: tuple = ()) -> dict:
 
 
 def perturbations(data: dict, fraction: float) -> list:
-    """Settings for the robustness runs: each plant parameter of :data:`PLANT_PARAMETERS` at (1 - fraction)
+    """Settings for the robustness runs: each plant parameter of :func:`varied_parameters` at (1 - fraction)
     and (1 + fraction) of its value, on every axis at once."""
     plants = _plants(data)
     keys = []
     for params in plants.values():
-        for key in PLANT_PARAMETERS.get(params.get("model"), ()):
+        for key in varied_parameters(params.get("model")):
             if key not in keys and params.get(key):
                 keys.append(key)
     out = []
@@ -292,7 +292,7 @@ def draw_settings(data: dict, j: int, mismatch: float) -> dict:
     settings = {}
     for i, (node, params) in enumerate(_plants(data).items()):
         settings[f"{node[1:]}.noise_seed"] = 1 + j * 16 + i
-        for key in PLANT_PARAMETERS.get(params.get("model"), ()):
+        for key in varied_parameters(params.get("model")):
             factor = float(rng.uniform(1.0 - mismatch, 1.0 + mismatch))
             if params.get(key):
                 settings[f"{node[1:]}.{key}"] = float(params[key]) * factor

@@ -6,6 +6,7 @@ import math
 import numpy as np
 import pytest
 
+from contouring_ros import notices
 from contouring_ros.config import build_loop, load_experiment
 from contouring_ros.core.curves import ToolPath
 from contouring_ros.core.feed_planning import (FeedPlan, junction_speed, reach, scurve_distance, scurve_time,
@@ -14,6 +15,7 @@ from contouring_ros.core.gcode import parse_program
 from contouring_ros.core.geometry import ExactContourError
 from contouring_ros.core.simulation import simulate
 from contouring_ros.errors import ConfigError
+from contouring_ros.experiment.catalogue import schedules
 from contouring_ros.paper import CONFIG_DIR
 from contouring_ros.scoring import score_run, tolerance_line
 
@@ -526,16 +528,14 @@ def test_blending_and_junction_speeds_hold_for_turns_too_small_for_cosines():
 def test_a_long_planning_says_so_on_stderr_also_off_a_terminal(tmp_path, monkeypatch, capsys):
     import time
 
-    from contouring_ros import config
-
     class SlowPlan:
         def __init__(self, *args):
             time.sleep(0.5)
             raise ValueError("stopped here")
 
-    monkeypatch.setattr(config, "FeedPlan", SlowPlan)
-    monkeypatch.setattr(config, "SLOW_NOTE_AFTER", 0.1)
-    monkeypatch.setattr(config, "SLOW_NOTE_EVERY", 10.0)
+    monkeypatch.setattr(schedules, "FeedPlan", SlowPlan)
+    monkeypatch.setattr(notices, "SLOW_NOTE_AFTER", 0.1)
+    monkeypatch.setattr(notices, "SLOW_NOTE_EVERY", 10.0)
     text = EXPERIMENT.replace("{{type: gcode, file: {file}}}",
                               '{{type: toolpath, start: [0.0, 0.0], moves: ["G1 X0.01 Y0", "G1 X0.02 Y0"]}}')
     path = tmp_path / "slow.yaml"
@@ -549,9 +549,9 @@ def test_a_long_planning_says_so_on_stderr_also_off_a_terminal(tmp_path, monkeyp
 
 
 def test_a_long_simulation_off_a_terminal_says_it_is_under_way(monkeypatch, capsys):
-    from contouring_ros import cli, config
-    monkeypatch.setattr(config, "SLOW_NOTE_AFTER", 0.0)
-    monkeypatch.setattr(config, "SLOW_NOTE_EVERY", 10.0)
+    from contouring_ros import cli
+    monkeypatch.setattr(notices, "SLOW_NOTE_AFTER", 0.0)
+    monkeypatch.setattr(notices, "SLOW_NOTE_EVERY", 10.0)
     assert cli.main(["simulate", str(CONFIG_DIR / "paper000_b_ismc_h50_newton.yaml")]) == 0
     err = capsys.readouterr().err
     assert "note: simulating " in err and "steps: still under way after" in err

@@ -81,8 +81,10 @@ def _allowed(module: str, target: str) -> bool:
 
 def test_the_graph_is_read_from_the_package():
     top, _ = _imports()
-    assert {"contouring_ros.config", "contouring_ros.registry", "contouring_ros.core.simulation"} <= set(top)
-    assert "contouring_ros.registry" in top["contouring_ros.config"]
+    assert {"contouring_ros.config", "contouring_ros.registry", "contouring_ros.core.simulation",
+            "contouring_ros.experiment.catalogue.curves"} <= set(top)
+    assert "contouring_ros.registry" in top["contouring_ros.experiment.catalogue.curves"]
+    assert "contouring_ros.experiment.validate" in top["contouring_ros.config"]
 
 
 def test_module_level_imports_have_no_circle():

@@ -10,7 +10,7 @@ import sys
 
 import pytest
 
-from contouring_ros.config import BOUNDS, GLOBALS, read_yaml, section_from_parameters
+from contouring_ros.config import GLOBALS, PLANTS, read_yaml, section_from_parameters
 from contouring_ros.parameters import describe, node_parameters
 from contouring_ros.runner import DomainLease, private_environment
 from conftest import CONFIG, DEFAULT
@@ -49,7 +49,7 @@ def test_every_given_key_and_every_default_is_described(scenario, node, role):
 def test_descriptions_carry_units_and_the_validators_ranges():
     described = node_parameters(_received(DEFAULT, "/x/plant"), "/x/plant", "plant")
     assert "[s]" in described["time_constant"].description and "[s]" in described["sample_time"].description
-    low, high = BOUNDS["PLANTS"]["time_constant"]
+    low, high = PLANTS["first_order_velocity"]["time_constant"].bounds
     assert f"from {low:g} to {high:g}" in describe(described["time_constant"])
     assert not described["saturation"].given and described["saturation"].value == 0.0     # a default
     assert "one of: on_reference, at_rest" in described["initial_state"].description
@@ -112,7 +112,7 @@ def test_a_plain_rclpy_client_reads_the_descriptors_through_the_parameter_servic
     for name, parameter in expected.items():
         got = seen["descriptors"][name]
         assert got["read_only"] and got["description"] == describe(parameter), name
-    assert seen["descriptors"]["gain"]["range"] == [list(BOUNDS["PLANTS"]["gain"])]
+    assert seen["descriptors"]["gain"]["range"] == [list(PLANTS["first_order_velocity"]["gain"].bounds)]
     assert seen["descriptors"]["disturbance.type"]["type"] == 4          # PARAMETER_STRING
     assert seen["values"] == [10.3, 0.04, ["x", "y"]]
     successful, reason = seen["set"]

@@ -1,6 +1,6 @@
 """The schema of an experiment file: the layout keys, :class:`Param` (one expected key: kind, default, check,
-bounds), the limits on what a file may hold, the bounds of every number by role and key, and the checks of
-one value or one mapping against its specs, with the one-line messages that name the file and the key."""
+bounds, meaning), the limits on what a file may hold, the ranges the catalogue's types share, and the checks
+of one value or one mapping against its specs, with the one-line messages that name the file and the key."""
 from __future__ import annotations
 
 import sys
@@ -8,7 +8,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..core import plants
 from ..errors import ConfigError
 
 GLOBAL_SECTION = "/**"
@@ -26,15 +25,8 @@ class Param:
     choices: dict | tuple | None = None   # kind "dict" with a 'type': the registry of its types; kind "str": the
                                           # names allowed
     help: str = ""
-    bounds: tuple | None = None   # (low, high), inclusive, for every number of the value (BOUNDS sets them;
-
-
-LIMIT = Param("float", 0.0, "nonnegative", help="output limit in command units, 0: none (anti-windup when hit)")
-
-
-def _gains(**defaults):
-    gains = {name: Param("float", defaults.get(name, REQUIRED), "nonnegative") for name in ("kp", "ki", "kd")}
-    return {**gains, "output_limit": LIMIT}
+    bounds: tuple | None = None   # (low, high), inclusive, for every number of the value (None: DEFAULT_BOUNDS
+                                  # of its kind)
 
 
 # --- bounds: every number a file gives lies in a stated range, so no run starts that cannot end or fit --------
@@ -47,49 +39,32 @@ MAX_ITEMS = 4096                # items of one list
 MAX_EVENTS = 20_000             # YAML parser events of one file (values, keys, collections); a scenario has ~300
 MAX_TEXT = 256                  # characters of one string value
 NUMERIC_KINDS = ("float", "int", "floats")
+#: the range of a number whose Param states none (a plugin's): its kind's
 DEFAULT_BOUNDS = {"float": (-1e12, 1e12), "floats": (-1e12, 1e12), "int": (-2 ** 31, 2 ** 31 - 1)}
-_GAIN, _POSITIVE, _LIMIT = (0.0, 1e12), (1e-12, 1e12), (0.0, 1e12)
-_SIZE, _COORDINATE = (1e-9, 1e3), (-1e3, 1e3)              # m
-_MASS, _DAMPING, _FORCE = (1e-9, 1e9), (0.0, 1e9), (0.0, 1e9)
-_AXIS_GAIN, _TIME_CONSTANT = (1e-9, 1e9), (1e-6, 1e3)      # command units -> m/s (or N); s
-# registry -> {key: (low, high)} for that key in every type of the registry, or {"type.key": ...} for one type
-BOUNDS = {
-    "GLOBALS": {"sample_time": (1e-5, 1.0), "duration": (0.0, MAX_DURATION), "settle_time": (0.0, MAX_DURATION),
-                "stall_timeout": (1e-3, 3600.0), "graph_timeout": (1e-3, 86400.0), "start_time": (0.0, 1e10),
-                "divergence_factor": (0.0, 1e6), "max_lag": (1e-6, 3600.0),
-                "in_position": (0.0, 1e-2)},
-    "CURVES": {"a": _SIZE, "b": _SIZE, "radius": _SIZE, "scale": _SIZE, "length": (1e-9, 1e6), "h": (-1e3, 1e3),
-               "c": (-1e3, 1e3), "omega": (-1e4, 1e4), "center": _COORDINATE, "start": _COORDINATE,
-               "end": _COORDINATE, "x": _COORDINATE, "y": _COORDINATE, "z": _COORDINATE,
-               "contour_error_window": (0.0, 1e6), "blend_tolerance": (0.0, 1e-2)},
-    "SCHEDULES": {"theta_start": (-1e6, 1e6), "theta_end": (-1e6, 1e6), "duration": (1e-6, MAX_DURATION),
-                  "feedrate": (1e-6, 100.0), "acceleration": (1e-6, 1e5), "normal_acceleration": (0.0, 1e5),
-                  "samples": (2, 1_000_000), "jerk": (0.0, 1e7), "rapid_feedrate": (0.0, 100.0),
-                  "axis_feedrate": (1e-6, 100.0), "axis_acceleration": (1e-6, 1e5), "axis_jerk": (1e-6, 1e7),
-                  "contour_tolerance": (0.0, 1e-2), "tracking_lag": (0.0, 10.0), "exact_stop_dwell": (0.0, 60.0),
-                  "feed_override": (1.0, 1000.0), "in_position_timeout": (1e-3, 60.0)},
-    "DISTURBANCES": {"value": (-1e9, 1e9), "amplitude": (-1e9, 1e9), "offset": (-1e9, 1e9),
-                     "frequency": (1e-6, 1e5), "phase": (-1e3, 1e3), "std": (0.0, 1e9), "seed": (0, 2 ** 32 - 1)},
-    "PLANTS": {"gain": _AXIS_GAIN, "time_constant": _TIME_CONSTANT, "mass": _MASS, "damping": _DAMPING,
-               "coulomb_positive": _FORCE, "coulomb_negative": _FORCE, "saturation": _LIMIT,
-               "encoder_resolution": (0.0, 1.0), "measurement_noise": (0.0, 1.0), "noise_seed": (0, 2 ** 32 - 1),
-               "command_delay": (0, plants.MAX_COMMAND_DELAY)},
-    "SERVOS": {"kp": _GAIN, "ki": _GAIN, "kd": _GAIN, "kp_position": _GAIN, "kp_velocity": _GAIN,
-               "ki_velocity": _GAIN, "output_limit": _LIMIT, "gain": _AXIS_GAIN, "time_constant": _TIME_CONSTANT,
-               "pid_feedforward.time_constant": (0.0, 1e3), "a": _POSITIVE, "b": _POSITIVE, "mu": _POSITIVE,
-               "kappa": _POSITIVE, "c": _POSITIVE, "d": _POSITIVE, "k": _POSITIVE, "sigma": _POSITIVE,
-               "alphas": _GAIN, "mass": _MASS, "damping": _DAMPING, "coulomb_positive": _FORCE,
-               "coulomb_negative": _FORCE},
-    "ESTIMATORS": {"foot_point_search.max_iterations": (1, 1000), "newton.max_iterations": (1, 10_000),
-                   "tolerance": (1e-15, 1.0), "k_prime": _POSITIVE, "c_prime": _POSITIVE, "inner_step": (0.0, 1.0),
-                   "theta0": (-1e6, 1e6), "branch_check_samples": (0, 10_000),
-                   "branch_check_tolerance": (1e-15, 1e3)},
-    "CONTROLLERS": {"kp": _GAIN, "ki": _GAIN, "kd": _GAIN, "output_limit": _LIMIT, "mass": _MASS,
-                    "damping": _DAMPING, "gain": _AXIS_GAIN, "coulomb_positive": _FORCE, "coulomb_negative": _FORCE,
-                    "f_t": (1e-6, 1e5), "f_n": (1e-6, 1e5), "f_b": (1e-6, 1e5), "zeta": (1e-6, 1e3), "kc": _GAIN,
-                    "min_feedrate": (0.0, 100.0), "coupling": (-1e12, 1e12), "alpha": _POSITIVE,
-                    "gamma_mass": _GAIN, "gamma_damping": _GAIN, "mass0": _MASS, "damping0": _DAMPING},
-}
+# ranges the catalogue's types share (each Param states its own; these name the common ones)
+GAIN_RANGE, POSITIVE_RANGE = (0.0, 1e12), (1e-12, 1e12)
+SIZE_RANGE, COORDINATE_RANGE = (1e-9, 1e3), (-1e3, 1e3)                # m
+MASS_RANGE, DAMPING_RANGE, FORCE_RANGE = (1e-9, 1e9), (0.0, 1e9), (0.0, 1e9)   # kg, N s/m, N
+AXIS_GAIN_RANGE, TIME_CONSTANT_RANGE = (1e-9, 1e9), (1e-6, 1e3)        # command units -> m/s (or N); s
+SEED_RANGE = (0, 2 ** 32 - 1)
+BANDWIDTH_RANGE = (1e-6, 1e5)                                          # Hz
+
+LIMIT = Param("float", 0.0, "nonnegative", help="output limit in command units, 0: none (anti-windup when hit)",
+              bounds=GAIN_RANGE)
+
+
+def limit(help: str) -> Param:
+    """An output or command limit (0: none), described by ``help``."""
+    return Param("float", 0.0, "nonnegative", help=help, bounds=GAIN_RANGE)
+
+
+def pid_gains(limit_help: str, **defaults) -> dict:
+    """kp, ki, kd (nonnegative; REQUIRED unless ``defaults`` gives one) and output_limit."""
+    units = {"kp": "proportional gain [command units/m]", "ki": "integral gain [command units/(m s)]",
+             "kd": "derivative gain [command units s/m]"}
+    gains = {name: Param("float", defaults.get(name, REQUIRED), "nonnegative", help=units[name], bounds=GAIN_RANGE)
+             for name in units}
+    return {**gains, "output_limit": limit(limit_help)}
 
 
 def _described(value, kind=None) -> str:

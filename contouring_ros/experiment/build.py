@@ -1,0 +1,116 @@
+"""Building the core objects of a validated :class:`~.model.Experiment`: its curve, schedule, plants,
+servos, estimator, controller and in-position clock, each through its role's registry
+(:mod:`.catalogue`), and the whole :class:`~contouring_ros.core.simulation.ControlLoop`."""
+from __future__ import annotations
+
+import numpy as np
+
+from ..core import curves
+from ..core.interpolation import InPositionClock, reference
+from ..core.simulation import ControlLoop
+from ..errors import ConfigError
+from ..graph import LOOKAHEAD
+from ..registry import BuildContext
+from .catalogue import CONTROLLERS, CURVES, ESTIMATORS, PLANTS, SCHEDULES, SERVOS
+from .catalogue.disturbances import build_disturbance
+from .model import Experiment
+
+__all__ = ["build_curve_from", "build_curve", "build_schedule_from", "build_schedule", "build_disturbance",
+           "initial_state", "build_plant", "in_position_windows", "build_clock", "build_servo", "build_estimator",
+           "build_controller", "build_loop"]
+
+
+def build_curve_from(section: dict, where: str = "curve") -> curves.Curve:
+    try:
+        curve = CURVES.build(section, BuildContext(where=where))
+    except ValueError as error:
+        raise ConfigError(f"{where}: curve: {error}") from None
+    if "contour_error_window" in section:       # a key of every built-in curve; a plugin's curve keeps its own
+        curve.contour_error_window = section["contour_error_window"]
+    return curve
+
+
+def build_curve(experiment: Experiment) -> curves.Curve:
+    return build_curve_from(experiment.curve, experiment.path)
+
+
+def build_schedule_from(section: dict, curve, where: str = "schedule"):
+    return SCHEDULES.build(section, BuildContext(curve=curve, where=where))
+
+
+def build_schedule(experiment: Experiment, curve=None):
+    return build_schedule_from(experiment.schedule, curve or build_curve(experiment), experiment.path)
+
+
+BuildContext.schedule_builder = build_schedule
+
+
+def initial_state(experiment: Experiment, curve=None, schedule=None):
+    """Initial axis positions, velocities and accelerations: on the reference at t = 0, moving with it
+    (``on_reference``) or at rest (``at_rest``)."""
+    curve = curve or build_curve(experiment)
+    schedule = schedule or build_schedule(experiment, curve)
+    start = reference(curve, schedule, 0.0)
+    if experiment.initial_state == "on_reference":
+        return start.position, start.velocity, start.acceleration
+    return start.position, np.zeros_like(start.velocity), np.zeros_like(start.acceleration)
+
+
+def build_plant(experiment: Experiment, axis: str, position: float, velocity: float):
+    return PLANTS.build(experiment.plants[axis], BuildContext(experiment, axis=axis, position=position,
+                                                              velocity=velocity, where=experiment.path))
+
+
+def in_position_windows(shared) -> list | None:
+    """Each axis' in-position window [m] (the shared key ``in_position``, an Experiment or the shared
+    section) where the reference waits at exact stops for the axes: a tool path planned by the jerk-limited
+    feed plan with a window > 0; else None (the reference runs on the plan's own time and the interpolator
+    takes no axis state)."""
+    get = shared.get if isinstance(shared, dict) else lambda key: getattr(shared, key)
+    curve, schedule = get("curve"), get("schedule")
+    planned = curve["type"] == "gcode" or (curve["type"] == "toolpath" and schedule["type"] == "feedrate"
+                                           and schedule.get("jerk"))
+    windows = [float(w) for w in get("in_position")]
+    if not planned or not any(windows):
+        return None
+    return windows * len(get("axes")) if len(windows) == 1 else windows
+
+
+def build_clock(experiment: Experiment, curve, schedule):
+    """The reference's :class:`~contouring_ros.core.interpolation.InPositionClock`, or None (see
+    :func:`in_position_windows`)."""
+    windows = in_position_windows(experiment)
+    if windows is None or not hasattr(schedule, "stops"):
+        return None
+    return InPositionClock(schedule, curve, windows, experiment.sample_time,
+                           experiment.schedule["in_position_timeout"], LOOKAHEAD)
+
+
+def build_servo(experiment: Experiment, axis: str, position: float, velocity: float, acceleration: float):
+    return SERVOS.build(experiment.servos[axis], BuildContext(experiment, axis=axis, position=position,
+                                                              velocity=velocity, acceleration=acceleration,
+                                                              where=experiment.path))
+
+
+def build_estimator(experiment: Experiment, curve):
+    return ESTIMATORS.build(experiment.estimator, BuildContext(experiment, curve, where=experiment.path))
+
+
+def build_controller(experiment: Experiment, curve):
+    return CONTROLLERS.build(experiment.controller, BuildContext(experiment, curve, where=experiment.path))
+
+
+def build_loop(experiment: Experiment) -> ControlLoop:
+    """Every core object of the experiment, in their initial state."""
+    curve = build_curve(experiment)
+    schedule = build_schedule(experiment, curve)
+    positions, velocities, accelerations = initial_state(experiment, curve, schedule)
+    axes = experiment.axes
+    return ControlLoop(
+        curve=curve, schedule=schedule, clock=build_clock(experiment, curve, schedule),
+        plants=[build_plant(experiment, a, positions[i], velocities[i]) for i, a in enumerate(axes)],
+        servos=[build_servo(experiment, a, positions[i], velocities[i], accelerations[i])
+                for i, a in enumerate(axes)],
+        estimator=build_estimator(experiment, curve), controller=build_controller(experiment, curve),
+        sample_time=experiment.sample_time, n_steps=experiment.n_steps,
+        divergence_factor=experiment.divergence_factor)

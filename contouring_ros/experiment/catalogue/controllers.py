@@ -1,0 +1,110 @@
+"""Contour controllers (core/contouring.py): the ``/ccc`` section. ``gains``: the keys the benchmark tunes
+(contouring_ros/tuning.py); ``whole_command``: the controller computes every axis' whole command (its servos
+must then be 'direct'); ``needs_state``: it uses the reference and the axis states (the CCC node takes them)."""
+from __future__ import annotations
+
+from ...core import contouring, estimators
+from ...registry import Entry, Role
+from ..schema import AXIS_GAIN_RANGE, BANDWIDTH_RANGE, DAMPING_RANGE, FORCE_RANGE, GAIN_RANGE, MASS_RANGE, POSITIVE_RANGE, REQUIRED, \
+    Param, pid_gains
+
+__all__ = ["CONTROLLERS", "APPROXIMATIONS", "WHOLE_COMMAND_CONTROLLERS"]
+
+CONTROLLERS = Role("controller", description="cross-coupled controller")
+
+# task-frame controllers: the local approximation they act on -> the estimator that reports its errors
+APPROXIMATIONS = {"first_order": "tangent_line", "natural_local": "natural_local"}
+
+_LIMIT = "correction limit, 0: none [command units]"
+_PID = ("kp", "ki", "kd")
+
+
+def _per_axis_values(help: str, bounds: tuple, default=REQUIRED) -> Param:
+    return Param("floats", default, help=help, bounds=bounds)
+
+
+def _bandwidth(help: str, default=REQUIRED) -> Param:
+    return Param("float", default, "positive", help=help, bounds=BANDWIDTH_RANGE)
+
+
+def _task_frame_pd(s, c):
+    approximation = {"first_order": estimators.first_order_terms,
+                     "natural_local": estimators.natural_local_terms}[s["approximation"]]
+    return contouring.TaskFramePD(c.curve, approximation, s["mass"], s["damping"], s["gain"],
+                                  [s["f_t"], s["f_n"]] + ([s["f_b"]] if s["f_b"] is not None else []), s["zeta"],
+                                  s["coulomb_positive"], s["coulomb_negative"])
+
+
+def _per_axis(name: str, keys: tuple):
+    """A check: the Frenet-frame controller ``name`` needs 2 or 3 axes and one value per axis of ``keys``."""
+    def check(section, axes):
+        if len(axes) not in (2, 3):
+            return "type", f"the {name} controller needs 2 or 3 axes (a Frenet frame)"
+        for key in keys:
+            if section[key] is not None and len(section[key]) != len(axes):
+                return key, f"expected one value per axis ({len(axes)}), got {len(section[key])}"
+        return None
+    return check
+
+
+_TASK_FRAME_PER_AXIS = _per_axis("task_frame_pd", ("mass", "damping", "gain", "coulomb_positive", "coulomb_negative"))
+
+
+def _check_task_frame_pd(section, axes):
+    if len(axes) == 3 and section["f_b"] is None:
+        return "f_b", "missing required key (the binormal bandwidth, for 3 axes)"
+    return _TASK_FRAME_PER_AXIS(section, axes)
+
+
+def _task_frame_estimator(estimator, controller, servos):
+    """task_frame_pd acts on the errors of the estimator of its approximation."""
+    expected = APPROXIMATIONS[controller["approximation"]]
+    if estimator["type"] != expected:
+        return ("/contour_estimator.type", f"the task_frame_pd controller with approximation "
+                f"{controller['approximation']!r} acts on the errors of the {expected!r} estimator, got "
+                f"{estimator['type']!r}")
+    return None
+
+
+for _entry in (
+    Entry("none", {}, lambda s, c: contouring.NoCoupling(c.n_axes), gains=()),
+    Entry("variable_gain", pid_gains(_LIMIT),
+          lambda s, c: contouring.VariableGainCCC(c.curve, s["kp"], s["ki"], s["kd"], c.sample_time, s["output_limit"]),
+          gains=_PID),
+    Entry("unit_vector", pid_gains(_LIMIT),
+          lambda s, c: contouring.UnitVectorCCC(c.n_axes, s["kp"], s["ki"], s["kd"], c.sample_time, s["output_limit"]),
+          gains=_PID),
+    Entry("task_frame_pd", {
+        "approximation": Param("str", choices=tuple(APPROXIMATIONS), help="local contour approximation"),
+        "mass": _per_axis_values("axis masses [kg]", MASS_RANGE),
+        "damping": _per_axis_values("axis damping [N s/m]", DAMPING_RANGE),
+        "gain": _per_axis_values("actuator gains [N per command unit]", AXIS_GAIN_RANGE),
+        "coulomb_positive": _per_axis_values("Coulomb friction forward [N]", FORCE_RANGE, None),
+        "coulomb_negative": _per_axis_values("Coulomb friction back [N]", FORCE_RANGE, None),
+        "f_t": _bandwidth("tangential bandwidth [Hz]"), "f_n": _bandwidth("normal bandwidth [Hz]"),
+        "f_b": _bandwidth("binormal bandwidth [Hz]", None),
+        "zeta": Param("float", 1.0, "positive", help="damping ratio", bounds=(1e-6, 1e3))},
+        _task_frame_pd, check=_check_task_frame_pd, combination=_task_frame_estimator, whole_command=True,
+        needs_state=contouring.TaskFramePD.needs_state, gains=("f_t", "f_n", "f_b")),
+    Entry("tvt", {
+        "kc": Param("float", check="nonnegative", help="tangential velocity gain [1/s]", bounds=GAIN_RANGE),
+        "min_feedrate": Param("float", 1e-3, "nonnegative", help="feedrate floor [m/s]", bounds=(0.0, 100.0))},
+        lambda s, c: contouring.TangentialVelocityCCC(c.curve, c.schedule, s["kc"], s["min_feedrate"]),
+        whole_command=True, needs_state=contouring.TangentialVelocityCCC.needs_state, gains=("kc",)),
+    Entry("adaptive_tnb", {
+        "coupling": _per_axis_values("coupling gains", (-1e12, 1e12)),
+        "alpha": Param("float", check="positive", help="tracking gain alpha [1/s]", bounds=POSITIVE_RANGE),
+        "gamma_mass": _per_axis_values("mass adaptation gains", GAIN_RANGE),
+        "gamma_damping": _per_axis_values("damping adaptation gains", GAIN_RANGE),
+        "mass0": _per_axis_values("initial mass estimates [kg]", MASS_RANGE),
+        "damping0": _per_axis_values("initial damping estimates [N s/m]", DAMPING_RANGE)},
+        lambda s, c: contouring.AdaptiveTNBCCC(c.curve, s["coupling"], s["alpha"], s["gamma_mass"],
+                                               s["gamma_damping"], s["mass0"], s["damping0"], c.sample_time),
+        check=_per_axis("adaptive_tnb", ("coupling", "gamma_mass", "gamma_damping", "mass0", "damping0")),
+        needs_state=contouring.AdaptiveTNBCCC.needs_state, gains=("coupling", "alpha", "gamma_mass", "gamma_damping")),
+):
+    CONTROLLERS.add(_entry)
+
+# built-in controllers that compute every axis' whole command (their servos must be 'direct', and only theirs;
+# a plugin says so with whole_command on its entry)
+WHOLE_COMMAND_CONTROLLERS = {name for name, entry in CONTROLLERS.registered().items() if entry.whole_command}
