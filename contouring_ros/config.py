@@ -41,6 +41,7 @@ from .experiment.schema import DEFAULT_BOUNDS as DEFAULT_BOUNDS, MAX_DEPTH as MA
 from .experiment.schema import MAX_FILE_BYTES as MAX_FILE_BYTES, MAX_ITEMS as MAX_ITEMS, MAX_TEXT as MAX_TEXT
 from .experiment.schema import RENAMED_KEYS as RENAMED_KEYS, REQUIRED as REQUIRED
 from .graph import LOOKAHEAD, graph_namespace
+from .nodes import catalogue
 from .registry import BuildContext, Role
 
 __all__ = ["Experiment", "load_experiment", "parse_experiment", "read_yaml", "experiment_from_data", "build_loop",
@@ -536,8 +537,9 @@ GLOBALS = {
 # node section -> (key holding the type name, registry)
 ROLE_TYPES = {"plant": ("model", PLANTS), "servo": ("law", SERVOS),
               "contour_estimator": ("type", ESTIMATORS), "ccc": ("type", CONTROLLERS)}
-# nodes whose section may be left out, with the keys they take
-OPTIONAL_NODES = {"interpolator": {}, "recorder": {"bag": Param("str", ""), "experiment_file": Param("str", "")}}
+# nodes whose section may be left out (nodes.catalogue), with the keys they take
+_OPTIONAL_KEYS = {"recorder": {"bag": Param("str", ""), "experiment_file": Param("str", "")}}
+OPTIONAL_NODES = {node.name: _OPTIONAL_KEYS.get(node.name, {}) for node in catalogue.NODES if node.optional}
 
 
 def _registries() -> dict:
@@ -593,11 +595,7 @@ def _ros_parameters(where, node: str, body) -> dict:
 
 def node_sections(axes) -> dict:
     """Node name -> role for the graph of ``axes`` (the fully qualified names used in experiment files)."""
-    sections = {f"/{axis}/plant": "plant" for axis in axes}
-    sections.update({f"/{axis}/servo": "servo" for axis in axes})
-    sections.update({"/contour_estimator": "contour_estimator", "/ccc": "ccc"})
-    sections.update({f"/{name}": name for name in OPTIONAL_NODES})
-    return sections
+    return catalogue.experiment_sections(axes)
 
 
 def split_groups(text: str) -> list:
@@ -787,7 +785,7 @@ def experiment_for_node(parameters: dict, node: str, role: str, where: str | Non
     try:
         section = _validate_role(where, node, role, own, globals_)
     except ConfigError as error:
-        namespace = graph_namespace(node, role in ("plant", "servo"))
+        namespace = graph_namespace(node, role in catalogue.PER_AXIS)
         if namespace == "/" or "missing required key" not in str(error):
             raise
         plain = node[len(namespace):]

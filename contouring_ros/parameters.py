@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from . import config
 from .config import DEFAULT_BOUNDS, GLOBALS, NUMERIC_KINDS, OPTIONAL_NODES, ROLE_TYPES, Param
+from .nodes import catalogue
 
 __all__ = ["DESCRIPTIONS", "NodeParameter", "node_parameters", "describe", "descriptor"]
 
@@ -109,7 +110,7 @@ DESCRIPTIONS = {
         "mass0": "initial mass estimates [kg]", "damping0": "initial damping estimates [N s/m]"},
     "OPTIONAL": {"bag": "the MCAP file to write", "experiment_file": "experiment file stored in the bag"},
 }
-_TABLE_OF_ROLE = {"plant": "PLANTS", "servo": "SERVOS", "contour_estimator": "ESTIMATORS", "ccc": "CONTROLLERS"}
+_TABLE_OF_ROLE = {node.name: node.parameters for node in catalogue.NODES}    # node -> its keys' table
 _TABLE_OF_REGISTRY = {"curve": "CURVES", "schedule": "SCHEDULES", "disturbance": "DISTURBANCES"}
 
 
@@ -160,7 +161,7 @@ def node_parameters(parameters: dict, node: str, role: str, experiment=None) -> 
     _walk("", "GLOBALS", "", GLOBALS, shared, given, out)
     section = experiment.info["node"]
     if role in OPTIONAL_NODES:
-        _walk("", "OPTIONAL", role, OPTIONAL_NODES[role], section, given, out)
+        _walk("", _TABLE_OF_ROLE[role], role, OPTIONAL_NODES[role], section, given, out)
     else:
         type_key, registry = ROLE_TYPES[role]
         specs = {type_key: Param("str"), **registry.entry(section[type_key]).params}
