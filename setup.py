@@ -1,9 +1,12 @@
+import runpy
 from glob import glob
+from pathlib import Path
 
 from setuptools import find_packages, setup
 
 package_name = "contouring_ros"
-NODES = ["interpolator", "plant", "servo", "contour_estimator", "ccc", "recorder"]
+# the node catalogue, read by path: building the package imports neither it nor numpy or rclpy
+NODES = runpy.run_path(str(Path(__file__).resolve().parent / package_name / "nodes" / "catalogue.py"))["NODES"]
 
 setup(
     name=package_name,
@@ -29,7 +32,7 @@ setup(
     description="Multi-axis contouring control of CNC feed drives as a graph of rclpy nodes",
     license="Apache-2.0",
     entry_points={
-        "console_scripts": [f"{node} = {package_name}.nodes.{node}:main" for node in NODES]
+        "console_scripts": [node.entry_point for node in NODES]
         + [f"contouring-ros = {package_name}.cli:main"],
     },
 )

@@ -20,16 +20,12 @@ from . import graph
 from .config import load_experiment
 from .errors import ContouringError, RunError
 from .rclpy_adapter import SubscriptionWaitSet
-from .nodes.ccc import CCCNode
-from .nodes.contour_estimator import ContourEstimatorNode
-from .nodes.interpolator import InterpolatorNode
+from .nodes import catalogue
 from .nodes.lockstep import COMPOSED_LOOP, interrupted_code, realtime_loop, track_signals, wait_until
-from .nodes.plant import PlantNode
-from .nodes.recorder import REALTIME_GRACE, RecorderNode
-from .nodes.servo import ServoNode
+from .nodes.recorder import REALTIME_GRACE
 from .runner import group_label, override_arguments, shared_overrides, write_parameter_file
 
-__all__ = ["main"]
+__all__ = ["main", "loop_order"]
 
 
 #: realtime: the last part of each tick's wait is busy-waited, so tick k starts on time rather than a timed
@@ -40,8 +36,15 @@ REALTIME_SPIN = 0.0003   # s
 REALTIME_SWITCH_INTERVAL = 0.0001   # s
 
 def _node_classes():
-    return {"interpolator": InterpolatorNode, "plant": PlantNode, "servo": ServoNode,
-            "contour_estimator": ContourEstimatorNode, "ccc": CCCNode, "recorder": RecorderNode}
+    """Node concern -> its class, as nodes.catalogue names them."""
+    return {node.name: catalogue.load_class(node) for node in catalogue.NODES}
+
+
+def loop_order(axes, names=None) -> list:
+    """The nodes one composed loop creates and steps, in this order: ``names`` (the graph's own full names;
+    default every node: the composed layout) in graph order (:func:`graph.node_names`), recorder last."""
+    every = graph.node_names(axes)
+    return every if names is None else [n for n in every if n in set(names)]
 
 
 def _wait_set(nodes) -> SubscriptionWaitSet:
@@ -72,9 +75,8 @@ def run_composed(experiment_path: str, bag: str, executor_kind: str = "lean", st
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.parameter import Parameter
     experiment = load_experiment(experiment_path)
-    every = graph.node_names(experiment.axes)
-    names = every if names is None else [n for n in every if n in set(names)]   # graph order, recorder last
-    label = COMPOSED_LOOP if names == every else f"the group {group_label(names)}"
+    names = loop_order(experiment.axes, names)
+    label = COMPOSED_LOOP if names == graph.node_names(experiment.axes) else f"the group {group_label(names)}"
     namespace = graph.normalize_namespace(namespace)
     directory = tempfile.TemporaryDirectory(prefix="contouring_ros_")
     parameter_file = write_parameter_file(Path(experiment_path), namespace, directory.name)
@@ -90,8 +92,8 @@ def run_composed(experiment_path: str, bag: str, executor_kind: str = "lean", st
         for name in names:
             spec = specs[graph.resolve(namespace, name)]
             overrides = [Parameter(key, value=value) for key, value in spec.overrides]
-            node = classes[spec.executable](name=spec.name, namespace=spec.namespace, parameter_overrides=overrides,
-                                            callbacks=True)
+            node = classes[spec.name](name=spec.name, namespace=spec.namespace, parameter_overrides=overrides,
+                                      callbacks=True)
             nodes.append(node)
             executor.add_node(node.node)
         recorder = nodes[-1] if nodes[-1].role == "recorder" else None

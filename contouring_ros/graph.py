@@ -1,4 +1,5 @@
-"""The node graph: nodes, topics, message layouts and QoS, in one place.
+"""The node graph: nodes, topics, message layouts and QoS, in one place (which nodes there are and the topics
+each takes and publishes come from the node catalogue, contouring_ros/nodes/catalogue.py).
 
 No rclpy import here: the bag reader and the analysis use the same layouts on decoded messages.
 
@@ -27,6 +28,8 @@ import numpy as np
 from .core.estimators import ContourEstimate
 from .core.interpolation import Reference
 from .errors import ConfigError
+from .nodes import catalogue
+from .nodes.catalogue import CLOCK, COMMAND, CONTOUR_ERROR, CORRECTION, DIAGNOSTICS, REFERENCE, STATE
 
 __all__ = ["Topic", "topics", "node_names", "NodeSpec", "node_specs", "CONTOUR_ERROR_NAME", "FOOT_POINT_NAME", "THETA_NAME",
            "LOOKAHEAD", "step_to_stamp", "reference_from_msg",
@@ -34,11 +37,6 @@ __all__ = ["Topic", "topics", "node_names", "NodeSpec", "node_specs", "CONTOUR_E
            "message_problem", "recorded_topics", "normalize_namespace", "resolve", "GLOBAL_TOPICS", "graph_namespace",
            "namespace_of_topics"]
 
-CLOCK = "/clock"
-DIAGNOSTICS = "/diagnostics"
-REFERENCE = "/reference"
-CONTOUR_ERROR = "/contour_error"
-CORRECTION = "/ccc/correction"
 THETA_NAME = "theta"
 CONTOUR_ERROR_NAME = "contour_error"
 FOOT_POINT_NAME = "foot_point_parameter"
@@ -114,25 +112,25 @@ def namespace_of_topics(names) -> str:
 
 
 def state_topic(axis: str) -> str:
-    return f"/{axis}/state"
+    return catalogue.on_axis(STATE, axis)
 
 
 def command_topic(axis: str) -> str:
-    return f"/{axis}/command"
+    return catalogue.on_axis(COMMAND, axis)
 
 
 def node_names(axes) -> list:
-    """Fully qualified names of every node of the graph, recorder last."""
-    return (["/interpolator"] + [f"/{a}/plant" for a in axes] + ["/contour_estimator", "/ccc"]
-            + [f"/{a}/servo" for a in axes] + ["/recorder"])
+    """Fully qualified names of every node of the graph, in the order of a step (nodes.catalogue), recorder
+    last."""
+    return [name for _, _, name in catalogue.instances(axes)]
 
 
 @dataclass(frozen=True)
 class NodeSpec:
     """How one node of the graph is started: what the runner and launch/contouring.launch.py share.
 
-    ``executable`` is both the console script (``ros2 run contouring_ros <executable>``) and the module
-    ``contouring_ros.nodes.<executable>``; ``overrides`` are parameters set on top of the experiment file.
+    ``name`` is the node concern's name in nodes.catalogue, ``executable`` its console script
+    (``ros2 run contouring_ros <executable>``); ``overrides`` are parameters set on top of the experiment file.
     """
 
     name: str
@@ -143,6 +141,11 @@ class NodeSpec:
     @property
     def full_name(self) -> str:
         return f"{self.namespace.rstrip('/')}/{self.name}"
+
+    @property
+    def module(self) -> str:
+        """The node's module (what the runner starts with ``python -m``)."""
+        return catalogue.NODE[self.name].module
 
 
 def node_specs(axes, overrides: dict | None = None, bag: str | None = None,
@@ -159,43 +162,60 @@ def node_specs(axes, overrides: dict | None = None, bag: str | None = None,
         if name == "recorder":
             extra = tuple((key, value) for key, value in (("bag", bag), ("experiment_file", experiment_file))
                           if value is not None)
-        out.append(NodeSpec(name, node_namespace, name, extra + shared))
+        node = catalogue.NODE[name]
+        out.append(NodeSpec(name, node_namespace, node.console_script, extra + shared))
     return out
 
 
 def topics(axes, ccc_takes_state: bool = True, interpolator_takes_state: bool = False) -> list:
-    """Every topic of the graph for ``axes``; the recorder takes them all. The CCC takes /reference and the
-    states only with ``ccc_takes_state`` (the shared key of that name: its controller uses them); the
-    interpolator takes the states only with ``interpolator_takes_state`` (exact stops wait for the axes:
-    ``config.in_position_windows``)."""
-    n = len(axes)
-    axis_state = (("position", 1), ("velocity", 1))
-    ccc = ("/ccc",) if ccc_takes_state else ()
-    interpolator = ("/interpolator",) if interpolator_takes_state else ()
-    out = [Topic(CLOCK, "rosgraph_msgs/msg/Clock", "/interpolator", ("/recorder",)),
-           Topic(REFERENCE, "trajectory_msgs/msg/JointTrajectory", "/interpolator",
-                 ("/contour_estimator",) + ccc + tuple(f"/{a}/servo" for a in axes) + ("/recorder",),
-                 (("positions", n + 1), ("velocities", n + 1), ("accelerations", n + 1)),
-                 names=tuple(axes) + (THETA_NAME,))]
-    for a in axes:
-        out.append(Topic(state_topic(a), "sensor_msgs/msg/JointState", f"/{a}/plant",
-                         interpolator + ("/contour_estimator",) + ccc + (f"/{a}/servo", "/recorder"), axis_state,
-                         names=(a,)))
-    out.append(Topic(CONTOUR_ERROR, "sensor_msgs/msg/JointState", "/contour_estimator",
-                     ("/ccc", "/interpolator", "/recorder"), (("position", n + 2),),
-                     names=tuple(estimate_names(axes))))
-    out.append(Topic(CORRECTION, "sensor_msgs/msg/JointState", "/ccc",
-                     tuple(f"/{a}/servo" for a in axes) + ("/recorder",), (("effort", n),), names=tuple(axes)))
-    for a in axes:
-        out.append(Topic(command_topic(a), "sensor_msgs/msg/JointState", f"/{a}/servo",
-                         (f"/{a}/plant", "/recorder"), (("effort", 1),), names=(a,)))
+    """Every topic of the graph for ``axes``: the outputs of the nodes of nodes.catalogue, in graph order,
+    each with its publisher and subscribers (those whose step reads it, those it only paces, then the
+    recorder, which takes them all). The CCC takes /reference and the states only with ``ccc_takes_state``
+    (the shared key of that name: its controller uses them); the interpolator takes the states only with
+    ``interpolator_takes_state`` (exact stops wait for the axes: ``config.in_position_windows``)."""
+    flags = {"ccc_takes_state": ccc_takes_state, "interpolator_takes_state": interpolator_takes_state}
+    nodes = catalogue.instances(axes)
+    out = []
+    for node, axis, publisher in nodes:
+        for template in node.outputs:
+            for name in catalogue.expand(template, axes, axis):
+                layout, names = _message(template, axes, axis)
+                out.append(Topic(name, catalogue.TOPIC_TYPES[template], publisher,
+                                 _subscribers(name, nodes, axes, flags), layout, names=names))
     return out
+
+
+def _subscribers(name: str, nodes, axes, flags: dict) -> tuple:
+    """The nodes that take the topic ``name``, ordered by how they use it (catalogue.USES), then graph order."""
+    takers = [(catalogue.USES.index(i.use), full_name) for node, axis, full_name in nodes for i in node.inputs
+              if (i.when is None or flags[i.when])
+              and (i.topic == catalogue.EVERY_TOPIC or name in catalogue.expand(i.topic, axes, axis))]
+    return tuple(full_name for _, full_name in sorted(takers, key=lambda taker: taker[0]))
+
+
+def _message(topic: str, axes, axis) -> tuple:
+    """(layout, joint names) every message of ``topic`` (as the catalogue names it; of ``axis`` where per
+    axis) must have."""
+    n = len(axes)
+    if topic == REFERENCE:
+        return (("positions", n + 1), ("velocities", n + 1), ("accelerations", n + 1)), tuple(axes) + (THETA_NAME,)
+    if topic == STATE:
+        return (("position", 1), ("velocity", 1)), (axis,)
+    if topic == CONTOUR_ERROR:
+        return (("position", n + 2),), tuple(estimate_names(axes))
+    if topic == CORRECTION:
+        return (("effort", n),), tuple(axes)
+    if topic == COMMAND:
+        return (("effort", 1),), (axis,)
+    return (), None
 
 
 def recorded_topics(axes, ccc_takes_state: bool = True, interpolator_takes_state: bool = False) -> list:
     """What the recorder takes: every lockstep topic, then /diagnostics (event-driven, not counted)."""
-    return topics(axes, ccc_takes_state, interpolator_takes_state) + [Topic(DIAGNOSTICS, "diagnostic_msgs/msg/DiagnosticArray", "any node", ("/recorder",),
-                                  every_step=False)]
+    recorders = tuple(full_name for node, _, full_name in catalogue.instances(axes)
+                      if any(i.topic == catalogue.EVERY_TOPIC for i in node.inputs))
+    return topics(axes, ccc_takes_state, interpolator_takes_state) + [
+        Topic(DIAGNOSTICS, catalogue.TOPIC_TYPES[DIAGNOSTICS], "any node", recorders, every_step=False)]
 
 
 def message_problem(topic: Topic, msg) -> str | None:

@@ -146,7 +146,7 @@ def graph_commands(experiment_path, experiment: Experiment, bag: Path, start_tim
         shared = {"start_time": start_time, **shared}
     out = []
     for spec in graph.node_specs(experiment.axes, shared, str(bag), str(experiment_path), namespace):
-        command = [sys.executable, "-m", f"contouring_ros.nodes.{spec.executable}", "--ros-args",
+        command = [sys.executable, "-m", spec.module, "--ros-args",
                    "-r", f"__ns:={spec.namespace}", "-r", f"__node:={spec.name}", "--params-file",
                    str(parameter_file or experiment_path)]
         command += override_arguments(spec.overrides)

@@ -1,5 +1,6 @@
 """Launch the contouring graph of one experiment file: the same nodes, namespaces and parameters as
-`contouring-ros run` (both come from contouring_ros.graph.node_specs).
+`contouring-ros run` (both come from contouring_ros.graph.node_specs, which reads the node catalogue,
+contouring_ros/nodes/catalogue.py).
 
     ros2 launch contouring_ros contouring.launch.py experiment:=/path/to/experiment.yaml [bag:=run.mcap] [namespace:=m1]
 

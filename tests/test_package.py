@@ -7,9 +7,10 @@ from pathlib import Path
 
 import pytest
 
+from contouring_ros.nodes import catalogue
 from conftest import ROOT
 
-NODES = ["interpolator", "plant", "servo", "contour_estimator", "ccc", "recorder"]
+NODES = [node.console_script for node in catalogue.NODES]
 
 
 @pytest.mark.slow

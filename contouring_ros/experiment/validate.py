@@ -21,6 +21,7 @@ import numpy as np
 from .. import graph
 from ..errors import ConfigError
 from ..graph import graph_namespace
+from ..nodes import catalogue as nodes
 from .build import build_curve_from, build_schedule_from, in_position_windows
 from .catalogue import CONTROLLERS, GLOBALS, OPTIONAL_NODES, ROLE_TYPES, SERVOS
 from .catalogue.curves import TOOL_PATH_TYPES
@@ -46,11 +47,7 @@ def _ros_parameters(where, node: str, body) -> dict:
 
 def node_sections(axes) -> dict:
     """Node name -> role for the graph of ``axes`` (the fully qualified names used in experiment files)."""
-    sections = {f"/{axis}/plant": "plant" for axis in axes}
-    sections.update({f"/{axis}/servo": "servo" for axis in axes})
-    sections.update({"/contour_estimator": "contour_estimator", "/ccc": "ccc"})
-    sections.update({f"/{name}": name for name in OPTIONAL_NODES})
-    return sections
+    return nodes.experiment_sections(axes)
 
 
 def split_groups(text: str) -> list:
@@ -240,7 +237,7 @@ def experiment_for_node(parameters: dict, node: str, role: str, where: str | Non
     try:
         section = _validate_role(where, node, role, own, globals_)
     except ConfigError as error:
-        namespace = graph_namespace(node, role in ("plant", "servo"))
+        namespace = graph_namespace(node, role in nodes.PER_AXIS)
         if namespace == "/" or "missing required key" not in str(error):
             raise
         plain = node[len(namespace):]

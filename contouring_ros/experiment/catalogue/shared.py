@@ -1,6 +1,7 @@
 """The keys every node shares (the file's ``/**`` section), and the optional nodes' own keys."""
 from __future__ import annotations
 
+from ...nodes import catalogue as nodes
 from ..schema import MAX_DURATION, Param
 from .curves import CURVES
 from .schedules import SCHEDULES
@@ -65,7 +66,7 @@ GLOBALS = {
                                                   "stay global)"),
 }
 
-#: nodes whose section may be left out, with the keys they take
-OPTIONAL_NODES = {"interpolator": {},
-                  "recorder": {"bag": Param("str", "", help="the MCAP file to write"),
+_OPTIONAL_KEYS = {"recorder": {"bag": Param("str", "", help="the MCAP file to write"),
                                "experiment_file": Param("str", "", help="experiment file stored in the bag")}}
+#: nodes whose section may be left out (contouring_ros/nodes/catalogue.py), with the keys they take
+OPTIONAL_NODES = {node.name: _OPTIONAL_KEYS.get(node.name, {}) for node in nodes.NODES if node.optional}
