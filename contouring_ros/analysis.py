@@ -17,7 +17,10 @@ from tqdm import tqdm
 
 from .bag import RecordedRun
 from .blocks import block_cells, block_headings, block_results, cutting_scores
-from .config import ESTIMATORS, _check_entry, _typed, build_curve, build_estimator, build_schedule, parse_experiment
+from .experiment.build import build_curve, build_estimator, build_schedule
+from .experiment.catalogue import ESTIMATORS
+from .experiment.schema import _typed
+from .experiment.validate import _check_entry, parse_experiment
 from .core.curves import ToolPath
 from .core.geometry import ExactContourError
 from .core.interpolation import Reference

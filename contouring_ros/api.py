@@ -21,8 +21,12 @@ from pathlib import Path
 import numpy as np
 
 from .bag import read_run
-from .config import Experiment, build_loop, experiment_from_data, parse_experiment, program_warnings, read_yaml
-from .config import load_experiment as _load_experiment
+from .experiment.build import build_loop
+from .experiment.catalogue.curves import program_warnings
+from .experiment.model import Experiment
+from .experiment.ros_yaml import read_yaml
+from .experiment.validate import experiment_from_data, parse_experiment
+from .experiment.files import load_experiment as _load_experiment
 from .core.geometry import ExactContourError
 from .core.simulation import simulate as _simulate_loop
 from .errors import ConfigError

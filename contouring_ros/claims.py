@@ -60,7 +60,8 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from .config import load_experiment, read_yaml
+from .experiment.files import load_experiment
+from .experiment.ros_yaml import read_yaml
 from .errors import ConfigError, write_atomically
 from .executors import pool as executor
 from .experiment.scenarios import CONFIG_DIR

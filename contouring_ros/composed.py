@@ -17,7 +17,7 @@ import time
 from pathlib import Path
 
 from . import graph
-from .config import load_experiment
+from .experiment.files import load_experiment
 from .errors import ContouringError, RunError
 from .rclpy_adapter import SubscriptionWaitSet
 from .nodes import catalogue

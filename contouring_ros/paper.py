@@ -4,7 +4,8 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from .config import build_loop, load_experiment
+from .experiment.build import build_loop
+from .experiment.files import load_experiment
 from .core.simulation import simulate
 from .errors import write_atomically
 from .experiment.scenarios import CONFIG_DIR, available_papers, scenario_files

@@ -11,7 +11,8 @@ from __future__ import annotations
 import numpy as np
 
 from .. import cdr, graph
-from ..config import build_controller, build_curve, check_ccc_takes_state
+from ..experiment.build import build_controller, build_curve
+from ..experiment.validate import check_ccc_takes_state
 from .lockstep import LockstepNode, run_node
 
 

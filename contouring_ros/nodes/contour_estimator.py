@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import cdr, graph
-from ..config import build_curve, build_estimator, build_schedule
+from ..experiment.build import build_curve, build_estimator, build_schedule
 from ..core.simulation import diverged_message, path_bound, step_time
 from ..errors import RunError
 from .lockstep import LockstepNode, run_node

@@ -3,7 +3,7 @@ wait for the axes (in-position check), it takes every axis state too."""
 from __future__ import annotations
 
 from .. import cdr, graph
-from ..config import build_clock, build_curve, build_schedule
+from ..experiment.build import build_clock, build_curve, build_schedule
 from ..core.interpolation import reference
 from ..core.simulation import step_time
 from .lockstep import LockstepNode, run_node

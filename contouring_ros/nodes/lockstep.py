@@ -28,7 +28,8 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 
 from .. import cdr, graph
 from ..rclpy_adapter import SubscriptionWaitSet, take_request, taker
-from ..config import experiment_for_node, in_position_windows
+from ..experiment.build import in_position_windows
+from ..experiment.validate import experiment_for_node
 from ..parameters import descriptor, node_parameters
 from ..errors import ConfigError, ContouringError, RunError
 

@@ -21,7 +21,8 @@ from rclpy.serialization import deserialize_message
 
 from .. import __version__, cdr, graph
 from ..bag import EXPERIMENT_METADATA, RUN_METADATA, BagWriter
-from ..config import in_position_windows, recorded_text
+from ..experiment.build import in_position_windows
+from ..experiment.files import recorded_text
 from ..errors import ConfigError
 from .lockstep import DIAGNOSTICS_QOS, GRAPH_QOS, LockstepNode, run_node
 

@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 from .. import cdr, graph
-from ..config import build_servo, initial_state
+from ..experiment.build import build_servo, initial_state
 from .lockstep import LockstepNode, run_node
 
 
