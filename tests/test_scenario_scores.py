@@ -1,0 +1,26 @@
+"""Every scenario file of config/ simulates to the scores pinned in tests/data/scenario_scores.json (its first
+second, in-process; tools/pin_scenario_scores.py writes the file). A change to how experiments are read,
+validated or built must leave every one as it was; a change meant to alter results re-pins, and says so."""
+import importlib.util
+import json
+
+import pytest
+
+from conftest import CONFIG, ROOT
+
+_spec = importlib.util.spec_from_file_location("pin_scenario_scores", ROOT / "tools" / "pin_scenario_scores.py")
+pin = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(pin)
+PINNED = json.loads(pin.OUT.read_text())
+
+
+def test_every_scenario_file_is_pinned():
+    assert sorted(PINNED) == sorted(p.name for p in CONFIG.glob("*.yaml"))
+
+
+@pytest.mark.parametrize("scenario", sorted(PINNED))
+def test_the_scenario_simulates_to_its_pinned_scores(scenario):
+    got, pinned = pin.scenario_scores(CONFIG / scenario), PINNED[scenario]
+    assert got["duration"] == pinned["duration"]
+    assert got["mce"] == pytest.approx(pinned["mce"], rel=1e-12, abs=1e-18), "MCE"
+    assert got["tace"] == pytest.approx(pinned["tace"], rel=1e-12, abs=1e-18), "TACE"
