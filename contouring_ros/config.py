@@ -815,8 +815,9 @@ def check_ccc_takes_state(where: str, experiment: Experiment, uses_state: bool):
 
 def controller_uses_state(experiment: Experiment) -> bool:
     """Whether the experiment's contour controller uses the reference and the axis states (``needs_state``),
-    i.e. whether the CCC node must take them (the shared key ``ccc_takes_state``)."""
-    return bool(getattr(build_controller(experiment, build_curve(experiment)), "needs_state", False))
+    i.e. whether the CCC node must take them (the shared key ``ccc_takes_state``): read from the controller's
+    registry entry, nothing is built."""
+    return CONTROLLERS.entry(experiment.controller["type"]).needs_state
 
 
 def namespaced_parameter_file(text: str, namespace: str) -> str:
