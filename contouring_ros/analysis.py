@@ -17,7 +17,7 @@ from tqdm import tqdm
 
 from .bag import RecordedRun
 from .blocks import block_cells, block_headings, block_results, cutting_scores
-from .config import ESTIMATORS, _check_entry, _typed, build_curve, build_estimator, build_schedule, parse_experiment
+from .config import ESTIMATORS, _check_entry, _typed, build_curve, build_estimator, build_schedule
 from .core.curves import ToolPath
 from .core.geometry import ExactContourError
 from .core.interpolation import Reference
@@ -79,7 +79,7 @@ def replay_estimators(run: RecordedRun, specs: list, progress: bool = False) -> 
     Returns the exact contour error per step and, first for the recorded estimate and then for each spec,
     an :class:`EstimatorReplay`.
     """
-    experiment = parse_experiment(run.experiment_text, "the bag's experiment")
+    experiment = run.require_experiment()
     curve = curve_of(run)
     result = run.result
     exact = ExactContourError(curve)(result.position, near=result.theta).distance
@@ -156,15 +156,8 @@ def _finite(values) -> np.ndarray:
     return np.where(np.isfinite(values), values, np.nan)
 
 
-def _parsed(run: RecordedRun):
-    try:
-        return parse_experiment(run.experiment_text, "the bag's experiment")
-    except ContouringError:
-        return None
-
-
 def _stored_name(run: RecordedRun) -> str | None:
-    experiment = _parsed(run)
+    experiment = run.experiment
     name = experiment and (experiment.info.get("experiment") or {}).get("name")
     return str(name) if name else None
 
@@ -196,7 +189,7 @@ def run_names(runs: list) -> list:
 def _trace(name: str, colour: str, run: RecordedRun) -> _Trace:
     result = run.result
     steps, n = len(result.time), len(run.axes)
-    experiment = _parsed(run)
+    experiment = run.experiment
     curve = None
     if experiment is not None:
         try:

@@ -100,9 +100,8 @@ def _run_config(args, config: Path):
     _warn(run)
     print(f"bag: {bag}")
     print(format_scores([(config.stem, scores)], run.axes))
-    from .config import parse_experiment
     from .scoring import curve_of, cutting_lines
-    for line in cutting_lines(curve_of(run), run.result, parse_experiment(run.experiment_text, str(config)).schedule):
+    for line in cutting_lines(curve_of(run), run.result, run.require_experiment().schedule):
         print(line)
     from .bag import node_reports
     from .scoring import format_realtime
@@ -140,18 +139,21 @@ def _simulate(args):
         print(line)
 
 
-def _experiment_text(args):
+def _given(args) -> dict:
+    """The reader's keywords for ``--experiment FILE`` (bags recorded without one): the file's text and its
+    Experiment, parsed here once for every bag (see :func:`contouring_ros.scoring.read_run`); none without it."""
     if getattr(args, "experiment", None) is None:
-        return None
+        return {}
     from .config import load_experiment
-    return load_experiment(args.experiment).text
+    experiment = load_experiment(args.experiment)
+    return {"experiment_text": experiment.text, "parsed": experiment}
 
 
 def _scored(args):
     from .scoring import score_bag
-    text = _experiment_text(args)
+    given = _given(args)
     start = getattr(args, "from_time", 0.0) or 0.0
-    results = [(Path(bag).stem, *score_bag(bag, text, progress=sys.stderr.isatty(), from_time=start))
+    results = [(Path(bag).stem, *score_bag(bag, progress=sys.stderr.isatty(), from_time=start, **given))
                for bag in args.bags]
     for _, _, run in results:
         _warn(run)
@@ -183,18 +185,19 @@ def _score(args):
 
 
 def _blocks(args):
+    from dataclasses import replace
+
     from .blocks import block_results, format_blocks, write_blocks_csv
-    from .config import build_schedule, parse_experiment
-    from .scoring import curve_of, cutting_lines
-    text = _experiment_text(args)
+    from .config import build_schedule
+    from .scoring import curve_of, cutting_lines, read_run
+    given = _given(args)
     for bag in args.bags:
-        from .bag import read_run
-        run = read_run(bag, experiment_text=text, progress=sys.stderr.isatty())
+        run = read_run(bag, progress=sys.stderr.isatty(), **given)
         _warn(run)
         curve = curve_of(run)
         if not hasattr(curve, "blocks"):
             raise ConfigError(f"{bag}: not a tool path run (curve type gcode or toolpath): it has no blocks")
-        experiment = parse_experiment(run.experiment_text, str(bag))
+        experiment = replace(run.require_experiment(), path=str(bag))      # named after the bag in messages
         rows = block_results(curve, run.result, build_schedule(experiment, curve),
                              experiment.schedule.get("contour_tolerance") or 0.0)
         print(f"{bag}:")
@@ -225,10 +228,10 @@ def _replay(args):
             raise SystemExit(130)
         return
     from .analysis import parse_estimator_spec, replay_estimators
-    from .bag import read_run
+    from .scoring import read_run
     if not args.estimator:
         raise SystemExit("error: replay needs --estimator NAME[:key=value,...] (or --play)")
-    run = read_run(args.bag, experiment_text=_experiment_text(args), progress=sys.stderr.isatty())
+    run = read_run(args.bag, progress=sys.stderr.isatty(), **_given(args))
     _warn(run)
     exact, replays = replay_estimators(run, [parse_estimator_spec(spec) for spec in args.estimator],
                                        progress=sys.stderr.isatty())
@@ -242,14 +245,13 @@ def _plot(args):
     import numpy as np
 
     from .analysis import figures, html_report, write_figures
-    from .bag import read_run
-    from .scoring import curve_of, score_run
+    from .scoring import curve_of, read_run, score_run
     if args.baseline:
         args.bags = [args.baseline] + [bag for bag in args.bags if bag != args.baseline]
-    text = _experiment_text(args)
+    given = _given(args)
     runs, scores = [], []
     for bag in args.bags:        # a run that cannot be scored (diverged, no steps) is still drawn
-        run = read_run(bag, experiment_text=text, progress=sys.stderr.isatty())
+        run = read_run(bag, progress=sys.stderr.isatty(), **given)
         _warn(run)
         try:
             with np.errstate(all="ignore"):
@@ -270,9 +272,9 @@ def _export(args):
     from .export import export_bag
     if args.csv is None and args.parquet is None:
         raise ConfigError("export needs --csv DIR and/or --parquet DIR")
-    text = _experiment_text(args)
+    given = _given(args)
     for bag in args.bags:
-        written, warnings = export_bag(bag, args.csv, args.parquet, text)
+        written, warnings = export_bag(bag, args.csv, args.parquet, **given)
         for warning in warnings:
             print(f"warning: {warning}", file=sys.stderr)
         for path in written:

@@ -14,7 +14,7 @@ import pytest
 
 from contouring_ros import cdr
 from contouring_ros import graph as graph_module
-from contouring_ros.bag import read_run
+from contouring_ros.scoring import read_run
 from contouring_ros.config import build_loop, load_experiment
 from contouring_ros.core.simulation import simulate
 from contouring_ros.errors import RunError

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from contouring_ros.bag import read_run
+from contouring_ros.scoring import read_run
 from contouring_ros.config import build_loop, load_experiment
 from contouring_ros.core.simulation import simulate
 from contouring_ros.runner import FASTDDS_PROFILE, private_environment, run_graph
