@@ -54,23 +54,23 @@ def _warn(run):
 
 @contextlib.contextmanager
 def _with_settings(config: Path, specs):
-    """The experiment file ``config`` with the ``--set KEY=VALUE`` settings ``specs`` applied, written under
-    the same name (the bag's default name) in a temporary folder and validated, for the ``with`` block;
-    ``config`` itself without any."""
+    """(file, Experiment) for the ``with`` block: the experiment file ``config`` with the ``--set KEY=VALUE``
+    settings ``specs`` applied, written under the same name (the bag's default name) in a temporary folder,
+    and its validated Experiment; ``config`` itself without any (and None: the caller reads it)."""
     if not specs:
-        yield config
+        yield config, None
         return
-    from .sweep import settings_file
+    from .sweep import written_settings
     with tempfile.TemporaryDirectory(prefix="contouring_ros_set_") as directory:
-        yield settings_file(config, specs, directory)
+        yield written_settings(config, specs, directory)
 
 
 def _run(args):
-    with _with_settings(_experiment_path(args.config), args.set) as config:
-        _run_config(args, config)
+    with _with_settings(_experiment_path(args.config), args.set) as (config, experiment):
+        _run_config(args, config, experiment)
 
 
-def _run_config(args, config: Path):
+def _run_config(args, config: Path, experiment=None):
     from .runner import run_graph
     from .scoring import format_scores, score_bag
     try:
@@ -78,17 +78,19 @@ def _run_config(args, config: Path):
             raise ConfigError("--process, --composed and --group are three layouts: give one")
         layout = "composed" if args.composed else "process" if args.process or args.group else None
         from .config import build_curve, load_experiment, program_warnings
-        for warning in program_warnings(build_curve(load_experiment(config))):
+        if experiment is None:
+            experiment = load_experiment(config)       # the one parse of the file in this process
+        for warning in program_warnings(build_curve(experiment)):
             print(f"warning: {warning}", file=sys.stderr)
         bag = run_graph(config, args.bag, progress=lambda m: print(m, flush=True),
-                        layout=layout, groups=args.group,
+                        layout=layout, groups=args.group, experiment=experiment,
                         namespace=args.namespace, domain_id=args.domain, shared_domain=args.domain is not None)
     except RunError as error:
         interrupted = isinstance(error, Interrupted)
         print(f"{'' if interrupted else 'error: '}{error}", file=sys.stderr)
         if error.bag is not None and Path(error.bag).is_file():
             try:
-                scores, run = score_bag(error.bag)
+                scores, run = score_bag(error.bag, parsed=experiment)
             except BagError as bag_error:
                 print(f"the partial bag {error.bag} cannot be scored: {bag_error}", file=sys.stderr)
             else:
@@ -96,7 +98,7 @@ def _run_config(args, config: Path):
                 print(f"partial bag: {error.bag} ({run.complete_steps} complete steps)")
                 print(format_scores([(config.stem, scores)], run.axes))
         raise SystemExit(error.code if interrupted else 1)
-    scores, run = score_bag(bag)
+    scores, run = score_bag(bag, parsed=experiment)     # the bag holds the text just parsed: not parsed again
     _warn(run)
     print(f"bag: {bag}")
     print(format_scores([(config.stem, scores)], run.axes))
@@ -118,8 +120,9 @@ def _simulate(args):
     from .core.simulation import simulate
     from .scoring import cutting_lines, format_scores, score_run
     from .config import program_warnings
-    with _with_settings(_experiment_path(args.config), args.set) as config:
-        experiment = load_experiment(config)
+    with _with_settings(_experiment_path(args.config), args.set) as (config, experiment):
+        if experiment is None:
+            experiment = load_experiment(config)
     loop = build_loop(experiment)
     for warning in program_warnings(loop.curve):
         print(f"warning: {warning}", file=sys.stderr)

@@ -1,5 +1,5 @@
 """An experiment text is validated once a process: a run read from a bag carries the Experiment it was read
-with, and scoring, export and the Python API use that one instead of parsing the text again."""
+with, and scoring, export, the Python API and ``run`` use that one instead of parsing the text again."""
 from __future__ import annotations
 
 import sys
@@ -87,3 +87,21 @@ def test_a_run_whose_experiment_does_not_validate_here_says_why_where_it_is_need
         run.require_experiment()
     assert raised.value is run.experiment_error
 
+
+def test_simulate_with_settings_reads_the_file_it_writes_once(recorded, parses, capsys):
+    file, _, _ = recorded
+    assert cli.main(["simulate", str(file)]) == 0, capsys.readouterr().err
+    assert len(parses) == 1
+    parses.clear()
+    # the file (for its text), the settings applied to its data, the file written with them: each once
+    assert cli.main(["simulate", str(file), "--set", "ccc.kp=2.0"]) == 0, capsys.readouterr().err
+    assert len(parses) == len(set(parses)) == 3, parses
+
+
+@pytest.mark.graph
+@pytest.mark.slow
+def test_run_parses_the_experiment_file_once(recorded, parses, tmp_path, capsys):
+    file, _, _ = recorded
+    parses.clear()
+    assert cli.main(["run", str(file), "--bag", str(tmp_path / "run.mcap")]) == 0, capsys.readouterr().err
+    assert len(parses) == 1 and parses[0].endswith("short.yaml"), parses
