@@ -22,7 +22,7 @@ from .core.curves import ToolPath
 from .core.geometry import ExactContourError
 from .core.interpolation import Reference
 from .errors import ConfigError, ContouringError, OutputError, write_atomically
-from .scoring import _ROWS, curve_of, format_scores
+from .scoring import SCORE_ROWS, curve_of, format_scores
 
 __all__ = ["compare_table", "parse_estimator_spec", "EstimatorReplay", "replay_estimators", "run_names",
            "figures", "write_figures", "html_report"]
@@ -33,10 +33,10 @@ def compare_table(named: list, baseline: int = 0, axes=None) -> str:
     table = format_scores(named, axes)
     base_name, base = named[baseline]
     lines = [table, "", f"ratio to {base_name}:"]
-    width = max(len(label) for label, _ in _ROWS)
+    width = max(len(label) for label, _ in SCORE_ROWS)
     columns = [max(12, len(name)) for name, _ in named]
     lines.append("  ".join([" " * width] + [name.rjust(w) for (name, _), w in zip(named, columns)]))
-    for label, get in _ROWS:
+    for label, get in SCORE_ROWS:
         reference = get(base)
         cells = [(f"{get(scores) / reference:.3g}" if reference else "-").rjust(w)
                  for (_, scores), w in zip(named, columns)]
@@ -730,7 +730,7 @@ def _score_rows(axes: list) -> list:
     without that axis)."""
     def per_axis(field, axis, scale):
         return lambda s, own: getattr(s, field)[own.index(axis)] * scale if axis in own else None
-    rows = [(label, lambda s, own, get=get: get(s)) for label, get in _ROWS]
+    rows = [(label, lambda s, own, get=get: get(s)) for label, get in SCORE_ROWS]
     for axis in axes:
         rows += [(f"tracking error max {axis} [um]", per_axis("tracking_max", axis, 1e6)),
                  (f"tracking error RMS {axis} [um]", per_axis("tracking_rms", axis, 1e6))]
@@ -773,7 +773,7 @@ def _html_ratios(traces, scores, baseline: int) -> str:
     if scores[baseline] is None:
         return "<h2>Ratios</h2><p>The baseline run has no scores.</p>"
     rows = []
-    for label, get in _ROWS:
+    for label, get in SCORE_ROWS:
         reference = get(scores[baseline])
         cells = "".join(_ratio_cell(get(s) if s is not None else None, reference, k == baseline)
                         for k, s in enumerate(scores))

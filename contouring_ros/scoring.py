@@ -17,7 +17,7 @@ from .core.simulation import path_bound
 from .errors import BagError, ConfigError, ContouringError, ScoreError
 
 __all__ = ["read_run", "score_run", "score_bag", "check_experiment_matches", "curve_of", "format_scores",
-           "format_realtime", "miss_rate", "tolerance_line", "cutting_lines"]
+           "format_realtime", "miss_rate", "tolerance_line", "cutting_lines", "SCORE_ROWS", "BAG_EXPERIMENT"]
 
 #: the name a bag's experiment goes by in messages (its ``where``)
 BAG_EXPERIMENT = "the bag's experiment"
@@ -140,16 +140,18 @@ def curve_of(run: RecordedRun):
     return build_curve(run.require_experiment())
 
 
-_ROWS = [("MCE [um]", lambda s: s.mce * 1e6), ("TACE [um]", lambda s: s.tace * 1e6),
-         ("RMS contour error [um]", lambda s: s.rms * 1e6),
-         ("estimation deviation max [um]", lambda s: s.estimation_max * 1e6),
-         ("estimation deviation RMS [um]", lambda s: s.estimation_rms * 1e6)]
+#: (label, value of a Scores) of the contour rows every score table starts with (:func:`format_scores`, the
+#: comparison tables of :mod:`contouring_ros.analysis`)
+SCORE_ROWS = [("MCE [um]", lambda s: s.mce * 1e6), ("TACE [um]", lambda s: s.tace * 1e6),
+              ("RMS contour error [um]", lambda s: s.rms * 1e6),
+              ("estimation deviation max [um]", lambda s: s.estimation_max * 1e6),
+              ("estimation deviation RMS [um]", lambda s: s.estimation_rms * 1e6)]
 
 
 def format_scores(named: list, axes=None) -> str:
     """A plain-text table: one column per (name, Scores), one row per metric."""
     axes = axes or [f"axis{i}" for i in range(len(named[0][1].tracking_max))]
-    rows = list(_ROWS)
+    rows = list(SCORE_ROWS)
     for i, axis in enumerate(axes):
         rows.append((f"tracking error max {axis} [um]", lambda s, i=i: s.tracking_max[i] * 1e6))
         rows.append((f"tracking error RMS {axis} [um]", lambda s, i=i: s.tracking_rms[i] * 1e6))

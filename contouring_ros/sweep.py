@@ -28,7 +28,8 @@ from .executors import pool as executor
 from .scoring import score_run
 
 __all__ = ["parse_grid", "apply_settings", "settings_file", "written_settings", "experiments_for", "combinations",
-           "SweepRow", "score_experiments", "simulate_experiments", "run_sweep", "format_sweep", "write_sweep_csv"]
+           "SweepRow", "score_one", "score_experiments", "simulate_experiments", "run_sweep", "format_sweep",
+           "write_sweep_csv"]
 
 
 def parse_grid(specs: list) -> dict:
@@ -152,7 +153,7 @@ def _finite(scores) -> bool:
     return all(math.isfinite(v) for v in (scores.mce, scores.tace, scores.rms))
 
 
-def _score_one(loop, result, from_time: float):
+def score_one(loop, result, from_time: float):
     """(scores, failure): a run's scores, or None and why when it diverged."""
     diverged = first_divergence(result.time, result.position, result.reference_position)
     if diverged:
@@ -185,7 +186,7 @@ def _score_loops(experiments: list, from_time: float) -> tuple:
     scores = [None] * len(loops)
     for i, (loop, result) in enumerate(zip(loops, results)):
         if result is not None:
-            scores[i], failures[i] = _score_one(loop, result, from_time)
+            scores[i], failures[i] = score_one(loop, result, from_time)
     return scores, alone, failures
 
 

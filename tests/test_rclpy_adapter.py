@@ -21,8 +21,10 @@ PRIVATE_RCLPY = re.compile(r"implementation_singleton|rclpy_implementation|\b_rc
 
 
 def _sources():
-    """Every module of the package and of bench/ but the adapter, with its path relative to the root."""
-    paths = sorted((ROOT / "contouring_ros").rglob("*.py")) + sorted((ROOT / "bench").glob("*.py"))
+    """Every module of the package and every script of bench/ and tools/ but the adapter, with its path
+    relative to the root."""
+    paths = sorted((ROOT / "contouring_ros").rglob("*.py")) + sorted((ROOT / "bench").glob("*.py")) + \
+        sorted((ROOT / "tools").glob("*.py"))
     return [(path.relative_to(ROOT), path.read_text(encoding="utf-8")) for path in paths if path != ADAPTER]
 
 
@@ -38,14 +40,25 @@ def test_only_the_adapter_uses_rclpy_internals():
     assert not found, "rclpy internals outside contouring_ros/rclpy_adapter.py:\n" + "\n".join(found)
 
 
+def _private(name) -> bool:
+    return isinstance(name, str) and name.startswith("_") and not name.startswith("__")
+
+
+def _own(node) -> bool:
+    return isinstance(node, ast.Name) and node.id in ("self", "cls")
+
+
 def test_no_private_attribute_is_read_across_objects():
-    """``x._name`` only on ``self`` or ``cls``: another object's (ours or rclpy's) is read through its public
-    methods and properties."""
+    """``x._name`` (or getattr/hasattr/setattr(x, "_name")) only on ``self`` or ``cls``: another object's
+    (ours or rclpy's) is read through its public methods and properties."""
     found = []
     for path, text in [*_sources(), (ADAPTER.relative_to(ROOT), ADAPTER.read_text(encoding="utf-8"))]:
         for node in ast.walk(ast.parse(text, str(path))):
-            if isinstance(node, ast.Attribute) and node.attr.startswith("_") and not node.attr.startswith("__") \
-                    and not (isinstance(node.value, ast.Name) and node.value.id in ("self", "cls")):
+            if isinstance(node, ast.Attribute) and _private(node.attr) and not _own(node.value):
+                found.append(f"{path}:{node.lineno}: {ast.unparse(node)}")
+            if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and \
+                    node.func.id in ("getattr", "hasattr", "setattr", "delattr") and len(node.args) > 1 and \
+                    isinstance(node.args[1], ast.Constant) and _private(node.args[1].value) and not _own(node.args[0]):
                 found.append(f"{path}:{node.lineno}: {ast.unparse(node)}")
     assert not found, "private attributes read across objects:\n" + "\n".join(found)
 
