@@ -29,7 +29,9 @@ setup(
     description="Multi-axis contouring control of CNC feed drives as a graph of rclpy nodes",
     license="Apache-2.0",
     entry_points={
-        "console_scripts": [f"{node} = {package_name}.nodes.{node}:main" for node in NODES]
+        # contouring_ros.nodes.scripts: each imports its node when it runs (one line, not a traceback, where
+        # that import fails with a ContouringError, e.g. an rclpy lacking the internals the nodes use)
+        "console_scripts": [f"{node} = {package_name}.nodes.scripts:{node}" for node in NODES]
         + [f"contouring-ros = {package_name}.cli:main"],
     },
 )

@@ -16,6 +16,10 @@ LOCAL_IMPORTS_ALLOWED = {
     ("contouring_ros.cli", "*"):
         "the command line loads a subcommand's modules only when it runs: --help, argument errors and run's "
         "launch start without numpy, scipy and the validation",
+    ("contouring_ros.nodes.scripts", "contouring_ros.nodes.*"):
+        "a node's console script imports its node when it runs, so that an import that fails with a "
+        "ContouringError (an rclpy lacking the internals rclpy_adapter checks at import) is one line, not a "
+        "traceback",
     ("contouring_ros.executors", "contouring_ros.executors"):
         "runs on a Dask worker: imports the worker's own installed copy to report its source digest",
 }

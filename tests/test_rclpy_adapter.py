@@ -13,6 +13,8 @@ import pytest
 from conftest import ROOT
 
 from contouring_ros import rclpy_adapter
+from contouring_ros.errors import ContouringError, IncompatibleRclpy
+from contouring_ros.nodes import scripts
 
 ADAPTER = ROOT / "contouring_ros" / "rclpy_adapter.py"
 #: what only the adapter may name: rclpy's C extension and the private calls made on its objects
@@ -65,7 +67,7 @@ def test_no_private_attribute_is_read_across_objects():
 
 def _import_adapter_afresh():
     """Execute the adapter's module anew (as its import would), outside sys.modules."""
-    spec = importlib.util.spec_from_file_location("rclpy_adapter_probe", ADAPTER)
+    spec = importlib.util.spec_from_file_location("contouring_ros.rclpy_adapter_probe", ADAPTER)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
@@ -77,6 +79,7 @@ def test_the_import_names_the_rclpy_found_and_the_one_written_for_when_an_intern
     monkeypatch.delattr(rclpy_implementation, "WaitSet")
     with pytest.raises(ImportError) as raised:
         _import_adapter_afresh()
+    assert isinstance(raised.value, IncompatibleRclpy) and isinstance(raised.value, ContouringError)
     message = str(raised.value)
     assert message == (f"contouring_ros needs rclpy internals that {rclpy_adapter.installed_version()} lacks "
                        "(WaitSet); it was written for rclpy 7.1 (ROS 2 Jazzy)")
@@ -95,6 +98,35 @@ def test_a_missing_method_is_named_too():
     assert rclpy_adapter.missing_internals(implementation) == ["Service.service_take_request"]
     with pytest.raises(ImportError, match=r"lacks \(Service.service_take_request\); it was written for rclpy 7.1"):
         rclpy_adapter.check_internals(implementation)
+
+
+#: a node's console script as pip and colcon write it for setup.py's console_scripts, run where rclpy lacks the
+#: WaitSet the adapter checks for
+SCRIPT_WITHOUT_WAIT_SET = """
+import sys
+from rclpy.impl.implementation_singleton import rclpy_implementation
+del rclpy_implementation.WaitSet
+from contouring_ros.nodes.scripts import {node}
+sys.exit({node}())
+"""
+
+
+def test_setup_installs_a_console_script_per_node_from_the_scripts_module():
+    setup = (ROOT / "setup.py").read_text()
+    nodes = ast.literal_eval(re.search(r"^NODES = (\[.*\])$", setup, re.M).group(1))
+    assert sorted(nodes) == sorted(scripts.__all__)
+    assert 'f"{node} = {package_name}.nodes.scripts:{node}" for node in NODES' in setup
+
+
+@pytest.mark.parametrize("node", scripts.__all__)
+def test_a_node_s_console_script_says_in_one_line_that_rclpy_lacks_an_internal(node):
+    import subprocess
+    import sys
+    done = subprocess.run([sys.executable, "-c", SCRIPT_WITHOUT_WAIT_SET.format(node=node)], cwd=ROOT,
+                          capture_output=True, text=True, timeout=120)
+    assert (done.returncode, done.stderr.splitlines()) == (1, [
+        f"error: contouring_ros needs rclpy internals that {rclpy_adapter.installed_version()} lacks (WaitSet); "
+        "it was written for rclpy 7.1 (ROS 2 Jazzy)"]), done.stderr
 
 
 def test_the_installed_version_comes_from_the_package_metadata(monkeypatch):
