@@ -19,13 +19,12 @@ from .bag import RecordedRun
 from .blocks import block_cells, block_headings, block_results, cutting_scores
 from .experiment.build import build_curve, build_estimator, build_schedule
 from .experiment.catalogue import ESTIMATORS
-from .experiment.schema import _typed
-from .experiment.validate import _check_entry, parse_experiment
+from .experiment.validate import validate_section
 from .core.curves import ToolPath
 from .core.geometry import ExactContourError
 from .core.interpolation import Reference
 from .errors import ConfigError, ContouringError, OutputError, write_atomically
-from .scoring import _ROWS, curve_of, format_scores
+from .scoring import SCORE_ROWS, curve_of, format_scores
 
 __all__ = ["compare_table", "parse_estimator_spec", "EstimatorReplay", "replay_estimators", "run_names",
            "figures", "write_figures", "html_report"]
@@ -36,10 +35,10 @@ def compare_table(named: list, baseline: int = 0, axes=None) -> str:
     table = format_scores(named, axes)
     base_name, base = named[baseline]
     lines = [table, "", f"ratio to {base_name}:"]
-    width = max(len(label) for label, _ in _ROWS)
+    width = max(len(label) for label, _ in SCORE_ROWS)
     columns = [max(12, len(name)) for name, _ in named]
     lines.append("  ".join([" " * width] + [name.rjust(w) for (name, _), w in zip(named, columns)]))
-    for label, get in _ROWS:
+    for label, get in SCORE_ROWS:
         reference = get(base)
         cells = [(f"{get(scores) / reference:.3g}" if reference else "-").rjust(w)
                  for (_, scores), w in zip(named, columns)]
@@ -82,7 +81,7 @@ def replay_estimators(run: RecordedRun, specs: list, progress: bool = False) -> 
     Returns the exact contour error per step and, first for the recorded estimate and then for each spec,
     an :class:`EstimatorReplay`.
     """
-    experiment = parse_experiment(run.experiment_text, "the bag's experiment")
+    experiment = run.require_experiment()
     curve = curve_of(run)
     result = run.result
     exact = ExactContourError(curve)(result.position, near=result.theta).distance
@@ -91,8 +90,7 @@ def replay_estimators(run: RecordedRun, specs: list, progress: bool = False) -> 
     n = len(run.axes)
     for spec in specs:
         # the estimator registry (built-in and plugin types alike): its keys, its constraints, its factory
-        section = _typed("--estimator", spec["type"], "type", ESTIMATORS, spec)
-        _check_entry("--estimator", spec["type"], ESTIMATORS.entry(section["type"]), section, experiment.axes)
+        section = validate_section("--estimator", spec["type"], ESTIMATORS, spec, experiment.axes)
         estimator = build_estimator(_with_estimator(experiment, section), curve)
         norms = np.empty(len(result.time))
         for k in tqdm(range(len(result.time)), desc=f"replaying {spec['type']}", disable=not progress,
@@ -159,15 +157,8 @@ def _finite(values) -> np.ndarray:
     return np.where(np.isfinite(values), values, np.nan)
 
 
-def _parsed(run: RecordedRun):
-    try:
-        return parse_experiment(run.experiment_text, "the bag's experiment")
-    except ContouringError:
-        return None
-
-
 def _stored_name(run: RecordedRun) -> str | None:
-    experiment = _parsed(run)
+    experiment = run.experiment
     name = experiment and (experiment.info.get("experiment") or {}).get("name")
     return str(name) if name else None
 
@@ -199,7 +190,7 @@ def run_names(runs: list) -> list:
 def _trace(name: str, colour: str, run: RecordedRun) -> _Trace:
     result = run.result
     steps, n = len(result.time), len(run.axes)
-    experiment = _parsed(run)
+    experiment = run.experiment
     curve = None
     if experiment is not None:
         try:
@@ -740,7 +731,7 @@ def _score_rows(axes: list) -> list:
     without that axis)."""
     def per_axis(field, axis, scale):
         return lambda s, own: getattr(s, field)[own.index(axis)] * scale if axis in own else None
-    rows = [(label, lambda s, own, get=get: get(s)) for label, get in _ROWS]
+    rows = [(label, lambda s, own, get=get: get(s)) for label, get in SCORE_ROWS]
     for axis in axes:
         rows += [(f"tracking error max {axis} [um]", per_axis("tracking_max", axis, 1e6)),
                  (f"tracking error RMS {axis} [um]", per_axis("tracking_rms", axis, 1e6))]
@@ -783,7 +774,7 @@ def _html_ratios(traces, scores, baseline: int) -> str:
     if scores[baseline] is None:
         return "<h2>Ratios</h2><p>The baseline run has no scores.</p>"
     rows = []
-    for label, get in _ROWS:
+    for label, get in SCORE_ROWS:
         reference = get(scores[baseline])
         cells = "".join(_ratio_cell(get(s) if s is not None else None, reference, k == baseline)
                         for k, s in enumerate(scores))

@@ -15,24 +15,23 @@ bags of diverged runs are read up to the step before, with a warning in ``Run.wa
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
-from .bag import read_run
 from .experiment.build import build_loop
 from .experiment.catalogue.curves import program_warnings
+from .experiment.files import load_experiment as _load_experiment
 from .experiment.model import Experiment
 from .experiment.ros_yaml import read_yaml
-from .experiment.validate import experiment_from_data, parse_experiment
-from .experiment.files import load_experiment as _load_experiment
+from .experiment.validate import experiment_from_data
 from .core.geometry import ExactContourError
 from .core.simulation import simulate as _simulate_loop
 from .errors import ConfigError
 from .experiment.scenarios import experiment_path
 from .export import run_table
-from .scoring import check_experiment_matches, curve_of, score_run
+from .scoring import check_experiment_matches, curve_of, read_run, score_run
 from .sweep import apply_settings, run_sweep
 
 __all__ = ["Run", "load_experiment", "simulate", "read_bag", "sweep_grid"]
@@ -110,12 +109,12 @@ def simulate(experiment, settings: dict | None = None) -> Run:
 
 def read_bag(path, experiment=None) -> Run:
     """A recorded run from its bag (the experiment stored in it, or ``experiment`` for a bag without one)."""
-    text = load_experiment(experiment).text if experiment is not None else None
-    recorded = read_run(Path(path), experiment_text=text)
+    given = load_experiment(experiment) if experiment is not None else None
+    recorded = read_run(Path(path), experiment_text=given.text if given is not None else None, parsed=given)
     curve = curve_of(recorded)
-    if text is not None:
+    if given is not None:
         check_experiment_matches(recorded, curve, path)
-    return Run(parse_experiment(recorded.experiment_text, str(path)), recorded.result, curve, recorded.warnings)
+    return Run(replace(recorded.require_experiment(), path=str(path)), recorded.result, curve, recorded.warnings)
 
 
 def sweep_grid(experiment, grid: dict, from_time: float = 0.0, workers: int | None = None) -> list:

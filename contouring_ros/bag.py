@@ -6,10 +6,14 @@ wire, zstd chunks, and a summary with statistics, so that rosbag2, Foxglove, Plo
 ``mcap``/``rosbags`` readers open it. The experiment's YAML is stored as the metadata record
 ``contouring_ros.experiment``. Log and publish times are the messages' step stamps.
 
-Reading: :func:`read_run` decodes a bag with ``mcap`` + ``mcap-ros2-support`` into per-step arrays.
+Reading, in two steps around the experiment's validation, which is not this module's (the caller parses the
+experiment once: :func:`contouring_ros.scoring.read_run`): :func:`read_contents` streams a bag's records and
+returns the experiment text it stores with the columns of its topics, then :func:`decode_run` turns those into
+per-step arrays, checked against the parsed experiment, as a :class:`RecordedRun` that carries it.
 """
 from __future__ import annotations
 
+import contextlib
 import os
 import re
 import struct
@@ -22,12 +26,17 @@ from array import array
 import numpy as np
 
 from . import cdr, graph
-from .config import GLOBALS, MAX_FILE_BYTES, RESERVED_AXIS_NAMES, _AXIS_NAME, build_curve, build_schedule, parse_experiment
-from .core.simulation import SimulationResult, first_divergence, path_bound, step_time
-from .errors import BagError, ConfigError, ContouringError
+from .core.simulation import SimulationResult, first_divergence, step_time
+from .errors import BagError, ContouringError
+from .experiment.build import build_schedule
+from .experiment.catalogue import GLOBALS
+from .experiment.model import Experiment
+from .experiment.schema import MAX_FILE_BYTES
+from .experiment.validate import is_axis_name
 
-__all__ = ["message_definition", "BagWriter", "RecordedRun", "read_run", "read_metadata", "node_reports", "write_simulation",
-           "EXPERIMENT_METADATA", "RUN_METADATA"]
+__all__ = ["message_definition", "BagWriter", "RecordedRun", "BagContents", "reading", "read_contents", "decode_run",
+           "read_metadata", "node_reports", "iter_records", "summary_chunks", "write_simulation", "EXPERIMENT_METADATA",
+           "RUN_METADATA"]
 
 EXPERIMENT_METADATA = "contouring_ros.experiment"
 RUN_METADATA = "contouring_ros.run"      # wall-clock figures of the recording
@@ -202,7 +211,7 @@ class RecordedRun:
     Attributes
     ----------
     experiment_text : str
-        The experiment YAML stored in the bag.
+        The experiment YAML stored in the bag (or the one given for it), verbatim.
     axes : list of str
     result : SimulationResult
         The per-step signals of every step for which each topic was recorded.
@@ -210,6 +219,11 @@ class RecordedRun:
         topic -> list of raw CDR payloads (only when asked for).
     warnings : list of str
         What the reader had to make do with (a bag cut off before its summary).
+    experiment : Experiment or None
+        ``experiment_text`` parsed (once, by the reader's caller); None where it does not validate here
+        (e.g. a part program it names is not on this machine).
+    experiment_error : Exception or None
+        Why ``experiment`` is None: the error its validation raised.
     """
 
     experiment_text: str
@@ -217,10 +231,18 @@ class RecordedRun:
     result: SimulationResult
     payloads: dict
     warnings: list
+    experiment: Experiment | None = None
+    experiment_error: Exception | None = None
 
     @property
     def complete_steps(self) -> int:
         return len(self.result.time)
+
+    def require_experiment(self) -> Experiment:
+        """The run's Experiment; where its text did not validate here, the error it failed with is raised."""
+        if self.experiment is None:
+            raise self.experiment_error or BagError("the run's experiment was not parsed")
+        return self.experiment
 
 
 def read_metadata(path) -> dict:
@@ -282,7 +304,7 @@ class Damage:
     resumed_at: int | None        # byte of the next chunk read, None: nothing after it could be read
 
 
-def _summary_chunks(stream, size: int, path, warnings: list):
+def summary_chunks(stream, size: int, path, warnings: list):
     """(complete, chunks, records): whether the file ends with a valid footer, and, when the summary is there
     and its CRC holds (else None, []), its chunk index as sorted (offset, length, start_ns, end_ns) and its
     schema and channel records."""
@@ -470,13 +492,13 @@ def _next_chunk(stream, after: int, size: int, chunks):
 _CHUNK_HEAD = re.compile(rb"\x06(?=.{36}(?:\x00\x00\x00\x00|\x03\x00\x00\x00lz4|\x04\x00\x00\x00zstd))", re.DOTALL)
 
 
-def _iter_records(path, warnings: list, progress: bool = False, damaged: list | None = None):
+def iter_records(path, warnings: list, progress: bool = False, damaged: list | None = None):
     """(schema, channel, message, metadata) records of a bag read front to back, streaming.
 
     Every chunk's CRC is checked. A damaged chunk (or a record whose framing is broken) is skipped and
     reading goes on at the next chunk: the summary's chunk index says where it starts when the summary is
     there (and its CRC holds), else the bytes are scanned for the next chunk record. Each damaged part is a
-    :class:`Damage` appended to ``damaged`` (read_run turns them into warnings naming the steps lost), or,
+    :class:`Damage` appended to ``damaged`` (decode_run turns them into warnings naming the steps lost), or,
     without that list, a warning with its time range. A bag whose writer died has no summary: everything
     up to its last complete record (chunk) is read, and a warning says where the file ends. ``progress``
     shows a bar over the file's bytes.
@@ -493,7 +515,7 @@ def _iter_records(path, warnings: list, progress: bool = False, damaged: list | 
                                           leave=False, unit="B", unit_scale=True) as bar:
         if stream.read(8) != _MAGIC:
             raise BagError(f"{path}: not an MCAP file (no MCAP magic at its start)")
-        complete, chunks, known = _summary_chunks(stream, size, path, warnings)
+        complete, chunks, known = summary_chunks(stream, size, path, warnings)
         indexed = {offset: (length, start, end) for offset, length, start, end in chunks or []}
         yield from known        # the summary's schemas and channels: a damaged first chunk loses none of them
         position, last_ns, ended = 8, None, None
@@ -619,7 +641,7 @@ class _TopicColumns:
 
     def add(self, data: bytes):
         """Keep one message's numbers; a message that cannot be read (another layout, not CDR of the type)
-        sets ``problem`` and ends the topic's reading: read_run refuses the bag for it only when scoring needs
+        sets ``problem`` and ends the topic's reading: decode_run refuses the bag for it only when scoring needs
         the topic, and otherwise warns (a stray topic never makes a bag unreadable)."""
         if self.problem is not None:
             return
@@ -652,36 +674,62 @@ class _TopicColumns:
 _KEPT_TYPES = {"sensor_msgs/msg/JointState", "trajectory_msgs/msg/JointTrajectory"}
 
 
-def read_run(path, keep_payloads: bool = False, experiment_text: str | None = None,
-             progress: bool = False) -> RecordedRun:
-    """Decode a bag of the graph into per-step arrays (the steps for which every topic was recorded).
+@dataclass
+class BagContents:
+    """What a bag's records hold, read without the experiment being validated (:func:`read_contents`); the
+    caller parses ``experiment_text`` and gives the result to :func:`decode_run`."""
 
-    Streams the file and keeps only the numbers scoring needs, so long bags read in bounded memory.
-    Works on bags of the recorder, on rosbag2 MCAP bags with the same topics and types (pass the
-    experiment's YAML as ``experiment_text`` when the bag does not hold it), and on bags whose writer died
-    (see :func:`_iter_records`); what the reader had to make do with is in the result's ``warnings``.
-    Whatever the file holds, what cannot be read is a BagError (one line naming the bag and the problem)
-    or a warning, never another exception.
-    """
-    path = Path(path)
+    path: Path
+    experiment_text: str          # the experiment YAML stored in the bag, or the one given for it
+    given: bool                   # the text was given (a bag recorded without one, or another one's)
+    stored_sample_time: str | None
+    kept: dict                    # topic -> _TopicColumns of the JointState and JointTrajectory topics
+    payloads: dict                # topic -> raw CDR payloads (only when asked for)
+    warnings: list
+    damaged: list                 # Damage of each part of the file that could not be read
+
+
+@contextlib.contextmanager
+def reading(path):
+    """Whatever reading the bag at ``path`` meets becomes one BagError line naming the bag (KeyboardInterrupt
+    passes): the reader's own refusals as they are, a ContouringError prefixed with the path, anything else
+    (crafted contents no check foresaw) as 'cannot read the bag', never a traceback."""
     try:
-        return _read_run(path, keep_payloads, experiment_text, progress)
+        yield
     except (BagError, KeyboardInterrupt):
         raise
     except ContouringError as error:
         raise BagError(f"{path}: {error}") from None
-    except Exception as error:  # crafted contents no check above foresaw: still one line, never a traceback
+    except Exception as error:
         raise BagError(f"{path}: cannot read the bag ({type(error).__name__}: {error})") from None
 
 
-def _bag_experiment(path, experiment_text: str, warnings: list):
-    """The parsed experiment of a bag (None, with a warning, when it does not validate here: e.g. a part
-    program it names is not on this machine)."""
-    try:
-        return parse_experiment(experiment_text, "the bag's experiment")
-    except (ConfigError, ValueError, OSError) as error:
-        warnings.append(f"{path}: its experiment does not validate here ({error}); read without it")
-        return None
+def read_contents(path, keep_payloads: bool = False, experiment_text: str | None = None,
+                  progress: bool = False) -> BagContents:
+    """Stream a bag's records and keep what a run is made of: the columns of its JointState and
+    JointTrajectory topics, the experiment text it stores (``experiment_text`` instead when given: a bag
+    recorded without one) and its stored sample time. Nothing here validates the experiment.
+
+    Works on bags of the recorder, on rosbag2 MCAP bags with the same topics and types, and on bags whose
+    writer died (see :func:`iter_records`); what the reader had to make do with is in the ``warnings``.
+    Whatever the file holds, what cannot be read is a BagError (one line naming the bag and the problem).
+    """
+    path = Path(path)
+    with reading(path):
+        return _read_contents(path, keep_payloads, experiment_text, progress)
+
+
+def decode_run(contents: BagContents, experiment=None, divergence_bound: float | None = None,
+               experiment_error: Exception | None = None) -> RecordedRun:
+    """The run a bag's contents hold: per-step arrays of the steps for which every topic was recorded.
+
+    ``experiment`` is the Experiment of ``contents.experiment_text``, parsed by the caller (None where it
+    does not validate here, ``experiment_error`` saying why): the bag is checked against it (sample time,
+    axes, steps) and the run carries it. ``divergence_bound`` is the bound of its whole path (None: the
+    recorded reference's own size). Every problem is a BagError (one line) or a warning.
+    """
+    with reading(contents.path):
+        return _decode_run(contents, experiment, divergence_bound, experiment_error)
 
 
 def _checked_sample_time(path, stored, experiment, warnings: list) -> float:
@@ -743,7 +791,7 @@ def _check_joint_names(path, joint_names, experiment, given: bool = False) -> li
         twice = next(axis for axis in axes if axes.count(axis) > 1)
         raise BagError(f"{path}: its {graph.REFERENCE} names the axis {twice!r} twice ([{shown}])")
     for axis in axes:
-        if not isinstance(axis, str) or not _AXIS_NAME.match(axis) or "__" in axis or axis in RESERVED_AXIS_NAMES:
+        if not is_axis_name(axis):
             raise BagError(f"{path}: its {graph.REFERENCE} names {axis!r}, not an axis name ([{shown}])")
     if experiment is not None and list(experiment.axes) != axes:
         source = f"--experiment {experiment.name}" if given else "its experiment"
@@ -780,7 +828,7 @@ _GRAPH_TOPIC_NAMES = {topic.name.rsplit("/", 1)[-1] for topic in graph.recorded_
                       if topic.type in _KEPT_TYPES}
 
 
-def _read_run(path: Path, keep_payloads: bool, experiment_text: str | None, progress: bool) -> RecordedRun:
+def _read_contents(path: Path, keep_payloads: bool, experiment_text: str | None, progress: bool) -> BagContents:
     from mcap.records import Channel, Metadata, Schema
     if not path.is_file():
         raise BagError(f"{path}: no such bag")
@@ -792,7 +840,7 @@ def _read_run(path: Path, keep_payloads: bool, experiment_text: str | None, prog
     schemas, keepers = {}, {}     # channel id -> _TopicColumns of the topics scoring needs
     stored_sample_time = None
     counts, full = {False: 0, True: 0}, {False: False, True: False}   # topics kept, by _graph_named
-    for record in _iter_records(path, warnings, progress, damaged):
+    for record in iter_records(path, warnings, progress, damaged):
         if isinstance(record, Schema):
             schemas[record.id] = record
         elif isinstance(record, Channel):
@@ -832,8 +880,14 @@ def _read_run(path: Path, keep_payloads: bool, experiment_text: str | None, prog
     if len(experiment_text) > MAX_FILE_BYTES:
         raise BagError(f"{path}: its experiment ('{EXPERIMENT_METADATA}' metadata) is {len(experiment_text)} "
                        f"characters; an experiment file has at most {MAX_FILE_BYTES}")
-    experiment = _bag_experiment(path, experiment_text, warnings)
-    sample_time = _checked_sample_time(path, stored_sample_time, experiment, warnings)
+    return BagContents(path, experiment_text, given, stored_sample_time, kept, payloads, warnings, damaged)
+
+
+def _decode_run(contents: BagContents, experiment, divergence_bound: float | None,
+                experiment_error: Exception | None) -> RecordedRun:
+    path, given, kept, payloads = contents.path, contents.given, contents.kept, contents.payloads
+    warnings, damaged = list(contents.warnings), contents.damaged
+    sample_time = _checked_sample_time(path, contents.stored_sample_time, experiment, warnings)
     # a graph run under a namespace (/m1/reference ...): its topics by the graph's own names
     namespace = _graph_namespace(path, kept, warnings)
     if namespace != "/":
@@ -903,16 +957,15 @@ def _read_run(path: Path, keep_payloads: bool, experiment_text: str | None, prog
         position=per_axis(graph.state_topic, 0), velocity=per_axis(graph.state_topic, 1),
         estimate_theta=estimate[:, n + 1], estimate_vector=estimate[:, :n], estimate_signed=estimate[:, n],
         correction=column(graph.CORRECTION, 2), command=per_axis(graph.command_topic, 2))
-    diverged = first_divergence(result.time, result.position, result.reference_position,
-                                _divergence_bound(experiment_text))
+    diverged = first_divergence(result.time, result.position, result.reference_position, divergence_bound)
     if diverged:
         k, diverged = diverged
         if k == 0:
             raise BagError(f"{path}: the run {diverged}, before any complete step")
         warnings.append(f"the run {diverged}; read up to the step before it ({k} steps)")
         result = SimulationResult(**{name: value[:k] for name, value in vars(result).items()})
-    return RecordedRun(experiment_text=experiment_text, axes=axes, result=result, payloads=payloads,
-                       warnings=warnings)
+    return RecordedRun(experiment_text=contents.experiment_text, axes=axes, result=result, payloads=payloads,
+                       warnings=warnings, experiment=experiment, experiment_error=experiment_error)
 
 
 def _lost_steps(damage: Damage, complete_ns: np.ndarray, sample_time: float, last_ns: int) -> np.ndarray:
@@ -923,17 +976,6 @@ def _lost_steps(damage: Damage, complete_ns: np.ndarray, sample_time: float, las
     stop = (last_ns if damage.end_ns is None else damage.end_ns) // ts_ns
     steps = np.arange(start, max(stop, start - 1) + 1, dtype=np.int64)
     return steps[~np.isin(steps * ts_ns, complete_ns)]
-
-
-def _divergence_bound(experiment_text: str) -> float | None:
-    """The bound of the experiment's whole path (as the simulation checks it); None (the recorded
-    reference's own size) when the experiment cannot be built."""
-    try:
-        experiment = parse_experiment(experiment_text, "the bag's experiment")
-        curve = build_curve(experiment)
-        return path_bound(curve, build_schedule(experiment, curve), experiment.divergence_factor)
-    except (ContouringError, ValueError, ArithmeticError):
-        return None
 
 
 def write_simulation(path, experiment, result) -> Path:

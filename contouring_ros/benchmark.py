@@ -49,7 +49,7 @@ from .tuning import (
 )
 
 __all__ = ["GOAL", "Family", "Combination", "Excluded", "Row", "Reference",
-           "scenario_families", "select_families", "plan", "run_benchmark", "write_csv", "draw_heatmap",
+           "scenario_families", "select_families", "plan", "reference_job", "run_benchmark", "write_csv", "draw_heatmap",
            "draw_pareto", "benchmark_report", "paper_best", "verdict"]
 
 GOAL = 0.5              # a combination beats the proposed method 2x when both ratios' intervals are below this
@@ -382,7 +382,10 @@ def verdict(low: float, high: float, threshold: float = 1.0) -> str:
     return "undecided"
 
 
-def _reference_job(data: dict, from_time: float, where: str, protocol: Protocol | None = None) -> Reference:
+def reference_job(data: dict, from_time: float, where: str, protocol: Protocol | None = None) -> Reference:
+    """The :class:`Reference` of a scenario (its experiment ``data``): its realistic machine, the proposed
+    method's outcome on it and on the ideal machine, and its worst case under ``protocol``'s perturbations
+    (``noise_limit`` is nan here: the caller sets it from ``protocol``)."""
     ideal = run_outcomes(data, {}, [{}], from_time, where)[0]
     machine = machine_settings(data, "realistic", ideal.peak_command if ideal.ok else ())
     published = run_outcomes(data, {}, [machine], from_time, where)[0]
@@ -404,7 +407,7 @@ def run_benchmark(families: list, protocol: Protocol | None = None, workers: int
     catalogue = _catalogue_estimators(scenario_families() if families else [])
     rows = []
     with executor(workers, scheduler) as (pool, _):
-        references = {f.name: pool.submit(_reference_job, f.data[f.proposed], f.from_time, f.name, protocol) for f in families}
+        references = {f.name: pool.submit(reference_job, f.data[f.proposed], f.from_time, f.name, protocol) for f in families}
         jobs = []
         for family in families:
             combos, excluded = plan(family, catalogue)

@@ -54,23 +54,23 @@ def _warn(run):
 
 @contextlib.contextmanager
 def _with_settings(config: Path, specs):
-    """The experiment file ``config`` with the ``--set KEY=VALUE`` settings ``specs`` applied, written under
-    the same name (the bag's default name) in a temporary folder and validated, for the ``with`` block;
-    ``config`` itself without any."""
+    """(file, Experiment) for the ``with`` block: the experiment file ``config`` with the ``--set KEY=VALUE``
+    settings ``specs`` applied, written under the same name (the bag's default name) in a temporary folder,
+    and its validated Experiment; ``config`` itself without any (and None: the caller reads it)."""
     if not specs:
-        yield config
+        yield config, None
         return
-    from .sweep import settings_file
+    from .sweep import written_settings
     with tempfile.TemporaryDirectory(prefix="contouring_ros_set_") as directory:
-        yield settings_file(config, specs, directory)
+        yield written_settings(config, specs, directory)
 
 
 def _run(args):
-    with _with_settings(_experiment_path(args.config), args.set) as config:
-        _run_config(args, config)
+    with _with_settings(_experiment_path(args.config), args.set) as (config, experiment):
+        _run_config(args, config, experiment)
 
 
-def _run_config(args, config: Path):
+def _run_config(args, config: Path, experiment=None):
     from .runner import run_graph
     from .scoring import format_scores, score_bag
     try:
@@ -78,17 +78,19 @@ def _run_config(args, config: Path):
             raise ConfigError("--process, --composed and --group are three layouts: give one")
         layout = "composed" if args.composed else "process" if args.process or args.group else None
         from .config import build_curve, load_experiment, program_warnings
-        for warning in program_warnings(build_curve(load_experiment(config))):
+        if experiment is None:
+            experiment = load_experiment(config)       # the one parse of the file in this process
+        for warning in program_warnings(build_curve(experiment)):
             print(f"warning: {warning}", file=sys.stderr)
         bag = run_graph(config, args.bag, progress=lambda m: print(m, flush=True),
-                        layout=layout, groups=args.group,
+                        layout=layout, groups=args.group, experiment=experiment,
                         namespace=args.namespace, domain_id=args.domain, shared_domain=args.domain is not None)
     except RunError as error:
         interrupted = isinstance(error, Interrupted)
         print(f"{'' if interrupted else 'error: '}{error}", file=sys.stderr)
         if error.bag is not None and Path(error.bag).is_file():
             try:
-                scores, run = score_bag(error.bag)
+                scores, run = score_bag(error.bag, parsed=experiment)
             except BagError as bag_error:
                 print(f"the partial bag {error.bag} cannot be scored: {bag_error}", file=sys.stderr)
             else:
@@ -96,13 +98,12 @@ def _run_config(args, config: Path):
                 print(f"partial bag: {error.bag} ({run.complete_steps} complete steps)")
                 print(format_scores([(config.stem, scores)], run.axes))
         raise SystemExit(error.code if interrupted else 1)
-    scores, run = score_bag(bag)
+    scores, run = score_bag(bag, parsed=experiment)     # the bag holds the text just parsed: not parsed again
     _warn(run)
     print(f"bag: {bag}")
     print(format_scores([(config.stem, scores)], run.axes))
-    from .config import parse_experiment
     from .scoring import curve_of, cutting_lines
-    for line in cutting_lines(curve_of(run), run.result, parse_experiment(run.experiment_text, str(config)).schedule):
+    for line in cutting_lines(curve_of(run), run.result, run.require_experiment().schedule):
         print(line)
     from .bag import node_reports
     from .scoring import format_realtime
@@ -119,8 +120,9 @@ def _simulate(args):
     from .core.simulation import simulate
     from .scoring import cutting_lines, format_scores, score_run
     from .config import program_warnings
-    with _with_settings(_experiment_path(args.config), args.set) as config:
-        experiment = load_experiment(config)
+    with _with_settings(_experiment_path(args.config), args.set) as (config, experiment):
+        if experiment is None:
+            experiment = load_experiment(config)
     loop = build_loop(experiment)
     for warning in program_warnings(loop.curve):
         print(f"warning: {warning}", file=sys.stderr)
@@ -140,18 +142,21 @@ def _simulate(args):
         print(line)
 
 
-def _experiment_text(args):
+def _given(args) -> dict:
+    """The reader's keywords for ``--experiment FILE`` (bags recorded without one): the file's text and its
+    Experiment, parsed here once for every bag (see :func:`contouring_ros.scoring.read_run`); none without it."""
     if getattr(args, "experiment", None) is None:
-        return None
+        return {}
     from .config import load_experiment
-    return load_experiment(args.experiment).text
+    experiment = load_experiment(args.experiment)
+    return {"experiment_text": experiment.text, "parsed": experiment}
 
 
 def _scored(args):
     from .scoring import score_bag
-    text = _experiment_text(args)
+    given = _given(args)
     start = getattr(args, "from_time", 0.0) or 0.0
-    results = [(Path(bag).stem, *score_bag(bag, text, progress=sys.stderr.isatty(), from_time=start))
+    results = [(Path(bag).stem, *score_bag(bag, progress=sys.stderr.isatty(), from_time=start, **given))
                for bag in args.bags]
     for _, _, run in results:
         _warn(run)
@@ -183,18 +188,19 @@ def _score(args):
 
 
 def _blocks(args):
+    from dataclasses import replace
+
     from .blocks import block_results, format_blocks, write_blocks_csv
-    from .config import build_schedule, parse_experiment
-    from .scoring import curve_of, cutting_lines
-    text = _experiment_text(args)
+    from .config import build_schedule
+    from .scoring import curve_of, cutting_lines, read_run
+    given = _given(args)
     for bag in args.bags:
-        from .bag import read_run
-        run = read_run(bag, experiment_text=text, progress=sys.stderr.isatty())
+        run = read_run(bag, progress=sys.stderr.isatty(), **given)
         _warn(run)
         curve = curve_of(run)
         if not hasattr(curve, "blocks"):
             raise ConfigError(f"{bag}: not a tool path run (curve type gcode or toolpath): it has no blocks")
-        experiment = parse_experiment(run.experiment_text, str(bag))
+        experiment = replace(run.require_experiment(), path=str(bag))      # named after the bag in messages
         rows = block_results(curve, run.result, build_schedule(experiment, curve),
                              experiment.schedule.get("contour_tolerance") or 0.0)
         print(f"{bag}:")
@@ -225,10 +231,10 @@ def _replay(args):
             raise SystemExit(130)
         return
     from .analysis import parse_estimator_spec, replay_estimators
-    from .bag import read_run
+    from .scoring import read_run
     if not args.estimator:
         raise SystemExit("error: replay needs --estimator NAME[:key=value,...] (or --play)")
-    run = read_run(args.bag, experiment_text=_experiment_text(args), progress=sys.stderr.isatty())
+    run = read_run(args.bag, progress=sys.stderr.isatty(), **_given(args))
     _warn(run)
     exact, replays = replay_estimators(run, [parse_estimator_spec(spec) for spec in args.estimator],
                                        progress=sys.stderr.isatty())
@@ -242,14 +248,13 @@ def _plot(args):
     import numpy as np
 
     from .analysis import figures, html_report, write_figures
-    from .bag import read_run
-    from .scoring import curve_of, score_run
+    from .scoring import curve_of, read_run, score_run
     if args.baseline:
         args.bags = [args.baseline] + [bag for bag in args.bags if bag != args.baseline]
-    text = _experiment_text(args)
+    given = _given(args)
     runs, scores = [], []
     for bag in args.bags:        # a run that cannot be scored (diverged, no steps) is still drawn
-        run = read_run(bag, experiment_text=text, progress=sys.stderr.isatty())
+        run = read_run(bag, progress=sys.stderr.isatty(), **given)
         _warn(run)
         try:
             with np.errstate(all="ignore"):
@@ -270,9 +275,9 @@ def _export(args):
     from .export import export_bag
     if args.csv is None and args.parquet is None:
         raise ConfigError("export needs --csv DIR and/or --parquet DIR")
-    text = _experiment_text(args)
+    given = _given(args)
     for bag in args.bags:
-        written, warnings = export_bag(bag, args.csv, args.parquet, text)
+        written, warnings = export_bag(bag, args.csv, args.parquet, **given)
         for warning in warnings:
             print(f"warning: {warning}", file=sys.stderr)
         for path in written:

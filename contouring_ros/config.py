@@ -33,9 +33,9 @@ from .experiment.schema import (  # noqa: F401
     DEFAULT_BOUNDS, GLOBAL_SECTION, LIMIT, MAX_DEPTH, MAX_DURATION, MAX_EVENTS, MAX_FILE_BYTES, MAX_ITEMS,
     MAX_PROGRAM_BYTES, MAX_STEPS, MAX_TEXT, NUMERIC_KINDS, RENAMED_KEYS, REQUIRED, ROS_PARAMETERS, Param, _typed)
 from .experiment.validate import (  # noqa: F401
-    RESERVED_AXIS_NAMES, ROS_BUILTIN_PARAMETERS, _AXIS_NAME, _check_entry, check_ccc_takes_state,
+    RESERVED_AXIS_NAMES, ROS_BUILTIN_PARAMETERS, _AXIS_NAME, _check_entry, check_ccc_takes_state, is_axis_name,
     controller_uses_state, experiment_for_node, experiment_from_data, node_sections, parse_experiment,
-    section_from_parameters, split_groups)
+    section_from_parameters, split_groups, validate_section)
 from .notices import note_while_slow  # noqa: F401
 
 __all__ = ["Experiment", "load_experiment", "parse_experiment", "read_yaml", "experiment_from_data", "build_loop",

@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 __all__ = ["ContouringError", "ConfigError", "RunError", "Interrupted", "BagError", "ScoreError", "Diverged",
-           "OutputError", "write_atomically", "one_line"]
+           "OutputError", "IncompatibleRclpy", "write_atomically", "one_line"]
 
 
 def one_line(error) -> str:
@@ -75,6 +75,12 @@ def _remove(path):
         path.unlink()
     except OSError:
         pass
+
+
+class IncompatibleRclpy(ContouringError, ImportError):
+    """The installed rclpy lacks an internal the lean loops use: raised by importing
+    :mod:`contouring_ros.rclpy_adapter` (an ImportError, as a failed import is), naming the rclpy found and the
+    one the adapter was written for."""
 
 
 class ScoreError(ContouringError):

@@ -11,10 +11,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .bag import read_run
 from .core.geometry import ExactContourError
 from .errors import BagError, write_atomically
-from .scoring import curve_of
+from .scoring import curve_of, read_run
 
 __all__ = ["run_table", "write_csv", "write_parquet", "export_bag"]
 
@@ -63,10 +62,11 @@ def write_parquet(columns: dict, path) -> Path:
     return write_atomically(path, lambda tmp: pq.write_table(table, tmp))
 
 
-def export_bag(bag, csv_dir=None, parquet_dir=None, experiment_text: str | None = None) -> tuple:
-    """Export a bag's complete steps to ``csv_dir``/<bag stem>.csv and/or ``parquet_dir``/<bag stem>.parquet.
+def export_bag(bag, csv_dir=None, parquet_dir=None, experiment_text: str | None = None, parsed=None) -> tuple:
+    """Export a bag's complete steps to ``csv_dir``/<bag stem>.csv and/or ``parquet_dir``/<bag stem>.parquet
+    (``experiment_text`` and ``parsed`` as in :func:`contouring_ros.scoring.read_run`).
     Returns (written paths, the reader's warnings)."""
-    run = read_run(bag, experiment_text=experiment_text)
+    run = read_run(bag, experiment_text=experiment_text, parsed=parsed)
     columns = run_table(run.result, run.axes, curve_of(run))
     stem = Path(bag).stem
     written = []

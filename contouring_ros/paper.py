@@ -27,7 +27,7 @@ def paper_rows(paper: str, graph: bool = False, progress=None) -> list:
         through_graph = None
         if graph:
             say(f"{path.name}: running the node graph")
-            through_graph = score_bag(run_graph(path))[0]
+            through_graph = score_bag(run_graph(path, experiment=experiment), parsed=experiment)[0]
         rows.append((path.stem, experiment.info["experiment"].get("description", ""), experiment.info["paper"],
                      ours, through_graph))
     return rows

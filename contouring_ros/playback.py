@@ -56,7 +56,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from . import cdr, graph
-from .bag import _iter_records, _summary_chunks
+from .bag import iter_records, summary_chunks
 from .errors import BagError
 
 __all__ = ["play_bag", "installed_message_class", "UnplayableType", "WINDOW", "SETTLE", "ACK_TIMEOUT",
@@ -149,7 +149,7 @@ def _index(path: Path, warnings: list) -> _Index:
     from mcap.records import Channel, Schema
     index = _Index()
     with open(path, "rb") as stream:
-        _, chunks, records = _summary_chunks(stream, path.stat().st_size, path, [])
+        _, chunks, records = summary_chunks(stream, path.stat().st_size, path, [])
     if chunks and records:
         for record in records:
             (index.schemas if isinstance(record, Schema) else index.channels)[record.id] = record
@@ -158,7 +158,7 @@ def _index(path: Path, warnings: list) -> _Index:
         if any(isinstance(record, Channel) for record in records):
             return index
         index = _Index()
-    for record in _iter_records(path, warnings):
+    for record in iter_records(path, warnings):
         if isinstance(record, Schema):
             index.schemas[record.id] = record
         elif isinstance(record, Channel):
@@ -385,7 +385,7 @@ def play_bag(path, rate: float = 1.0, progress: bool = False, say=print, *, loop
         passes = 0
         while True:
             first_log = wall_start = last_clock = None
-            for record in _iter_records(path, warnings if passes == 0 else [], progress):
+            for record in iter_records(path, warnings if passes == 0 else [], progress):
                 if not hasattr(record, "log_time") or record.channel_id not in publishers:
                     continue
                 if record.log_time < start_ns:

@@ -20,16 +20,20 @@ would be most of a step's cost. The internals used, all from rclpy's C extension
   back through the public ``Service.send_response``).
 
 They are rclpy's internals for ROS 2 Jazzy (rclpy 7.1); another rclpy may lack or change them. Importing
-this module checks that every one is there and otherwise raises one ImportError naming the rclpy found
-and the one this module was written for, rather than an AttributeError deep in a node's loop. An rclpy of
-another version that has them all is used as it is. The functions here bind the internals once per
-subscription or loop: a message taken costs one call of the bound C method, as it would inline.
+this module checks that every one is there and otherwise raises one ImportError
+(:class:`~contouring_ros.errors.IncompatibleRclpy`, a ContouringError too) naming the rclpy found and the one
+this module was written for, rather than an AttributeError deep in a node's loop; a node's console script
+prints it as one line (:mod:`contouring_ros.nodes.scripts`). An rclpy of another version that has them all
+is used as it is. The functions here bind the internals once per subscription or loop: a message taken
+costs one call of the bound C method, as it would inline.
 """
 from __future__ import annotations
 
 import functools
 
 from rclpy.impl.implementation_singleton import rclpy_implementation as _implementation
+
+from .errors import IncompatibleRclpy
 
 __all__ = ["WRITTEN_FOR", "RCLPY_DISTRIBUTIONS", "installed_version", "missing_internals", "check_internals",
            "taker", "take_request", "SubscriptionWaitSet"]
@@ -70,10 +74,11 @@ def missing_internals(implementation=_implementation) -> list:
 
 
 def check_internals(implementation=_implementation):
-    """Raise ImportError, one line, when ``implementation`` lacks an internal this module uses."""
+    """Raise IncompatibleRclpy (an ImportError), one line, when ``implementation`` lacks an internal this
+    module uses."""
     missing = missing_internals(implementation)
     if missing:
-        raise ImportError(f"contouring_ros needs rclpy internals that {installed_version()} lacks "
+        raise IncompatibleRclpy(f"contouring_ros needs rclpy internals that {installed_version()} lacks "
                           f"({', '.join(missing)}); it was written for {WRITTEN_FOR}")
 
 

@@ -351,7 +351,7 @@ def grouped_commands(experiment_path, experiment: Experiment, bag: Path, groups,
 
 def run_graph(experiment_path, bag=None, *, timeout: float | None = None, domain_id: int | None = None,
               progress=None, on_started=None, layout: str | None = None, groups=None, namespace: str = "/",
-              shared_domain: bool = False) -> Path:
+              shared_domain: bool = False, experiment: Experiment | None = None) -> Path:
     """Run the experiment through the process graph and return the bag's path.
 
     On any failure (a node dying, a stall, a timeout, SIGINT or SIGTERM) every node is stopped, the
@@ -382,9 +382,13 @@ def run_graph(experiment_path, bag=None, *, timeout: float | None = None, domain
         ``x/plant,x/servo``, runs in one process on the composed loop; every other node in its own process.
     namespace : str
         Graph namespace: every node and topic under it (``m1``: /m1/x/plant publishes /m1/x/state).
+    experiment : Experiment, optional
+        The file's Experiment where the caller has validated it already (:func:`config.load_experiment`):
+        not read again; default: read and validated here.
     """
     experiment_path = Path(experiment_path)
-    experiment = load_experiment(experiment_path)
+    if experiment is None:
+        experiment = load_experiment(experiment_path)
     bag = Path(bag) if bag is not None else default_bag_path(experiment)
     bag.parent.mkdir(parents=True, exist_ok=True)
     if bag.exists():

@@ -1,21 +1,72 @@
-"""Scoring of runs (bags or in-process results) and their tables."""
+"""Scoring of runs (bags or in-process results) and their tables; reading a bag as a run whose experiment is
+parsed once (:func:`read_run`)."""
 from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 
-from .bag import RecordedRun, read_run
+from . import bag
+from .bag import RecordedRun
 from .blocks import cutting_scores
-from .config import build_curve, parse_experiment
+from .config import build_curve, build_schedule, parse_experiment
 from .core.geometry import ExactContourError
 from .core.metrics import Scores, score
-from .errors import BagError, ScoreError
+from .core.simulation import path_bound
+from .errors import BagError, ConfigError, ContouringError, ScoreError
 
-__all__ = ["score_run", "score_bag", "check_experiment_matches", "curve_of", "format_scores", "format_realtime",
-           "miss_rate", "tolerance_line", "cutting_lines"]
+__all__ = ["read_run", "score_run", "score_bag", "check_experiment_matches", "curve_of", "format_scores",
+           "format_realtime", "miss_rate", "tolerance_line", "cutting_lines", "SCORE_ROWS", "BAG_EXPERIMENT"]
+
+#: the name a bag's experiment goes by in messages (its ``where``)
+BAG_EXPERIMENT = "the bag's experiment"
 
 REALTIME_COLUMNS = ("ticks", "deadline misses", "skipped ticks", "late inputs", "ticks missing an input",
                     "latency p50 [us]", "latency p99 [us]", "latency max [us]", "work p50 [us]", "work p99 [us]",
                     "jitter [us]")
+
+
+def read_run(path, keep_payloads: bool = False, experiment_text: str | None = None, progress: bool = False,
+             parsed=None) -> RecordedRun:
+    """A bag as a run (:func:`contouring_ros.bag.read_contents`, then :func:`~contouring_ros.bag.decode_run`)
+    whose experiment text is parsed here, once, and carried by the run (``experiment``).
+
+    ``experiment_text`` is the experiment's YAML for a bag recorded without one (it replaces the stored one);
+    ``parsed`` an Experiment this process has parsed already (the one it just ran, or the one given for the
+    bag), used as is where its text is the run's, instead of parsing that text again. An experiment that
+    does not validate here (e.g. a part program it names is not on this machine) is a warning, and the run
+    is read without it. Whatever the file holds, what cannot be read is a BagError of one line.
+    """
+    path = Path(path)
+    with bag.reading(path):
+        contents = bag.read_contents(path, keep_payloads, experiment_text, progress)
+        experiment, error = _experiment_of(contents, parsed)
+        return bag.decode_run(contents, experiment, _divergence_bound(experiment), error)
+
+
+def _experiment_of(contents, parsed) -> tuple:
+    """(Experiment, None) of the text a bag's contents use: ``parsed`` where that is its text, else the text
+    parsed; (None, the error) with a warning where it does not validate here."""
+    if parsed is not None and parsed.text == contents.experiment_text:
+        return replace(parsed, path=BAG_EXPERIMENT), None
+    try:
+        return parse_experiment(contents.experiment_text, BAG_EXPERIMENT), None
+    except (ConfigError, ValueError, OSError) as error:
+        contents.warnings.append(f"{contents.path}: its experiment does not validate here ({error}); read without it")
+        return None, error
+
+
+def _divergence_bound(experiment) -> float | None:
+    """The bound of the experiment's whole path (as the simulation checks it); None (the recorded
+    reference's own size) without an experiment or where it cannot be built."""
+    if experiment is None:
+        return None
+    try:
+        curve = build_curve(experiment)
+        return path_bound(curve, build_schedule(experiment, curve), experiment.divergence_factor)
+    except (ContouringError, ValueError, ArithmeticError):
+        return None
 
 
 def score_run(curve, run, from_time: float = 0.0) -> Scores:
@@ -54,10 +105,11 @@ def cutting_lines(curve, result, schedule: dict) -> list:
 
 
 def score_bag(path, experiment_text: str | None = None, progress: bool = False,
-              from_time: float = 0.0) -> tuple[Scores, RecordedRun]:
+              from_time: float = 0.0, parsed=None) -> tuple[Scores, RecordedRun]:
     """Score a bag from its contents alone: the curve comes from the experiment stored in it (or from
-    ``experiment_text`` for a bag recorded without one); ``from_time`` as in :func:`score_run`."""
-    run = read_run(path, experiment_text=experiment_text, progress=progress)
+    ``experiment_text`` for a bag recorded without one); ``from_time`` as in :func:`score_run`, ``parsed``
+    as in :func:`read_run`."""
+    run = read_run(path, experiment_text=experiment_text, progress=progress, parsed=parsed)
     curve = curve_of(run)
     if experiment_text is not None:
         check_experiment_matches(run, curve, path)
@@ -68,7 +120,7 @@ def check_experiment_matches(run: RecordedRun, curve, path) -> None:
     """Refuse (BagError, one line) an experiment given for a bag that it did not produce: other axes, or a
     curve the recorded /reference does not lie on (checked at up to 200 steps spread over the run, to within
     1e-9 of the path's size + 1 nm)."""
-    experiment = parse_experiment(run.experiment_text, "--experiment")
+    experiment = replace(run.require_experiment(), path="--experiment")     # named as the option names it
     if list(experiment.axes) != list(run.axes):
         raise BagError(f"{path}: --experiment {experiment.name} has axes {', '.join(experiment.axes)}; the bag "
                        f"has {', '.join(run.axes)}")
@@ -84,20 +136,22 @@ def check_experiment_matches(run: RecordedRun, curve, path) -> None:
 
 
 def curve_of(run: RecordedRun):
-    """The reference curve of a recorded run, rebuilt from its experiment."""
-    return build_curve(parse_experiment(run.experiment_text, "the bag's experiment"))
+    """The reference curve of a recorded run, built from the experiment it carries."""
+    return build_curve(run.require_experiment())
 
 
-_ROWS = [("MCE [um]", lambda s: s.mce * 1e6), ("TACE [um]", lambda s: s.tace * 1e6),
-         ("RMS contour error [um]", lambda s: s.rms * 1e6),
-         ("estimation deviation max [um]", lambda s: s.estimation_max * 1e6),
-         ("estimation deviation RMS [um]", lambda s: s.estimation_rms * 1e6)]
+#: (label, value of a Scores) of the contour rows every score table starts with (:func:`format_scores`, the
+#: comparison tables of :mod:`contouring_ros.analysis`)
+SCORE_ROWS = [("MCE [um]", lambda s: s.mce * 1e6), ("TACE [um]", lambda s: s.tace * 1e6),
+              ("RMS contour error [um]", lambda s: s.rms * 1e6),
+              ("estimation deviation max [um]", lambda s: s.estimation_max * 1e6),
+              ("estimation deviation RMS [um]", lambda s: s.estimation_rms * 1e6)]
 
 
 def format_scores(named: list, axes=None) -> str:
     """A plain-text table: one column per (name, Scores), one row per metric."""
     axes = axes or [f"axis{i}" for i in range(len(named[0][1].tracking_max))]
-    rows = list(_ROWS)
+    rows = list(SCORE_ROWS)
     for i, axis in enumerate(axes):
         rows.append((f"tracking error max {axis} [um]", lambda s, i=i: s.tracking_max[i] * 1e6))
         rows.append((f"tracking error RMS {axis} [um]", lambda s, i=i: s.tracking_rms[i] * 1e6))

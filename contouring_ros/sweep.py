@@ -27,8 +27,9 @@ from .errors import ConfigError, Diverged, ScoreError, write_atomically
 from .executors import pool as executor
 from .scoring import score_run
 
-__all__ = ["parse_grid", "apply_settings", "settings_file", "experiments_for", "combinations", "SweepRow", "score_experiments",
-           "simulate_experiments", "run_sweep", "format_sweep", "write_sweep_csv"]
+__all__ = ["parse_grid", "apply_settings", "settings_file", "written_settings", "experiments_for", "combinations",
+           "SweepRow", "score_one", "score_experiments", "simulate_experiments", "run_sweep", "format_sweep",
+           "write_sweep_csv"]
 
 
 def parse_grid(specs: list) -> dict:
@@ -79,6 +80,12 @@ def settings_file(path, specs: list, directory) -> Path:
     """The experiment file ``path`` with ``specs`` (``['x/servo.kp=10', 'curve.h=80']``, the grid's key syntax,
     one value each) applied, written as ``directory``/<same name> for the nodes to read; validated like any
     experiment file, the ROS 2 parameter parser's reading included (ConfigError naming the setting)."""
+    return written_settings(path, specs, directory)[0]
+
+
+def written_settings(path, specs: list, directory) -> tuple:
+    """(file, Experiment): the file :func:`settings_file` writes, and the Experiment its validation read from
+    it (so that the caller does not read the file again)."""
     import yaml
 
     class _Quoted(yaml.SafeDumper):
@@ -101,8 +108,7 @@ def settings_file(path, specs: list, directory) -> Path:
         raise ConfigError(f"--set {', '.join(specs)}: {error}") from None
     out = Path(directory) / path.name
     out.write_text(yaml.dump(data, Dumper=_Quoted, sort_keys=False, default_flow_style=False))
-    load_experiment(out)           # what the ROS parser will read is what was validated
-    return out
+    return out, load_experiment(out)      # what the ROS parser will read is what was validated
 
 
 def experiments_for(text: str, settings_list: list, where: str = "--grid") -> list:
@@ -147,7 +153,7 @@ def _finite(scores) -> bool:
     return all(math.isfinite(v) for v in (scores.mce, scores.tace, scores.rms))
 
 
-def _score_one(loop, result, from_time: float):
+def score_one(loop, result, from_time: float):
     """(scores, failure): a run's scores, or None and why when it diverged."""
     diverged = first_divergence(result.time, result.position, result.reference_position)
     if diverged:
@@ -180,7 +186,7 @@ def _score_loops(experiments: list, from_time: float) -> tuple:
     scores = [None] * len(loops)
     for i, (loop, result) in enumerate(zip(loops, results)):
         if result is not None:
-            scores[i], failures[i] = _score_one(loop, result, from_time)
+            scores[i], failures[i] = score_one(loop, result, from_time)
     return scores, alone, failures
 
 

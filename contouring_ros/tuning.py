@@ -72,7 +72,7 @@ from . import config
 from .config import CONTROLLERS, PLANTS, experiment_from_data
 from .core.margins import axis_loop, coupled_loop, margins, quick_robustness
 from .errors import ConfigError
-from .sweep import _score_one, apply_settings, simulate_experiments
+from .sweep import apply_settings, score_one, simulate_experiments
 
 __all__ = ["REALISTIC", "SATURATION_MARGIN", "varied_parameters", "Protocol", "Outcome",
            "Evaluation", "Tuned", "gain_keys", "anchors", "machine_settings", "perturbations", "draw_settings",
@@ -319,7 +319,7 @@ def _outcomes(experiments: list, from_time: float, limits: list) -> list:
 
 
 def _figures(loop, result, from_time: float, limits: tuple) -> Outcome:
-    scores, failure = _score_one(loop, result, from_time)
+    scores, failure = score_one(loop, result, from_time)
     if scores is None:
         return Outcome(failure=failure)
     command = np.asarray(result.command, dtype=float)

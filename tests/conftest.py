@@ -64,7 +64,7 @@ def recorded_bag(folder: Path, duration: float, name: str) -> tuple:
     path = bag.write_simulation(folder / name, experiment, result)
     data = path.read_bytes()
     with open(path, "rb") as stream:
-        complete, chunks, _ = bag._summary_chunks(stream, len(data), path, [])
+        complete, chunks, _ = bag.summary_chunks(stream, len(data), path, [])
     return result, path, data, (complete, chunks)
 
 

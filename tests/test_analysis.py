@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 from contouring_ros.analysis import compare_table, replay_estimators
-from contouring_ros.bag import read_run, write_simulation
+from contouring_ros.bag import write_simulation
 from contouring_ros.config import build_loop, parse_experiment
 from contouring_ros.core.simulation import simulate
-from contouring_ros.scoring import score_bag, score_run
+from contouring_ros.scoring import read_run, score_bag, score_run
 from conftest import CONFIG, DEFAULT, ROOT, shortened
 
 

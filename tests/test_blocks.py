@@ -107,7 +107,7 @@ def test_the_blocks_command_prints_the_table_and_writes_csv(part_run, capsys):
 
 def test_the_html_report_has_the_per_block_table(part_run):
     from contouring_ros.analysis import html_report
-    from contouring_ros.bag import read_run
+    from contouring_ros.scoring import read_run
     directory, experiment, loop, result = part_run
     bag = write_simulation(directory / "report.mcap", experiment, result)
     run = read_run(bag)

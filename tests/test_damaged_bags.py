@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from contouring_ros import bag
-from contouring_ros.bag import read_run
+from contouring_ros.scoring import read_run
 from conftest import recorded_bag
 
 LOST = re.compile(r"the (?:chunk|record) at byte (\d+) is damaged \((.+)\): steps (\d+)\.\.(\d+) lost \((\d+) steps?, "
@@ -128,13 +128,13 @@ def test_score_exits_0_with_the_warning(recorded, tmp_path):
 
 
 def test_records_reader_without_a_damage_list_warns_in_times(recorded, tmp_path):
-    """Other readers of _iter_records (playback) get a warning with the time range lost."""
+    """Other readers of iter_records (playback) get a warning with the time range lost."""
     _, data, chunks = recorded
     chunk = chunks[3]
     damaged = bytearray(data)
     damaged[chunk[0] + chunk[1] // 2] ^= 0x10
     warnings: list = []
-    messages = sum(1 for record in bag._iter_records(_write(tmp_path, "play.mcap", damaged), warnings)
+    messages = sum(1 for record in bag.iter_records(_write(tmp_path, "play.mcap", damaged), warnings)
                    if hasattr(record, "log_time"))
     assert messages > 0 and len(warnings) == 1
     assert re.search(r"the chunk at byte \d+ is damaged .*: messages from t = [0-9.]+ s to t = [0-9.]+ s lost",

@@ -6,10 +6,11 @@ import sys
 import numpy as np
 import pytest
 
-from contouring_ros.bag import read_run, write_simulation
+from contouring_ros.bag import write_simulation
 from contouring_ros.config import build_loop, parse_experiment
 from contouring_ros.core.simulation import first_divergence, simulate
 from contouring_ros.errors import BagError, Diverged
+from contouring_ros.scoring import read_run
 from contouring_ros.sweep import run_sweep, write_sweep_csv
 from conftest import CONFIG, ROOT, shortened
 

@@ -3,10 +3,10 @@ process) and reproduces its in-process simulation exactly, cut to its first 60 s
 import numpy as np
 import pytest
 
-from contouring_ros.bag import read_run
 from contouring_ros.config import build_loop, load_experiment
 from contouring_ros.core.simulation import simulate
 from contouring_ros.runner import run_graph
+from contouring_ros.scoring import read_run
 from conftest import CONFIG, shortened
 
 pytestmark = [pytest.mark.graph, pytest.mark.slow]

@@ -10,7 +10,6 @@ import time
 import numpy as np
 import pytest
 
-from contouring_ros.bag import read_run
 from contouring_ros.config import build_loop, load_experiment, parse_experiment
 from contouring_ros.core.curves import Circle
 from contouring_ros.core.estimators import BranchCheck, NewtonEstimator
@@ -18,7 +17,7 @@ from contouring_ros.core.interpolation import UniformSchedule, reference
 from contouring_ros.core.simulation import simulate
 from contouring_ros.errors import RunError
 from contouring_ros.runner import DomainLease, run_graph, shared_memory_in_use
-from contouring_ros.scoring import score_bag, score_run
+from contouring_ros.scoring import read_run, score_bag, score_run
 from conftest import DEFAULT, ROOT, machine_pace, shortened, sigint_as_from_a_terminal
 
 graph = pytest.mark.graph

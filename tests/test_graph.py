@@ -2,11 +2,10 @@
 import numpy as np
 import pytest
 
-from contouring_ros.bag import read_run
 from contouring_ros.config import build_loop, load_experiment
 from contouring_ros.core.simulation import simulate
 from contouring_ros.runner import run_graph
-from contouring_ros.scoring import score_bag, score_run
+from contouring_ros.scoring import read_run, score_bag, score_run
 from conftest import CONFIG, DEFAULT, machine_pace, shortened
 
 pytestmark = [pytest.mark.graph, pytest.mark.slow]

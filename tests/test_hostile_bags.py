@@ -19,8 +19,9 @@ import numpy as np
 import pytest
 
 from contouring_ros import bag as bagmod, cdr, cli
-from contouring_ros.bag import BagWriter, read_metadata, read_run
+from contouring_ros.bag import BagWriter, read_metadata
 from contouring_ros.errors import BagError
+from contouring_ros.scoring import read_run
 from conftest import ROOT, recorded_bag
 
 MiB = 1 << 20
@@ -30,8 +31,8 @@ PEAK = "int(next(l for l in open('/proc/self/status') if l.startswith('VmHWM')).
 # reads a bag in a process of its own; prints its steps (or the error) and its peak memory in kB
 MEASURE = """
 import sys
-from contouring_ros.bag import read_run
 from contouring_ros.errors import BagError
+from contouring_ros.scoring import read_run
 try:
     run = read_run(sys.argv[1])
     print("steps", run.complete_steps, "warnings", len(run.warnings))

@@ -67,8 +67,8 @@ def test_a_node_waiting_for_its_graph_stops_quietly(tmp_path, node, sig, code):
 def test_the_runner_says_what_exists_and_exits_130(tmp_path, write_experiment, moment, sig, code, name):
     """At once (before the recorder opened the bag, or just after) and while recording: the runner exits 130
     (143), and says the bag holds the steps recorded so far only where a readable bag is there."""
-    from contouring_ros.bag import read_run
     from contouring_ros.errors import BagError
+    from contouring_ros.scoring import read_run
     path = write_experiment(shortened(DEFAULT, 3.0), f"interrupted_{name}.yaml")
     bag = tmp_path / "interrupted.mcap"
     runner = subprocess.Popen([sys.executable, "-m", "contouring_ros.cli", "run", str(path), "--bag", str(bag)],

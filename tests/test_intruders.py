@@ -14,11 +14,11 @@ import pytest
 
 from contouring_ros import cdr
 from contouring_ros import graph as graph_module
-from contouring_ros.bag import read_run
 from contouring_ros.config import build_loop, load_experiment
 from contouring_ros.core.simulation import simulate
 from contouring_ros.errors import RunError
 from contouring_ros.runner import DomainLease, private_environment, run_graph
+from contouring_ros.scoring import read_run
 from conftest import DEFAULT, ROOT, shortened, sigint_as_from_a_terminal
 
 graph = pytest.mark.graph

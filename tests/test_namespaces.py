@@ -9,10 +9,11 @@ import pytest
 from mcap.reader import make_reader
 
 from contouring_ros import graph
-from contouring_ros.bag import read_run, write_simulation
+from contouring_ros.bag import write_simulation
 from contouring_ros.config import build_loop, load_experiment, namespaced_parameter_file, read_yaml
 from contouring_ros.core.simulation import simulate
 from contouring_ros.runner import DomainLease, run_graph
+from contouring_ros.scoring import read_run
 from conftest import DEFAULT, shortened
 
 

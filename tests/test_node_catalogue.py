@@ -27,7 +27,8 @@ def test_setup_py_installs_the_catalogue_s_console_scripts_without_importing_the
     result = subprocess.run([sys.executable, "-c", script], cwd=ROOT, capture_output=True, text=True, timeout=60)
     assert result.returncode == 0, result.stderr
     scripts = eval(result.stdout)
-    assert scripts == [f"{node.console_script} = {node.module}:main" for node in catalogue.NODES] \
+    assert scripts == [f"{node.console_script} = contouring_ros.nodes.scripts:{node.console_script}"
+                       for node in catalogue.NODES] \
         + ["contouring-ros = contouring_ros.cli:main"]
 
 

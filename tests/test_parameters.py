@@ -215,9 +215,9 @@ def test_run_with_set_records_the_changed_experiment(tmp_path):
     """`contouring-ros run CONFIG --set ccc.kp=2.0`: the graph runs the changed experiment (its bag scores as
     the in-process simulation of it, bit for bit) and keeps it."""
     from conftest import ROOT, shortened
-    from contouring_ros.bag import read_run
     from contouring_ros.config import build_loop, parse_experiment
     from contouring_ros.core.simulation import simulate
+    from contouring_ros.scoring import read_run
     path = tmp_path / "short.yaml"
     path.write_text(shortened(DEFAULT, 0.3))
     bag = tmp_path / "set.mcap"

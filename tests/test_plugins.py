@@ -58,11 +58,11 @@ def test_the_example_estimator_runs_through_validation_simulation_graph_sweep_an
     experiment.write_text(with_estimator(shortened(DEFAULT, 0.06), PLUGIN_ESTIMATOR))
     done = run_python(f"""
         import numpy as np, subprocess, sys
-        from contouring_ros.bag import read_run
         from contouring_ros.config import ESTIMATORS, build_loop, load_experiment
         from contouring_ros.core.simulation import simulate
         from contouring_ros.runner import run_graph
         from contouring_ros import api
+        from contouring_ros.scoring import read_run
         experiment = load_experiment({str(experiment)!r})
         assert experiment.estimator == {{"type": "two_step_newton", "steps": 3}}, experiment.estimator
         assert ESTIMATORS.entry("two_step_newton").origin.startswith("contouring_plugin_example")

@@ -13,6 +13,8 @@ import pytest
 from conftest import ROOT
 
 from contouring_ros import rclpy_adapter
+from contouring_ros.errors import ContouringError, IncompatibleRclpy
+from contouring_ros.nodes import catalogue, scripts
 
 ADAPTER = ROOT / "contouring_ros" / "rclpy_adapter.py"
 #: what only the adapter may name: rclpy's C extension and the private calls made on its objects
@@ -21,8 +23,10 @@ PRIVATE_RCLPY = re.compile(r"implementation_singleton|rclpy_implementation|\b_rc
 
 
 def _sources():
-    """Every module of the package and of bench/ but the adapter, with its path relative to the root."""
-    paths = sorted((ROOT / "contouring_ros").rglob("*.py")) + sorted((ROOT / "bench").glob("*.py"))
+    """Every module of the package and every script of bench/ and tools/ but the adapter, with its path
+    relative to the root."""
+    paths = sorted((ROOT / "contouring_ros").rglob("*.py")) + sorted((ROOT / "bench").glob("*.py")) + \
+        sorted((ROOT / "tools").glob("*.py"))
     return [(path.relative_to(ROOT), path.read_text(encoding="utf-8")) for path in paths if path != ADAPTER]
 
 
@@ -38,21 +42,32 @@ def test_only_the_adapter_uses_rclpy_internals():
     assert not found, "rclpy internals outside contouring_ros/rclpy_adapter.py:\n" + "\n".join(found)
 
 
+def _private(name) -> bool:
+    return isinstance(name, str) and name.startswith("_") and not name.startswith("__")
+
+
+def _own(node) -> bool:
+    return isinstance(node, ast.Name) and node.id in ("self", "cls")
+
+
 def test_no_private_attribute_is_read_across_objects():
-    """``x._name`` only on ``self`` or ``cls``: another object's (ours or rclpy's) is read through its public
-    methods and properties."""
+    """``x._name`` (or getattr/hasattr/setattr(x, "_name")) only on ``self`` or ``cls``: another object's
+    (ours or rclpy's) is read through its public methods and properties."""
     found = []
     for path, text in [*_sources(), (ADAPTER.relative_to(ROOT), ADAPTER.read_text(encoding="utf-8"))]:
         for node in ast.walk(ast.parse(text, str(path))):
-            if isinstance(node, ast.Attribute) and node.attr.startswith("_") and not node.attr.startswith("__") \
-                    and not (isinstance(node.value, ast.Name) and node.value.id in ("self", "cls")):
+            if isinstance(node, ast.Attribute) and _private(node.attr) and not _own(node.value):
+                found.append(f"{path}:{node.lineno}: {ast.unparse(node)}")
+            if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and \
+                    node.func.id in ("getattr", "hasattr", "setattr", "delattr") and len(node.args) > 1 and \
+                    isinstance(node.args[1], ast.Constant) and _private(node.args[1].value) and not _own(node.args[0]):
                 found.append(f"{path}:{node.lineno}: {ast.unparse(node)}")
     assert not found, "private attributes read across objects:\n" + "\n".join(found)
 
 
 def _import_adapter_afresh():
     """Execute the adapter's module anew (as its import would), outside sys.modules."""
-    spec = importlib.util.spec_from_file_location("rclpy_adapter_probe", ADAPTER)
+    spec = importlib.util.spec_from_file_location("contouring_ros.rclpy_adapter_probe", ADAPTER)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
@@ -64,6 +79,7 @@ def test_the_import_names_the_rclpy_found_and_the_one_written_for_when_an_intern
     monkeypatch.delattr(rclpy_implementation, "WaitSet")
     with pytest.raises(ImportError) as raised:
         _import_adapter_afresh()
+    assert isinstance(raised.value, IncompatibleRclpy) and isinstance(raised.value, ContouringError)
     message = str(raised.value)
     assert message == (f"contouring_ros needs rclpy internals that {rclpy_adapter.installed_version()} lacks "
                        "(WaitSet); it was written for rclpy 7.1 (ROS 2 Jazzy)")
@@ -82,6 +98,33 @@ def test_a_missing_method_is_named_too():
     assert rclpy_adapter.missing_internals(implementation) == ["Service.service_take_request"]
     with pytest.raises(ImportError, match=r"lacks \(Service.service_take_request\); it was written for rclpy 7.1"):
         rclpy_adapter.check_internals(implementation)
+
+
+#: a node's console script as pip and colcon write it for setup.py's console_scripts, run where rclpy lacks the
+#: WaitSet the adapter checks for
+SCRIPT_WITHOUT_WAIT_SET = """
+import sys
+from rclpy.impl.implementation_singleton import rclpy_implementation
+del rclpy_implementation.WaitSet
+from contouring_ros.nodes.scripts import {node}
+sys.exit({node}())
+"""
+
+
+def test_every_node_has_a_console_script_in_the_scripts_module():
+    assert sorted(scripts.__all__) == sorted(node.console_script for node in catalogue.NODES)
+    assert all(callable(getattr(scripts, name)) for name in scripts.__all__)
+
+
+@pytest.mark.parametrize("node", scripts.__all__)
+def test_a_node_s_console_script_says_in_one_line_that_rclpy_lacks_an_internal(node):
+    import subprocess
+    import sys
+    done = subprocess.run([sys.executable, "-c", SCRIPT_WITHOUT_WAIT_SET.format(node=node)], cwd=ROOT,
+                          capture_output=True, text=True, timeout=120)
+    assert (done.returncode, done.stderr.splitlines()) == (1, [
+        f"error: contouring_ros needs rclpy internals that {rclpy_adapter.installed_version()} lacks (WaitSet); "
+        "it was written for rclpy 7.1 (ROS 2 Jazzy)"]), done.stderr
 
 
 def test_the_installed_version_comes_from_the_package_metadata(monkeypatch):

@@ -20,10 +20,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from contouring_ros.bag import read_run
 from contouring_ros.config import build_loop, load_experiment
 from contouring_ros.core.simulation import simulate
 from contouring_ros.runner import FASTDDS_PROFILE, private_environment, run_graph
+from contouring_ros.scoring import read_run
 from conftest import DEFAULT, shortened
 
 LOOPBACK = {"127.0.0.1", "::1"}

@@ -28,7 +28,7 @@ def _retune(name: str, label: str, factor: float):
     combo = next(c for c in combos if c.label == label)
     data = family.data[family.proposed]
     protocol = Protocol()
-    reference = benchmark._reference_job(data, family.from_time, name, protocol)
+    reference = benchmark.reference_job(data, family.from_time, name, protocol)
     limit = protocol.noise_factor * reference.published.noise
     checked = Protocol(evaluations=int(protocol.evaluations * factor))
     tuned = tune(data, combo.sections, combo.gain_keys, reference.machine, limit, family.from_time, checked,

@@ -42,6 +42,11 @@ class _NoAliasLoader(*_LOADER_BASES):
         yaml.constructor.SafeConstructor.__init__(self)
         yaml.resolver.Resolver.__init__(self)
 
+    @property
+    def key_path(self) -> list:
+        """The keys from the document's root to the node being read ([] before the first), for messages."""
+        return getattr(self, "_path", [])
+
     def _refuse(self, mark, message: str, path=None):
         key = _key_name(self._path if path is None else path)
         raise ConfigError(f"{key + ': ' if key else ''}line {mark.line + 1}: {message}")
@@ -290,13 +295,13 @@ def read_yaml(text: str, where: str = "<experiment>", ros: bool = False):
         mark = getattr(error, "problem_mark", None)
         line = f"line {mark.line + 1}: " if mark is not None else ""
         problem = getattr(error, "problem", None) or str(error).splitlines()[0]
-        key = _key_name(getattr(loader, "_path", []))
+        key = _key_name(loader.key_path)
         raise ConfigError(f"{where}: {key + ': ' if key else ''}{line}not valid YAML ({_printable(problem, 200)})") \
             from None
     except RecursionError:
         raise ConfigError(f"{where}: nested too deeply (at most {MAX_DEPTH} levels)") from None
     except (ValueError, OverflowError) as error:     # e.g. an integer of more than 4300 digits
-        key = _key_name(getattr(loader, "_path", []))
+        key = _key_name(loader.key_path)
         raise ConfigError(f"{where}: {key + ': ' if key else ''}cannot read a value "
                           f"({_printable(error, 200)})") from None
     finally:

@@ -31,12 +31,19 @@ from .schema import GLOBAL_SECTION, MAX_DURATION, MAX_STEPS, ROS_PARAMETERS, _fa
 
 __all__ = ["parse_experiment", "experiment_from_data", "experiment_for_node", "node_sections", "split_groups",
            "check_ccc_takes_state", "controller_uses_state", "section_from_parameters", "ROS_BUILTIN_PARAMETERS",
-           "RESERVED_AXIS_NAMES"]
+           "RESERVED_AXIS_NAMES", "is_axis_name", "validate_section"]
 
 ROS_BUILTIN_PARAMETERS = {"use_sim_time", "start_type_description_service"}  # every rclpy node declares these
 _AXIS_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]{0,31}$")
 _EXPERIMENT_NAME = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.-]{0,99}$")
 RESERVED_AXIS_NAMES = {"theta", "contour_error", "foot_point_parameter"}   # other joint names of the messages
+
+
+def is_axis_name(name) -> bool:
+    """An axis name: 1 to 32 ASCII letters, digits and single _, starting with a letter (it becomes a ROS
+    namespace), and none of RESERVED_AXIS_NAMES (the messages' other joint names)."""
+    return isinstance(name, str) and bool(_AXIS_NAME.match(name)) and "__" not in name \
+        and name not in RESERVED_AXIS_NAMES
 
 
 def _ros_parameters(where, node: str, body) -> dict:
@@ -95,7 +102,7 @@ def _validate_globals(where, given: dict) -> dict:
     out = _mapping(where, "", GLOBALS, given)
     axes = out["axes"]
     for axis in axes:
-        if not _AXIS_NAME.match(axis) or "__" in axis or axis in RESERVED_AXIS_NAMES:
+        if not is_axis_name(axis):
             _fail(where, "axes", f"axis name {_show(axis)} must be 1 to 32 ASCII letters, digits and single _, "
                                  "starting with a letter (it becomes a ROS namespace), and not one of "
                                  f"{', '.join(sorted(RESERVED_AXIS_NAMES))}")
@@ -146,8 +153,14 @@ def _validate_role(where, node: str, role: str, given: dict, globals_: dict) -> 
     if role in OPTIONAL_NODES:
         return _mapping(where, f"{node}.", OPTIONAL_NODES[role], given)
     type_key, registry = ROLE_TYPES[role]
-    section = _typed(where, node, type_key, registry, given)
-    _check_entry(where, node, registry.entry(section[type_key]), section, tuple(globals_["axes"]))
+    return validate_section(where, node, registry, given, tuple(globals_["axes"]))
+
+
+def validate_section(where, node: str, registry, given: dict, axes: tuple) -> dict:
+    """One section of ``registry``'s role (``node`` names it in errors): its type, its keys against that
+    type's Params (defaults filled in) and the type's own constraint, for ``axes``."""
+    section = _typed(where, node, registry.type_key, registry, given)
+    _check_entry(where, node, registry.entry(section[registry.type_key]), section, tuple(axes))
     return section
 
 

@@ -75,8 +75,9 @@ class Node:
 
     @property
     def entry_point(self) -> str:
-        """Its console_scripts entry point, as setup.py writes it."""
-        return f"{self.console_script} = {self.module}:main"
+        """Its console_scripts entry point, as setup.py writes it (contouring_ros.nodes.scripts imports the
+        node's module when the script runs, so that a failed import is one line, not a traceback)."""
+        return f"{self.console_script} = contouring_ros.nodes.scripts:{self.console_script}"
 
     def full_names(self, axes) -> list:
         """Fully qualified names of this concern's nodes in the graph of ``axes``."""

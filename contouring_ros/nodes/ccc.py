@@ -12,7 +12,7 @@ import numpy as np
 
 from .. import cdr, graph
 from ..experiment.build import build_controller, build_curve
-from ..experiment.validate import check_ccc_takes_state
+from ..experiment.validate import check_ccc_takes_state, controller_uses_state
 from .lockstep import LockstepNode, run_node
 
 
@@ -22,7 +22,7 @@ class CCCNode(LockstepNode):
 
     def setup(self):
         self.controller = build_controller(self.experiment, build_curve(self.experiment))
-        self.needs_state = getattr(self.controller, "needs_state", False)
+        self.needs_state = controller_uses_state(self.experiment)
         check_ccc_takes_state(self.name, self.experiment, self.needs_state)
         self.add_input(graph.CONTOUR_ERROR)
         self.state_topics = [graph.state_topic(a) for a in self.axes]
