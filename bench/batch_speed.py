@@ -10,11 +10,19 @@ a range) are simulated:
   did for these classes before they had a batch path, and still does for a class without one).
 
 It prints configuration-steps per second of wall time and of process CPU time (the machine may be shared:
-CPU time is the steadier figure), each the median of ``--repeat`` measurements, the two sides alternated,
-and the ratio vectorised / one by one. One process, one core: a sweep multiplies either figure by its
-workers.
+CPU time is the steadier figure), each the median of ``--repeat`` measurements, the sides alternated, and
+the ratio vectorised / one by one. One process, one core: a sweep multiplies either figure by its workers.
+
+Where numba is installed (:mod:`contouring_ros.core.kernels`) each case is measured with the compiled
+kernels and with the pure numpy path (``pure`` lines), alternated in the same process, and the speed-up is
+printed; ``--pure`` measures the pure path alone.
+
+``--sweep W ...`` then times :func:`contouring_ros.sweep.run_sweep` of the default experiment (``--sweep-size``
+combinations of ccc.kp, ``--seconds`` each) with each number of local worker processes W, and prints
+configuration-steps per second of wall time and the scaling relative to the first W.
 
 Usage: python bench/batch_speed.py [--batch 64] [--alone 4] [--seconds 0.5] [--repeat 3] [--only LABEL ...]
+       [--pure] [--sweep 1 2] [--sweep-size 64]
 """
 from __future__ import annotations
 
@@ -31,9 +39,10 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from contouring_ros.config import build_loop  # noqa: E402
+from contouring_ros.core import kernels  # noqa: E402
 from contouring_ros.core.batch import batch_problem, simulate_batch  # noqa: E402
 from contouring_ros.core.simulation import simulate  # noqa: E402
-from contouring_ros.sweep import combinations  # noqa: E402
+from contouring_ros.sweep import combinations, run_sweep  # noqa: E402
 
 CONFIG = ROOT / "config"
 DEFAULT = CONFIG / "paper000_b_ismc_h50_newton.yaml"
@@ -94,6 +103,58 @@ def _timed(run) -> tuple[float, float]:
     return time.perf_counter() - wall, time.process_time() - cpu
 
 
+def _case(label, classes, text, key, span, args, modes) -> None:
+    batch = _loops(text, key, span, args.batch)
+    problem = batch_problem(batch)
+    if problem:
+        print(f"{label:16} not batchable: {problem}")
+        return
+    steps = batch[0].n_steps
+    timings = {mode: ([], []) for mode in modes}
+    for _ in range(args.repeat):        # simulate_batch leaves its loops untouched; simulate needs fresh ones
+        for mode in modes:
+            kernels.ENABLED = mode == "compiled"
+            vectorised, alone = timings[mode]
+            vectorised.append(_timed(lambda: simulate_batch(batch)))
+            loops = _loops(text, key, span, args.alone)
+            alone.append(_timed(lambda: [simulate(loop) for loop in loops]))
+    kernels.ENABLED = COMPILED
+    rates = {}
+    for mode in modes:
+        vectorised, alone = timings[mode]
+        vec = tuple(args.batch * steps / statistics.median(t[i] for t in vectorised) for i in (0, 1))
+        one = tuple(args.alone * steps / statistics.median(t[i] for t in alone) for i in (0, 1))
+        rates[mode] = vec, one
+        name = label if mode == modes[0] else f"  {mode}"
+        print(f"{name:16} {vec[0]:>10.0f} ({vec[1]:>9.0f}) {one[0]:>9.0f} ({one[1]:>8.0f}) "
+              f"{vec[0] / one[0]:>5.1f} ({vec[1] / one[1]:>4.1f})  {classes if mode == modes[0] else ''}", flush=True)
+    if len(modes) == 2:
+        (vc, oc), (vp, op) = rates["compiled"], rates["pure"]
+        print(f"{'  speed-up':16} {vc[0] / vp[0]:>10.2f} ({vc[1] / vp[1]:>9.2f}) {oc[0] / op[0]:>9.2f} "
+              f"({oc[1] / op[1]:>8.2f})        compiled / pure", flush=True)
+
+
+def _sweeps(args) -> None:
+    text = _file(DEFAULT.name)(args.seconds)
+    values = np.linspace(0.5, 4.0, args.sweep_size).tolist()
+    steps = build_loop(combinations(text, {"ccc.kp": values[:1]})[0][1]).n_steps
+    print(f"\nsweep of the default experiment: {args.sweep_size} combinations of ccc.kp, {args.seconds:g} s each "
+          f"(run_sweep, local processes; configuration-steps/s of wall time, medians of {args.repeat})")
+    first = None
+    for workers in args.sweep:
+        walls = []
+        for _ in range(args.repeat):
+            wall = time.perf_counter()
+            run_sweep(text, {"ccc.kp": values}, workers=workers)
+            walls.append(time.perf_counter() - wall)
+        rate = args.sweep_size * steps / statistics.median(walls)
+        first = first or rate
+        print(f"  {workers} worker{'s' if workers > 1 else ' '} {rate:>10.0f}   x{rate / first:.2f}", flush=True)
+
+
+COMPILED = kernels.ENABLED
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--batch", type=int, default=64, help="configurations simulated as one batch")
@@ -101,29 +162,27 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=0.5, help="simulated seconds per configuration")
     parser.add_argument("--repeat", type=int, default=3, help="measurements of each side (medians printed)")
     parser.add_argument("--only", nargs="*", help="labels of the cases to run (default: all)")
+    parser.add_argument("--pure", action="store_true", help="the pure numpy path only (no compiled kernels)")
+    parser.add_argument("--sweep", type=int, nargs="*", default=[], metavar="W",
+                        help="also time a sweep of the default experiment with each number of workers")
+    parser.add_argument("--sweep-size", type=int, default=64, help="combinations of that sweep")
     args = parser.parse_args()
+    modes = ["compiled", "pure"] if COMPILED and not args.pure else ["pure"]
+    if COMPILED:                    # compile (or load from numba's cache) before anything is timed
+        kernels.newton_parabola(50.0, -0.02, 0.02, 0.0, 0.0, 0.0, 0.0, 0.9, 0.1, 0.5, 1e-18, 200)
+        kernels.newton_parabola_batch(50.0, -0.02, 0.02, np.zeros((2, 2)), 0.0, 0.0, 0.9, 0.1, 0.5, 1e-18, 200,
+                                      np.ones((2, 1), dtype=bool))
     print(f"configuration-steps/s, {args.seconds:g} s of each experiment; vectorised: one batch of {args.batch}; "
-          f"one by one: {args.alone} runs; wall (CPU), medians of {args.repeat}")
+          f"one by one: {args.alone} runs; wall (CPU), medians of {args.repeat}; "
+          + ("compiled kernels (numba) and the pure numpy path alternated" if len(modes) == 2 else
+             "the pure numpy path" + ("" if COMPILED else " (numba is not installed)")))
     print(f"{'case':16} {'vectorised':>22} {'one by one':>20} {'ratio':>12}  classes")
     for label, classes, experiment, key, span in CASES:
         if args.only and label not in args.only:
             continue
-        text = experiment(args.seconds)
-        batch = _loops(text, key, span, args.batch)
-        problem = batch_problem(batch)
-        if problem:
-            print(f"{label:16} not batchable: {problem}")
-            continue
-        steps = batch[0].n_steps
-        vectorised, alone = [], []
-        for _ in range(args.repeat):        # simulate_batch leaves its loops untouched; simulate needs fresh ones
-            vectorised.append(_timed(lambda: simulate_batch(batch)))
-            loops = _loops(text, key, span, args.alone)
-            alone.append(_timed(lambda: [simulate(loop) for loop in loops]))
-        vec = tuple(args.batch * steps / statistics.median(t[i] for t in vectorised) for i in (0, 1))
-        one = tuple(args.alone * steps / statistics.median(t[i] for t in alone) for i in (0, 1))
-        print(f"{label:16} {vec[0]:>10.0f} ({vec[1]:>9.0f}) {one[0]:>9.0f} ({one[1]:>8.0f}) "
-              f"{vec[0] / one[0]:>5.1f} ({vec[1] / one[1]:>4.1f})  {classes}", flush=True)
+        _case(label, classes, experiment(args.seconds), key, span, args, modes)
+    if args.sweep:
+        _sweeps(args)
 
 
 if __name__ == "__main__":

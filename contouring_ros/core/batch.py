@@ -14,13 +14,12 @@ to the loop's own simulation up to the rounding of vectorised sums.
 from __future__ import annotations
 
 import copy
-import dataclasses
 import inspect
 import numbers
 
 import numpy as np
 
-from .interpolation import reference
+from .interpolation import Reference, reference
 from .simulation import ControlLoop, SimulationResult, step_time
 
 __all__ = ["NotBatchable", "stack", "batch_problem", "batchable", "structure", "simulate_batch"]
@@ -166,6 +165,30 @@ def _times(clocks, k, t, positions, velocities) -> np.ndarray:
     return out
 
 
+def _read_only(loop) -> dict:
+    """A deep-copy memo that keeps the tables a loop's classes declare equal across a batch
+    (``batch_shared``: profile tables, tool paths, splines) as they are: they are only read, and copying them
+    for every member was a good part of a batch's set-up."""
+    memo, seen, todo = {}, set(), [loop]
+    while todo:
+        obj = todo.pop()
+        if id(obj) in seen:
+            continue
+        seen.add(id(obj))
+        if isinstance(obj, (list, tuple)):
+            todo.extend(obj)
+            continue
+        if not hasattr(obj, "__dict__") or inspect.isroutine(obj) or isinstance(obj, type):
+            continue
+        shared = getattr(type(obj), "batch_shared", ())
+        for name, value in vars(obj).items():
+            if name in shared:
+                memo[id(value)] = value
+            elif hasattr(value, "__dict__") or isinstance(value, (list, tuple)):
+                todo.append(value)
+    return memo
+
+
 def simulate_batch(loops: list[ControlLoop]) -> list[SimulationResult]:
     """Run every loop of ``loops`` (one structure, see :func:`batchable`) in one vectorised pass.
 
@@ -176,33 +199,37 @@ def simulate_batch(loops: list[ControlLoop]) -> list[SimulationResult]:
     NotBatchable
         When the loops cannot run as one batch.
     """
-    loops = [copy.deepcopy(loop) for loop in loops]
+    loops = [copy.deepcopy(loop, _read_only(loop)) for loop in loops]
     curve, schedule, plants, servos, estimator, controller = _stacked(loops)
     b, m, n, ts = len(loops), loops[0].n_steps, len(plants), loops[0].sample_time
     clocks = [loop.clock for loop in loops]
+    clocked = any(clock is not None for clock in clocks)
     time = np.empty(m)
     theta, est_theta, est_signed = np.empty((m, b)), np.empty((m, b)), np.empty((m, b))
     ref_pos, ref_vel, ref_acc, positions, velocities, est_vector, corrections, commands = (
         np.empty((m, b, n)) for _ in range(8))
+    # (b, 1) columns of the per-step rows: a member's value, or one value for all, is written by broadcasting
+    theta_rows, est_theta_rows = theta[:, :, None], est_theta[:, :, None]
+    axes = [(slice(i, i + 1), plant, servo) for i, (plant, servo) in enumerate(zip(plants, servos))]
     for k in range(m):
         t = step_time(k, ts)
-        for i, plant in enumerate(plants):
-            positions[k, :, i], velocities[k, :, i] = (np.broadcast_to(v, (b, 1))[:, 0] for v in plant.measure())
+        for column, plant, _ in axes:
+            positions[k, :, column], velocities[k, :, column] = plant.measure()
         position, velocity = positions[k].copy(), velocities[k].copy()
-        ref = reference(curve, schedule, _times(clocks, k, t, positions, velocities))   # (b, 1, n): drop the time axis
-        ref = dataclasses.replace(ref, position=ref.position[:, 0], velocity=ref.velocity[:, 0],
-                                  acceleration=ref.acceleration[:, 0])
+        times = _times(clocks, k, t, positions, velocities) if clocked else np.full((b, 1), t)
+        ref = reference(curve, schedule, times)      # (b, 1, n): drop the time axis
+        ref = Reference(ref.theta, ref.theta_dot, ref.theta_ddot, ref.position[:, 0], ref.velocity[:, 0],
+                        ref.acceleration[:, 0])
         estimate = estimator.step_batch(ref, position)
         correction = np.broadcast_to(controller.step(estimate, ref, position, velocity), (b, n))
-        for i, (plant, servo) in enumerate(zip(plants, servos)):
-            column = slice(i, i + 1)
-            command = servo.step(ref.position[:, column], ref.velocity[:, column], ref.acceleration[:, column],
-                                 position[:, column], velocity[:, column], correction[:, column])
-            commands[k, :, i] = np.broadcast_to(command, (b, 1))[:, 0]
-            plant.step(commands[k, :, column], t)
+        rp, rv, ra, command_row = ref.position, ref.velocity, ref.acceleration, commands[k]
+        for column, plant, servo in axes:
+            command_row[:, column] = servo.step(rp[:, column], rv[:, column], ra[:, column], position[:, column],
+                                                velocity[:, column], correction[:, column])
+            plant.step(command_row[:, column], t)
         time[k] = t
-        theta[k] = ref.theta[:, 0]
-        est_theta[k] = np.broadcast_to(estimate.theta, (b, 1))[:, 0]
+        theta_rows[k] = ref.theta
+        est_theta_rows[k] = estimate.theta
         est_signed[k] = estimate.signed
         ref_pos[k], ref_vel[k], ref_acc[k] = ref.position, ref.velocity, ref.acceleration
         est_vector[k], corrections[k] = estimate.vector, correction

@@ -10,7 +10,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .curves import Curve
+from . import kernels
+from .curves import Curve, Parabola
 from .geometry import dot, dot_rows, frenet_axes, left_normal, matvec, matvec_rows, norm, signed_error
 
 __all__ = ["ContourEstimate", "TangentLineEstimator", "NewtonEstimator", "BranchCheck", "LocalApproximationEstimator",
@@ -256,6 +257,10 @@ class NewtonEstimator:
         coordinates, blend = [float(p) for p in position], 1.0 - decay
         columns, closed, (lo, hi) = curve.columns, curve.closed, curve.domain
         converged = False
+        if kernels.ENABLED and type(curve) is Parabola and len(coordinates) == 2:     # compiled, the same steps
+            self.theta, self.filtered, self.iterations, converged = kernels.newton_parabola(
+                curve.h, lo, hi, *coordinates, float(theta), float(filtered), decay, blend, gain, tolerance2, cap)
+            return not converged
         if len(coordinates) == 2 and not closed:       # the common planar case, unrolled
             px, py = coordinates
             for n in range(cap + 1):
@@ -304,6 +309,12 @@ class NewtonEstimator:
         little more than the update itself.)"""
         curve = self.curve
         b = position.shape[0]
+        if kernels.ENABLED and type(curve) is Parabola and position.shape[1] == 2:    # compiled, the same steps
+            active = np.ones((b, 1), dtype=bool) if active is None else active
+            self.theta, self.filtered, self.iterations, capped = kernels.newton_parabola_batch(
+                curve.h, *curve.domain, position, self.theta, self.filtered, self._filter_decay,
+                1.0 - self._filter_decay, self._gain, self._tolerance_squared, self.max_iterations, active)
+            return capped
         theta = np.broadcast_to(self.theta, (b, 1)).astype(float)
         filtered = np.broadcast_to(self.filtered, (b, 1)).astype(float)
         decay, gain, tolerance2, cap = self._filter_decay, self._gain, self._tolerance_squared, self.max_iterations
