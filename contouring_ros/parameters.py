@@ -6,7 +6,7 @@ range its :class:`~contouring_ros.experiment.schema.Param` states (the catalogue
 contouring_ros/experiment/catalogue/), the names it may take, and ``read_only``: a node reads
 its parameters once, before the first step, so ``ros2 param set`` is refused rather than silently ignored.
 ``ros2 param describe /x/servo kp`` then says what the key is; a plain rclpy client reads the same through
-the standard parameter services (tests/test_parameters.py).
+the standard parameter services (tests/experiment/test_parameters.py).
 
 No rclpy import at module level: :func:`node_parameters` is plain data; :func:`descriptor` builds the message.
 """

@@ -1,6 +1,6 @@
 """Pin what every scenario file of config/ simulates to: MCE and TACE of its first PINNED_SECONDS (or its
 whole run, where shorter), in-process, written to tests/data/scenario_scores.json, which
-tests/test_scenario_scores.py holds every scenario to.
+tests/experiment/test_scenario_scores.py holds every scenario to.
 
 Run it only when a change is meant to change results (a fixed formula, a new scenario), and say so in the
 commit: a refactoring must leave the file as it is.

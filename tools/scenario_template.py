@@ -24,7 +24,7 @@ def shared_section(name: str, title: str, paper: dict, axes: list, curve: str, s
 
 def with_adds(name: str, text: str) -> str:
     """``text`` with, after its first line, "# Adds beyond the paper: ..." from the ``adds`` of the claim whose
-    mechanism pair names the scenario (config/claims/paper<N>.yaml, tests/test_claims.py asks for the line);
+    mechanism pair names the scenario (config/claims/paper<N>.yaml, tests/analysis/test_claims.py asks for the line);
     unchanged for a scenario no mechanism pair names."""
     path = CLAIMS_DIR / f"paper{name[5:8]}.yaml"
     claims = yaml.safe_load(path.read_text())["claims"] if path.exists() else []

@@ -7,7 +7,7 @@ Where numba is installed (``pip install numba``; optional) the iteration on a :c
 curves.Parabola` runs compiled, one member after another for a batch. Every operation is the pure path's,
 in its order, on IEEE doubles (additions, multiplications, divisions, comparisons: no function whose last
 bit could differ between implementations, and no contraction into fused multiply-adds), so the results are
-the pure path's bit for bit (tests/test_kernels.py). Without numba, or with the environment variable
+the pure path's bit for bit (tests/core/test_kernels.py). Without numba, or with the environment variable
 ``CONTOURING_ROS_NUMBA=0``, the pure Python and numpy path runs.
 """
 from __future__ import annotations

@@ -7,7 +7,7 @@ experiment-file section may be left out. What reads it:
 setup.py (the console scripts), :mod:`contouring_ros.graph` (node names, topics with their publisher and
 subscribers, the node specs the runner and launch/contouring.launch.py start), :mod:`contouring_ros.experiment`
 (the node sections of an experiment file), :mod:`contouring_ros.composed` (the classes of its one loop),
-and tests/test_node_catalogue.py
+and tests/package/test_node_catalogue.py
 (the node and topic tables of README.md, docs/ARCHITECTURE.md and graph.py's docstring).
 
 Graph order is the order of a step: the interpolator, the plants, the estimator, the CCC, the servos, then

@@ -6,7 +6,7 @@ from contouring_ros.config import build_loop, load_experiment
 from contouring_ros.core.simulation import simulate
 from contouring_ros.runner import run_graph
 from contouring_ros.scoring import read_run, score_bag, score_run
-from conftest import CONFIG, DEFAULT, machine_pace, shortened
+from conftest import CONFIG, DEFAULT, ROOT, machine_pace, shortened
 
 pytestmark = [pytest.mark.graph, pytest.mark.slow]
 SIGNALS = ["theta", "reference_position", "reference_velocity", "position", "velocity", "estimate_theta",
@@ -87,7 +87,7 @@ def test_two_runs_record_identical_payloads(default_runs):
 
 def test_graph_payloads_equal_the_simulation_writer(default_runs, tmp_path):
     """The graph's bag and :func:`write_simulation` of the same experiment hold the same bytes on every
-    topic (so the pinned payload hashes of tests/test_payload_hashes.py hold for the graph too); the
+    topic (so the pinned payload hashes of tests/graph/test_payload_hashes.py hold for the graph too); the
     reference's one point is due now (time_from_start 0) and carries theta's rates."""
     from contouring_ros import cdr
     from contouring_ros.bag import write_simulation
@@ -189,7 +189,6 @@ def test_layout_keys_are_checked_with_the_file():
 
 def test_stock_executor_path_reproduces_simulation(tmp_path):
     """The nodes' subscription callbacks under rclpy's SingleThreadedExecutor (how users embed them)."""
-    import os
     import subprocess
     import sys
     from contouring_ros.runner import DomainLease, private_environment
@@ -199,7 +198,7 @@ def test_stock_executor_path_reproduces_simulation(tmp_path):
     with DomainLease() as lease:
         done = subprocess.run([sys.executable, "-m", "contouring_ros.composed", str(path), str(bag), "stock"],
                               env=private_environment(lease.domain_id), capture_output=True, text=True, timeout=120,
-                              cwd=os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+                              cwd=ROOT)
     assert done.returncode == 0, done.stderr
     _assert_identical(path, bag)
 
@@ -210,7 +209,7 @@ def test_realtime_run_records_every_step_and_its_timing(layout, tmp_path, monkey
     asserted is function, not speed: every step recorded, each node's deadline misses, late inputs and
     latency percentiles in the bag's /diagnostics, and the loop stable under the extra delays. (On this
     shared 2-core machine the process layout gets more time to start and a wider max_lag: the overrun trip
-    has its own tests, tests/test_overrun.py.)"""
+    has its own tests, tests/graph/test_overrun.py.)"""
     from contouring_ros.bag import node_reports
     from contouring_ros.scoring import format_realtime
     if layout == "process":

@@ -1,4 +1,4 @@
-"""Paper 002's claims beyond the claim rows (tests/test_claims.py holds those): why the TVT-based CCC wins in max
+"""Paper 002's claims beyond the claim rows (tests/analysis/test_claims.py holds those): why the TVT-based CCC wins in max
 contour error and loses in TACE, on the faithful and the mechanism scenarios (config/claims/paper002.yaml).
 
 - The gap to C1/C2 splits into the estimate's part (C1 or C2 vs C4: the same loops on the foot-point

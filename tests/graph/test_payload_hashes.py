@@ -6,12 +6,12 @@ build (elementwise IEEE arithmetic, math.sqrt/exp/fsum, and the explicit product
 np.linalg.norm on the one-step path), so the bag of the default experiment is byte-identical on any
 machine. This test pins a SHA-256 per topic of its payloads, concatenated in step order, as
 :func:`contouring_ros.bag.write_simulation` writes them (the graph's bags carry the same payloads:
-tests/test_graph.py and tests/test_every_scenario.py).
+tests/graph/test_graph.py and tests/experiment/test_every_scenario.py).
 
 Updating the hashes: any deliberate numeric change anywhere on the published path (a curve, the schedule,
 a plant, servo, estimator or controller, the experiment file, the message layout) legitimately changes
 them. Check first that the change is intended and that the other tests (batch, graph, every scenario)
-pass, then print the new table with ``.venv/bin/python tests/test_payload_hashes.py`` and paste it over
+pass, then print the new table with ``.venv/bin/python tests/graph/test_payload_hashes.py`` and paste it over
 ``EXPECTED`` below, saying in the commit which change moved which topics. A hash that moves without
 such a change (a numpy, scipy or Python upgrade, another machine) is the bug this test is here to catch.
 """
@@ -27,7 +27,7 @@ from contouring_ros.bag import write_simulation
 from contouring_ros.config import build_loop, load_experiment
 from contouring_ros.core.simulation import simulate
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))     # tests/: its conftest, when run as a script
 from conftest import DEFAULT  # noqa: E402
 
 STEPS = 2001     # the default experiment: 2 s at 1 kHz, steps 0..2000

@@ -1,6 +1,6 @@
 """Paper 000's mechanism scenarios act as their headers say, and its CCC checks are not formalities.
 
-The claim rows and ccc_helps entries of config/claims/paper000.yaml are tested by tests/test_claims.py; here:
+The claim rows and ccc_helps entries of config/claims/paper000.yaml are tested by tests/analysis/test_claims.py; here:
 the physics each mechanism scenario was chosen for (the tangent-line estimate is off by about kappa e_t^2 / 2
 where the axes lag, and exact under the paper's ISMC). That each CCC with its sign flipped fails its ccc_helps
 check is tested there too, for every paper.

@@ -1,6 +1,6 @@
 """Paper 001's adaptive TNB contour coupling controller: parameter convergence under a model mismatch, the
 coupling term's sign, and the ordering of the paper's circle experiments against the PD and Koren's
-benchmark CCC. (The claims of config/claims/paper001.yaml are held by tests/test_claims.py.)"""
+benchmark CCC. (The claims of config/claims/paper001.yaml are held by tests/analysis/test_claims.py.)"""
 import pytest
 from numpy.testing import assert_allclose
 
