@@ -38,7 +38,10 @@ import numpy as np
 import yaml
 
 from .claims import claim_files, load_claims
-from .config import CONTROLLERS, ESTIMATORS, REQUIRED, SERVOS, build_loop, read_yaml
+from .experiment.build import build_loop
+from .experiment.catalogue import CONTROLLERS, ESTIMATORS, SERVOS
+from .experiment.ros_yaml import read_yaml
+from .experiment.schema import REQUIRED
 from .core.simulation import simulate
 from .errors import ConfigError, Diverged, write_atomically
 from .executors import pool as executor

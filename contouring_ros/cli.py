@@ -77,7 +77,9 @@ def _run_config(args, config: Path, experiment=None):
         if sum(map(bool, (args.composed, args.group, args.process))) > 1:
             raise ConfigError("--process, --composed and --group are three layouts: give one")
         layout = "composed" if args.composed else "process" if args.process or args.group else None
-        from .config import build_curve, load_experiment, program_warnings
+        from .experiment.build import build_curve
+        from .experiment.catalogue.curves import program_warnings
+        from .experiment.files import load_experiment
         if experiment is None:
             experiment = load_experiment(config)       # the one parse of the file in this process
         for warning in program_warnings(build_curve(experiment)):
@@ -116,10 +118,12 @@ LONG_RUN_STEPS = 20_000       # simulate shows a progress bar beyond this many s
 
 
 def _simulate(args):
-    from .config import build_loop, load_experiment, note_while_slow
+    from .experiment.build import build_loop
+    from .experiment.files import load_experiment
+    from .notices import note_while_slow
     from .core.simulation import simulate
     from .scoring import cutting_lines, format_scores, score_run
-    from .config import program_warnings
+    from .experiment.catalogue.curves import program_warnings
     with _with_settings(_experiment_path(args.config), args.set) as (config, experiment):
         if experiment is None:
             experiment = load_experiment(config)
@@ -147,7 +151,7 @@ def _given(args) -> dict:
     Experiment, parsed here once for every bag (see :func:`contouring_ros.scoring.read_run`); none without it."""
     if getattr(args, "experiment", None) is None:
         return {}
-    from .config import load_experiment
+    from .experiment.files import load_experiment
     experiment = load_experiment(args.experiment)
     return {"experiment_text": experiment.text, "parsed": experiment}
 
@@ -191,7 +195,7 @@ def _blocks(args):
     from dataclasses import replace
 
     from .blocks import block_results, format_blocks, write_blocks_csv
-    from .config import build_schedule
+    from .experiment.build import build_schedule
     from .scoring import curve_of, cutting_lines, read_run
     given = _given(args)
     for bag in args.bags:
@@ -286,7 +290,7 @@ def _export(args):
 
 def _sweep(args):
     from datetime import datetime
-    from .config import load_experiment
+    from .experiment.files import load_experiment
     from .sweep import BATCH, format_sweep, parse_grid, run_sweep, write_sweep_csv
     experiment = load_experiment(_experiment_path(args.config))
     if args.batch is not None and args.batch < 1:

@@ -1,7 +1,7 @@
 """One registry per role: type name -> the class or factory that builds it, its parameters, its constraints.
 
-Roles: curve, schedule, plant, disturbance, servo, estimator, controller. The built-in types register
-themselves in :mod:`contouring_ros.config`; other packages add types through Python entry points of the
+Roles: curve, schedule, plant, disturbance, servo, estimator, controller. The built-in types are the entries
+of :mod:`contouring_ros.experiment.catalogue` (one module per role); other packages add types through Python entry points of the
 group ``contouring_ros.<role>s`` (``contouring_ros.estimators``, ``contouring_ros.controllers`` ...). An
 entry point names either an :class:`Entry` or a class; a class gives
 
@@ -20,7 +20,7 @@ entry point names either an :class:`Entry` or a class; a class gives
 
 Entry points are listed once per role (importlib.metadata) and each is imported when its type is first
 looked up, so a plugin that fails to load stops only what names it, with one line naming the plugin.
-Validation (config), building (config.build_*), batches, the graph's nodes and replay all read these
+Validation (experiment.validate), building (experiment.build), batches, the graph's nodes and replay all read these
 registries; an unknown type is refused naming the known ones.
 """
 from __future__ import annotations
@@ -61,8 +61,8 @@ class BuildContext:
     """What a factory may need besides its section: the experiment, the curve, the schedule (built when
     first asked for), one axis' name and initial state."""
 
-    #: build_schedule(experiment, curve) -> the schedule, for :attr:`schedule`: set where the schedule
-    #: factories are (:mod:`contouring_ros.config`), which this module does not import
+    #: build_schedule(experiment, curve) -> the schedule, for :attr:`schedule`: set by
+    #: :mod:`contouring_ros.experiment.build` (imported with every catalogue user), which this module does not import
     schedule_builder: Callable | None = None
 
     def __init__(self, experiment=None, curve=None, axis=None, position=None, velocity=None, acceleration=None,

@@ -21,7 +21,9 @@ from pathlib import Path
 
 from . import graph
 from .graph import parse_groups
-from .config import Experiment, controller_uses_state, load_experiment, namespaced_parameter_file, split_groups
+from .experiment.files import load_experiment, namespaced_parameter_file
+from .experiment.model import Experiment
+from .experiment.validate import controller_uses_state, split_groups
 from .errors import Interrupted, RunError
 
 __all__ = ["NodeProcess", "DomainLease", "graph_commands", "grouped_commands", "parse_groups", "write_parameter_file",
@@ -383,7 +385,7 @@ def run_graph(experiment_path, bag=None, *, timeout: float | None = None, domain
     namespace : str
         Graph namespace: every node and topic under it (``m1``: /m1/x/plant publishes /m1/x/state).
     experiment : Experiment, optional
-        The file's Experiment where the caller has validated it already (:func:`config.load_experiment`):
+        The file's Experiment where the caller has validated it already (:func:`contouring_ros.experiment.files.load_experiment`):
         not read again; default: read and validated here.
     """
     experiment_path = Path(experiment_path)

@@ -10,7 +10,8 @@ import numpy as np
 from . import bag
 from .bag import RecordedRun
 from .blocks import cutting_scores
-from .config import build_curve, build_schedule, parse_experiment
+from .experiment.build import build_curve, build_schedule
+from .experiment.validate import parse_experiment
 from .core.geometry import ExactContourError
 from .core.metrics import Scores, score
 from .core.simulation import path_bound

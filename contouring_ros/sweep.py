@@ -20,7 +20,11 @@ from pathlib import Path
 import numpy as np
 
 
-from .config import GLOBAL_SECTION, ROS_PARAMETERS, build_loop, experiment_from_data, load_experiment, read_yaml, recorded_text
+from .experiment.build import build_loop
+from .experiment.files import load_experiment, recorded_text
+from .experiment.ros_yaml import read_yaml
+from .experiment.schema import GLOBAL_SECTION, ROS_PARAMETERS
+from .experiment.validate import experiment_from_data
 from .core.batch import batch_problem, simulate_batch, structure
 from .core.simulation import first_divergence, simulate
 from .errors import ConfigError, Diverged, ScoreError, write_atomically

@@ -68,8 +68,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import config
-from .config import CONTROLLERS, PLANTS, experiment_from_data
+from .experiment.build import build_controller, build_curve, build_plant, build_servo
+from .experiment.catalogue import CONTROLLERS, PLANTS
+from .experiment.validate import experiment_from_data
 from .core.margins import axis_loop, coupled_loop, margins, quick_robustness
 from .errors import ConfigError
 from .sweep import apply_settings, score_one, simulate_experiments
@@ -374,11 +375,11 @@ def _loops(experiment) -> dict:
     (:func:`~contouring_ros.core.margins.coupled_loop`: each axis as if the others were identical to it, on
     a straight line); None where the law is not linear time-invariant feedback."""
     ts = float(experiment.sample_time)
-    controller = config.build_controller(experiment, config.build_curve(experiment))
+    controller = build_controller(experiment, build_curve(experiment))
     out = {}
     for axis in experiment.axes:
-        plant = config.build_plant(experiment, axis, 0.0, 0.0)
-        servo = config.build_servo(experiment, axis, 0.0, 0.0, 0.0)
+        plant = build_plant(experiment, axis, 0.0, 0.0)
+        servo = build_servo(experiment, axis, 0.0, 0.0, 0.0)
         out[axis] = {"axis": axis_loop(plant, servo, ts), "coupled": coupled_loop(plant, servo, controller, ts)}
     return out
 

@@ -97,7 +97,15 @@ def build_estimator(experiment: Experiment, curve):
 
 
 def build_controller(experiment: Experiment, curve):
-    return CONTROLLERS.build(experiment.controller, BuildContext(experiment, curve, where=experiment.path))
+    """The contour controller. Its object's ``needs_state`` (what the simulation reads) must be its catalogue
+    entry's (what the runner and the CCC node read, before anything is built)."""
+    controller = CONTROLLERS.build(experiment.controller, BuildContext(experiment, curve, where=experiment.path))
+    entry = CONTROLLERS.entry(experiment.controller["type"])
+    if bool(getattr(controller, "needs_state", False)) != entry.needs_state:
+        raise ConfigError(f"{experiment.path}: /ccc.type: the {entry.name} controller's object has needs_state = "
+                          f"{bool(getattr(controller, 'needs_state', False))} but its registry entry has "
+                          f"{entry.needs_state} ({entry.origin}): give the Entry needs_state as its object has it")
+    return controller
 
 
 def build_loop(experiment: Experiment) -> ControlLoop:

@@ -12,7 +12,7 @@ from .lockstep import LockstepNode, run_node
 class InterpolatorNode(LockstepNode):
     """Publishes /reference for step k + LOOKAHEAD when the estimate of step k arrives (paced by the
     graph, never more than LOOKAHEAD steps ahead), and /clock = t_k at that moment. With the in-position
-    check (``config.build_clock``) it also takes every /<axis>/state: the reference of step k + LOOKAHEAD
+    check (``experiment.build.build_clock``) it also takes every /<axis>/state: the reference of step k + LOOKAHEAD
     holds at an exact stop until the positions of step k are within the window."""
 
     role = "interpolator"

@@ -1,5 +1,5 @@
 """Analysis of bags without ROS: other writers, truncated files, replay, comparisons (figures:
-test_figures.py; playback: test_playback.py)."""
+test_figures.py; playback: graph/test_playback.py)."""
 import json
 import subprocess
 import sys

@@ -168,3 +168,25 @@ def test_the_ccc_takes_reference_and_states_only_where_its_controller_uses_them(
     assert "/ccc" not in subscribers["/reference"] + subscribers["/x/state"] + subscribers["/y/state"]
     assert "/ccc" in subscribers["/contour_error"]
     assert all("/ccc" in t.subscribers for t in graph.topics(["x", "y"]) if t.name in ("/reference", "/x/state"))
+
+
+def test_a_controller_entry_must_say_needs_state_as_its_object_does(monkeypatch):
+    """The runner and the CCC node read needs_state from the registry entry, the simulation from the built
+    object: a plugin Entry that leaves it out while its object needs the states is refused in one line."""
+    import dataclasses
+
+    from contouring_ros.config import CONTROLLERS, build_controller, build_curve
+    from contouring_ros.registry import Entry
+
+    class NeedsState:
+        needs_state = True
+
+    monkeypatch.setitem(CONTROLLERS._entries, "needs_state_plugin",
+                        Entry("needs_state_plugin", {}, lambda s, c: NeedsState(), origin="a_plugin"))
+    experiment = load_experiment(DEFAULT)
+    experiment = dataclasses.replace(experiment, controller={"type": "needs_state_plugin"})
+    with pytest.raises(ConfigError, match=r"object has needs_state = True but its registry entry has False"):
+        build_controller(experiment, build_curve(experiment))
+    monkeypatch.setitem(CONTROLLERS._entries, "needs_state_plugin",
+                        Entry("needs_state_plugin", {}, lambda s, c: NeedsState(), origin="a_plugin", needs_state=True))
+    assert build_controller(experiment, build_curve(experiment)).needs_state
