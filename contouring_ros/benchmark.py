@@ -41,7 +41,7 @@ from .claims import claim_files, load_claims
 from .experiment.build import build_loop
 from .experiment.catalogue import CONTROLLERS, ESTIMATORS, SERVOS
 from .experiment.ros_yaml import read_yaml
-from .experiment.schema import REQUIRED
+from .experiment.schema import GLOBAL_SECTION, REQUIRED
 from .core.simulation import simulate
 from .errors import ConfigError, Diverged, write_atomically
 from .executors import pool as executor
@@ -80,13 +80,13 @@ def _read(path) -> dict:
 
 
 def _scenario_key(data: dict) -> str:
-    shared = {k: v for k, v in data["/**"]["ros__parameters"].items() if k not in _META}
+    shared = {k: v for k, v in data[GLOBAL_SECTION]["ros__parameters"].items() if k not in _META}
     plants = {node: body for node, body in data.items() if node.endswith("/plant")}
     return json.dumps([shared, plants], sort_keys=True, default=str)
 
 
 def _signature(data: dict) -> tuple:
-    axes = data["/**"]["ros__parameters"]["axes"]
+    axes = data[GLOBAL_SECTION]["ros__parameters"]["axes"]
     return (tuple(data[f"/{a}/servo"]["ros__parameters"]["law"] for a in axes),
             data["/contour_estimator"]["ros__parameters"]["type"], data["/ccc"]["ros__parameters"]["type"])
 
@@ -175,7 +175,7 @@ def _params(data: dict, node: str) -> dict:
 def _servo_sets(family: Family) -> dict:
     """label -> {'/<axis>/servo': parameters} for each distinct servo set of the scenario's files."""
     base = family.data[family.proposed]
-    axes = base["/**"]["ros__parameters"]["axes"]
+    axes = base[GLOBAL_SECTION]["ros__parameters"]["axes"]
     sets = []
     for name in family.files:
         servos = {f"/{a}/servo": _params(family.data[name], f"/{a}/servo") for a in axes}
@@ -239,7 +239,7 @@ def _experiment(family: Family, sections: dict, where: str, settings: dict | Non
 
 def _probe(family: Family, sections: dict) -> str:
     """'' when the combination runs its first steps, else why not (an error other than divergence)."""
-    base = family.data[family.proposed]["/**"]["ros__parameters"]
+    base = family.data[family.proposed][GLOBAL_SECTION]["ros__parameters"]
     try:
         experiment = _experiment(family, sections, family.name, {"duration": 5 * float(base["sample_time"])})
     except ConfigError as error:
@@ -443,7 +443,7 @@ def _proposed_row(family: Family, rows: list) -> Row | None:
     data = family.data[family.proposed]
     estimator = _params(data, "/contour_estimator")["type"]
     controller = _params(data, "/ccc")["type"]
-    axes = data["/**"]["ros__parameters"]["axes"]
+    axes = data[GLOBAL_SECTION]["ros__parameters"]["axes"]
     servos = {f"/{a}/servo": _params(data, f"/{a}/servo") for a in axes}
     return next((r for r in rows if r.combination.estimator == estimator and r.combination.controller == controller
                  and all(r.combination.sections[k] == v for k, v in servos.items())), None)

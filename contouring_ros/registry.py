@@ -5,7 +5,7 @@ of :mod:`contouring_ros.experiment.catalogue` (one module per role); other packa
 group ``contouring_ros.<role>s`` (``contouring_ros.estimators``, ``contouring_ros.controllers`` ...). An
 entry point names either an :class:`Entry` or a class; a class gives
 
-- ``params``: {key: :class:`contouring_ros.config.Param`} (the keys of its section besides the type name),
+- ``params``: {key: :class:`contouring_ros.experiment.schema.Param`} (the keys of its section besides the type name),
 - optionally ``from_section(section, context)`` (a classmethod building it); without one, its constructor
   is called with the section's keys and, by name, what the context holds (``curve``, ``schedule``,
   ``sample_time``, ``axes``, ``n_axes``, ``experiment``, ``axis``, ``position``, ``velocity``,
@@ -37,6 +37,8 @@ from .guard import guard
 
 __all__ = ["Entry", "Role", "BuildContext", "ROLES", "entry_from_class", "section_arguments"]
 
+#: the roles an experiment names a type for, in the order of an experiment file; each has one :class:`Role`
+#: (contouring_ros.experiment.catalogue.ROLES)
 ROLES = ("curve", "schedule", "plant", "disturbance", "servo", "estimator", "controller")
 
 
@@ -135,6 +137,8 @@ class Role(Mapping):
     points of ``contouring_ros.<role>s`` are listed when a name is first looked up."""
 
     def __init__(self, role: str, type_key: str = "type", description: str = ""):
+        if role not in ROLES:
+            raise ValueError(f"unknown role {role!r} (expected one of: {', '.join(ROLES)})")
         self.role, self.type_key, self.group = role, type_key, f"contouring_ros.{role}s"
         self.description = description or f"{role} {type_key}"      # what the type key means (descriptors)
         self._entries: dict = {}

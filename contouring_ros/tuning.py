@@ -71,6 +71,7 @@ import numpy as np
 from .experiment.build import build_controller, build_curve, build_plant, build_servo
 from .experiment.catalogue import CONTROLLERS, PLANTS
 from .experiment.validate import experiment_from_data
+from .experiment.schema import GLOBAL_SECTION
 from .core.margins import axis_loop, coupled_loop, margins, quick_robustness
 from .errors import ConfigError
 from .sweep import apply_settings, score_one, simulate_experiments
@@ -243,7 +244,7 @@ def _gains_from(x, keys: tuple, anchor: dict, decades: float) -> dict:
 
 def _plants(data: dict) -> dict:
     """'/x/plant' -> its parameters, for every axis of the file."""
-    axes = data["/**"]["ros__parameters"]["axes"]
+    axes = data[GLOBAL_SECTION]["ros__parameters"]["axes"]
     return {f"/{a}/plant": data[f"/{a}/plant"]["ros__parameters"] for a in axes}
 
 

@@ -388,3 +388,11 @@ def test_a_plugin_value_that_is_not_finite_is_a_diverged_row_of_a_sweep(hostile_
     assert done.returncode == 0, (done.stdout, done.stderr)
     rows = (tmp_path / "s.csv").read_text().splitlines()[1:]
     assert len(rows) == 2 and all("diverged: plugin 'leaking'" in row for row in rows), rows
+
+
+def test_a_registry_is_only_made_for_a_known_role_and_the_catalogue_has_one_per_role():
+    from contouring_ros.experiment.catalogue import ROLES as CATALOGUE_ROLES
+    from contouring_ros.registry import Role
+    assert tuple(CATALOGUE_ROLES) == ROLES
+    with pytest.raises(ValueError, match="unknown role 'widget'"):
+        Role("widget")

@@ -13,6 +13,7 @@ through the entry point groups ``contouring_ros.<role>s`` (contouring_ros/regist
 """
 from __future__ import annotations
 
+from ... import registry
 from ..ros_yaml import _PARAMETER_NAME
 from ..schema import Param
 from .controllers import CONTROLLERS
@@ -27,8 +28,9 @@ from .shared import GLOBALS, OPTIONAL_NODES
 __all__ = ["CURVES", "SCHEDULES", "DISTURBANCES", "PLANTS", "SERVOS", "ESTIMATORS", "CONTROLLERS", "ROLES",
            "ROLE_TYPES", "GLOBALS", "OPTIONAL_NODES"]
 
-#: role name -> its registry
-ROLES = {role.role: role for role in (CURVES, SCHEDULES, DISTURBANCES, PLANTS, SERVOS, ESTIMATORS, CONTROLLERS)}
+#: role name -> its registry, in the order of registry.ROLES (a role without a registry here fails at import)
+ROLES = {name: {role.role: role for role in (CURVES, SCHEDULES, DISTURBANCES, PLANTS, SERVOS, ESTIMATORS,
+                                             CONTROLLERS)}[name] for name in registry.ROLES}
 #: node section -> (key holding the type name, registry)
 ROLE_TYPES = {"plant": ("model", PLANTS), "servo": ("law", SERVOS),
               "contour_estimator": ("type", ESTIMATORS), "ccc": ("type", CONTROLLERS)}
@@ -40,7 +42,7 @@ def _check_plugin_params(entry) -> None:
     built-in key of the same name."""
     for key, spec in entry.params.items():
         if not isinstance(spec, Param):
-            raise TypeError(f"params[{key!r}]: expected a contouring_ros.config.Param, got {type(spec).__name__}")
+            raise TypeError(f"params[{key!r}]: expected a contouring_ros.experiment.schema.Param, got {type(spec).__name__}")
         if not _PARAMETER_NAME.match(key) or key in ("type", "law", "model"):
             raise TypeError(f"params[{key!r}]: not a usable parameter name")
 
