@@ -12,6 +12,10 @@ _spec = importlib.util.spec_from_file_location("pin_scenario_scores", ROOT / "to
 pin = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(pin)
 PINNED = json.loads(pin.OUT.read_text())
+#: numpy, OpenBLAS and libm builds round the last bits differently (matrix products, trigonometric functions):
+#: between the wheels PyPI served on two days the scores moved by up to 1.2e-12 of their value (the ESO's
+#: scenarios most). A change to a formula, a key's default or a step's order moves them by far more.
+REL = 1e-9
 
 
 def test_every_scenario_file_is_pinned():
@@ -22,5 +26,5 @@ def test_every_scenario_file_is_pinned():
 def test_the_scenario_simulates_to_its_pinned_scores(scenario):
     got, pinned = pin.scenario_scores(CONFIG / scenario), PINNED[scenario]
     assert got["duration"] == pinned["duration"]
-    assert got["mce"] == pytest.approx(pinned["mce"], rel=1e-12, abs=1e-18), "MCE"
-    assert got["tace"] == pytest.approx(pinned["tace"], rel=1e-12, abs=1e-18), "TACE"
+    assert got["mce"] == pytest.approx(pinned["mce"], rel=REL, abs=1e-18), "MCE"
+    assert got["tace"] == pytest.approx(pinned["tace"], rel=REL, abs=1e-18), "TACE"
