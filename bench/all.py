@@ -38,7 +38,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from contouring_ros.bag import node_reports  # noqa: E402
-from contouring_ros.config import load_experiment  # noqa: E402
+from contouring_ros.experiment.files import load_experiment  # noqa: E402
 from contouring_ros.errors import RunError  # noqa: E402
 from contouring_ros.runner import DomainLease, private_environment  # noqa: E402
 from contouring_ros.scoring import miss_rate  # noqa: E402

@@ -38,7 +38,7 @@ import yaml
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from contouring_ros.config import build_loop  # noqa: E402
+from contouring_ros.experiment.build import build_loop  # noqa: E402
 from contouring_ros.core import kernels  # noqa: E402
 from contouring_ros.core.batch import batch_problem, simulate_batch  # noqa: E402
 from contouring_ros.core.simulation import simulate  # noqa: E402

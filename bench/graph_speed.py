@@ -23,7 +23,8 @@ sys.path.insert(0, str(ROOT))
 
 from contouring_ros import graph  # noqa: E402
 from contouring_ros.bag import RUN_METADATA, read_metadata  # noqa: E402
-from contouring_ros.config import build_loop, load_experiment  # noqa: E402
+from contouring_ros.experiment.build import build_loop  # noqa: E402
+from contouring_ros.experiment.files import load_experiment  # noqa: E402
 from contouring_ros.core.simulation import simulate  # noqa: E402
 from contouring_ros.runner import run_graph  # noqa: E402
 

@@ -29,7 +29,8 @@ print(f"{run.complete_steps} {elapsed:.3f} {peak:.1f} {scores.mce * 1e6:.4f}")
 
 def main():
     from contouring_ros.bag import write_simulation
-    from contouring_ros.config import build_loop, load_experiment
+    from contouring_ros.experiment.build import build_loop
+    from contouring_ros.experiment.files import load_experiment
     from contouring_ros.core.simulation import simulate
     config = Path(sys.argv[1]) if len(sys.argv) > 1 else ROOT / "config" / "line3d_newton_ismc.yaml"
     experiment = load_experiment(config)

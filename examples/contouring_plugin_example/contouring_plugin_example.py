@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 
-from contouring_ros.config import Param
+from contouring_ros.experiment.schema import Param
 from contouring_ros.core.estimators import ContourEstimate
 from contouring_ros.core.geometry import signed_error
 
