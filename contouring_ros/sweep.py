@@ -25,7 +25,7 @@ from .experiment.files import load_experiment, recorded_text
 from .experiment.ros_yaml import read_yaml
 from .experiment.schema import GLOBAL_SECTION, ROS_PARAMETERS
 from .experiment.validate import experiment_from_data
-from .core.batch import batch_problem, simulate_batch, structure
+from .core.batch import batch_minimum, batch_problem, simulate_batch, structure
 from .core.simulation import first_divergence, simulate
 from .errors import ConfigError, Diverged, ScoreError, write_atomically
 from .executors import pool as executor
@@ -196,8 +196,9 @@ def _score_loops(experiments: list, from_time: float) -> tuple:
 
 def simulate_experiments(experiments: list) -> tuple:
     """(loops, results, why each ran alone, why each has no result) for ``experiments``: the loops of one
-    structure advance as one vectorised batch where every class has a batch path, the others one by one;
-    a result is None where the run diverged (and the failure says how)."""
+    structure advance as one vectorised batch where every class has a batch path and the group is at least
+    as large as its classes' :func:`~contouring_ros.core.batch.batch_minimum` (smaller groups cost less one
+    by one), the others one by one; a result is None where the run diverged (and the failure says how)."""
     loops = [build_loop(e) for e in experiments]
     results, alone, groups = [None] * len(loops), [""] * len(loops), {}
     failures = [""] * len(loops)
@@ -209,6 +210,10 @@ def simulate_experiments(experiments: list) -> tuple:
         members = [loops[i] for i in group]
         why = batch_problem(members if len(members) > 1 else members * 2) \
             or ("" if len(members) > 1 else "too few combinations of one structure to batch")
+        smallest, setter = batch_minimum(members[0])
+        if not why and len(members) < smallest:
+            why = (f"{len(members)} combinations of one structure run faster one by one: a batch with the "
+                   f"{setter} pays off from {smallest}")
         batch = None
         if not why:
             try:

@@ -22,7 +22,7 @@ import numpy as np
 from .interpolation import Reference, reference
 from .simulation import ControlLoop, SimulationResult, step_time
 
-__all__ = ["NotBatchable", "stack", "batch_problem", "batchable", "structure", "simulate_batch"]
+__all__ = ["NotBatchable", "stack", "batch_problem", "batchable", "batch_minimum", "structure", "simulate_batch"]
 
 
 class NotBatchable(Exception):
@@ -110,6 +110,20 @@ def stack(objects: list):
         if name not in kept:
             setattr(out, name, _stack_value(f"{cls.__name__}.{name}", [vars(o)[name] for o in objects]))
     return out
+
+
+def batch_minimum(loop: ControlLoop) -> tuple:
+    """(members, class): the fewest members from which a batch of ``loop``'s structure costs less CPU than
+    its runs one by one, and the class that sets it (None where every class pays off from two). A class
+    states it as ``batch_minimum`` (an attribute or a property; default 2) where its batch path pays a
+    cost per step that does not shrink with the batch, such as an iteration that runs until the slowest
+    member has converged (bench/batch_speed.py --batch N measures it)."""
+    most, which = 2, None
+    for part in (loop.curve, loop.schedule, *loop.plants, *loop.servos, loop.estimator, loop.controller):
+        members = getattr(part, "batch_minimum", 2)
+        if members > most:
+            most, which = members, type(part).__name__
+    return most, which
 
 
 def structure(loop: ControlLoop) -> tuple:

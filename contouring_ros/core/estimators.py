@@ -189,6 +189,13 @@ class NewtonEstimator:
     #: has a batch path, :meth:`step_batch` (:mod:`contouring_ros.core.batch`)
     batchable = True
 
+    #: the batch size from which the pure path's batch iteration costs less than the runs one by one: a batch
+    #: step iterates until its slowest member has converged (39-42 iterations a step on paper 000's files),
+    #: each iteration a few numpy calls whose cost hardly depends on the batch size (bench/batch_speed.py
+    #: --batch N on this 2-core machine: the default experiment breaks even at 16 members, a butterfly at
+    #: about 10)
+    PURE_BATCH_MINIMUM = 12
+
     def __init__(self, curve: Curve, k_prime: float, c_prime: float, theta0: float, inner_step: float,
                  tolerance: float = 1e-9, max_iterations: int = 200, branch_check: BranchCheck | None = None):
         self.curve = curve
@@ -207,6 +214,12 @@ class NewtonEstimator:
         self.recoveries = 0
         self.cap_reached = 0
         self.iterations = 0
+
+    @property
+    def batch_minimum(self) -> int:
+        """:data:`PURE_BATCH_MINIMUM`, or 2 where the compiled kernel runs the batch (one member after another)."""
+        compiled = kernels.ENABLED and type(self.curve) is Parabola and self.curve.dimension == 2
+        return 2 if compiled else self.PURE_BATCH_MINIMUM
 
     def step(self, reference, position) -> ContourEstimate:
         capped = self._iterate(position)

@@ -59,3 +59,34 @@ def test_a_sweep_csv_that_cannot_be_written_leaves_the_earlier_file_whole(tmp_pa
     assert len(errors) == 1 and str(out) in errors[0] and "cannot write it" in errors[0], done.stderr
     assert out.read_text() == "a whole earlier sweep\n"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["short.yaml", "sweep.csv"]
+
+
+def test_a_newton_group_smaller_than_its_batch_minimum_runs_one_by_one_with_the_batch_s_results(monkeypatch):
+    """The Newton estimate's batch iterates until its slowest member converges, at a cost per step that hardly
+    depends on the batch size: below NewtonEstimator.batch_minimum members the runs go one by one (the row
+    says why), and give what the batch gives (on the parabola bit for bit)."""
+    from contouring_ros.core import kernels
+    from contouring_ros.core.batch import batch_minimum
+    from contouring_ros.core.estimators import NewtonEstimator
+    from contouring_ros.sweep import experiments_for, simulate_experiments
+    experiments = [e for _, e in experiments_for(shortened(DEFAULT, 0.2), [{"ccc.kp": kp} for kp in (0.5, 1.0, 2.0)])]
+    minimum, setter = batch_minimum(build_loop(experiments[0]))
+    assert (minimum, setter) == ((2, None) if kernels.ENABLED else (NewtonEstimator.PURE_BATCH_MINIMUM, "NewtonEstimator"))
+    _, alone, alone_why, failures = simulate_experiments(experiments)
+    assert failures == ["", "", ""]
+    if not kernels.ENABLED:
+        assert all(f"pays off from {NewtonEstimator.PURE_BATCH_MINIMUM}" in why for why in alone_why), alone_why
+    monkeypatch.setattr(NewtonEstimator, "PURE_BATCH_MINIMUM", 2)
+    _, batch, batch_why, _ = simulate_experiments(experiments)
+    assert batch_why == ["", "", ""]
+    for a, b in zip(alone, batch):
+        for name in ("position", "command", "estimate_vector", "theta"):
+            assert (getattr(a, name) == getattr(b, name)).all(), name
+
+
+def test_a_class_without_a_batch_minimum_batches_from_two_members():
+    from contouring_ros.core.batch import batch_minimum
+    from contouring_ros.sweep import experiments_for
+    _, experiment = experiments_for(shortened(DEFAULT.parent / "paper000_mech_lag_tangent_uv.yaml", 0.1), [{}])[0]
+    assert experiment.estimator["type"] == "tangent_line"
+    assert batch_minimum(build_loop(experiment)) == (2, None)

@@ -333,7 +333,14 @@ def test_loops_of_a_class_without_batch_path_are_not_batchable(unbatched_control
     assert batch_problem(loops) == "_Unbatched has no batch path" and not batchable(loops)
 
 
-def test_sweep_vectorises_each_structure():
+@pytest.fixture
+def newton_batches_from_two(monkeypatch):
+    """The Newton estimate batches from two members (below its batch_minimum a sweep runs it one by one)."""
+    from contouring_ros.core.estimators import NewtonEstimator
+    monkeypatch.setattr(NewtonEstimator, "PURE_BATCH_MINIMUM", 2)
+
+
+def test_sweep_vectorises_each_structure(newton_batches_from_two):
     text = shortened(DEFAULT, 0.3)
     # with and without the disturbance observer: two structures, each its own vectorised batch
     rows = run_sweep(text, parse_grid(["ccc.kp=0.5,1,2,4", "x/servo.observer=true,false"]), workers=1)
@@ -357,7 +364,7 @@ def _mce(loop):
     return score_run(loop.curve, simulate(loop)).mce
 
 
-def test_sweep_batches_each_structure_apart_when_numbers_change_it():
+def test_sweep_batches_each_structure_apart_when_numbers_change_it(newton_batches_from_two):
     # 0 branch-check samples means no branch check: a different structure from the same-shaped file
     text = shortened(DEFAULT, 0.2)
     rows = run_sweep(text, parse_grid(["ccc.kp=0.5,1,2,4", "contour_estimator.branch_check_samples=0,256"]), workers=1)
