@@ -80,3 +80,26 @@ def cli_with_file_size_limit(args, limit_bytes: int, cwd=ROOT):
         resource.setrlimit(resource.RLIMIT_FSIZE, (limit_bytes, limit_bytes))
     return subprocess.run([sys.executable, "-m", "contouring_ros.cli", *args], cwd=cwd, capture_output=True,
                           text=True, preexec_fn=limit, timeout=300)
+
+
+#: the signals of a run that the graph's bag and the in-process simulation must hold bit for bit alike
+SIGNALS = ["theta", "reference_position", "reference_velocity", "position", "velocity", "estimate_theta",
+           "estimate_vector", "estimate_signed", "correction", "command"]
+
+
+def assert_graph_equals_simulation(experiment_path, bag):
+    """The bag of a lockstep graph run of ``experiment_path`` holds what the in-process simulation computes,
+    bit for bit, and scores the same."""
+    import numpy as np
+
+    from contouring_ros.experiment.build import build_loop
+    from contouring_ros.experiment.files import load_experiment
+    from contouring_ros.core.simulation import simulate
+    from contouring_ros.scoring import read_run, score_bag, score_run
+    loop = build_loop(load_experiment(experiment_path))
+    expected = simulate(loop)
+    recorded = read_run(bag)
+    assert recorded.complete_steps == loop.n_steps
+    for name in SIGNALS + ["time", "reference_acceleration"]:
+        np.testing.assert_array_equal(getattr(recorded.result, name), getattr(expected, name), err_msg=name)
+    assert score_bag(bag)[0] == score_run(loop.curve, expected)

@@ -25,13 +25,29 @@ __all__ = ["unit_tangent", "left_normal", "curvature", "signed_error", "FrenetFr
 # that every build rounds alike (the batch path's elementwise products and short reductions agree with
 # them to the last bit or so).
 
-def dot(a, b) -> float:
-    """a . b of two vectors as a float: a[0] b[0] + a[1] b[1] + ..., left to right."""
-    a, b = np.asarray(a, dtype=float).tolist(), np.asarray(b, dtype=float).tolist()
+def _floats(a) -> list:
+    """A vector or matrix as (nested) Python floats."""
+    return np.asarray(a, dtype=float).tolist()
+
+
+def _sum_of_products(a: list, b: list) -> float:
+    """a[0] b[0] + a[1] b[1] + ..., left to right, of two lists of floats."""
     total = a[0] * b[0]
     for x, y in zip(a[1:], b[1:]):
         total += x * y
     return total
+
+
+def dot(a, b) -> float:
+    """a . b of two vectors as a float: a[0] b[0] + a[1] b[1] + ..., left to right."""
+    return _sum_of_products(_floats(a), _floats(b))
+
+
+def cross3(a, b) -> np.ndarray:
+    """a x b of two 3-vectors: (a1 b2 - a2 b1, a2 b0 - a0 b2, a0 b1 - a1 b0), the products and differences
+    np.cross forms, in its order, without its per-call overhead."""
+    (a0, a1, a2), (b0, b1, b2) = _floats(a), _floats(b)
+    return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
 
 
 def norm(a) -> float:
@@ -41,13 +57,14 @@ def norm(a) -> float:
 
 def matvec(m, v) -> np.ndarray:
     """m v for a small matrix (rows . v, see :func:`dot`)."""
-    return np.array([dot(row, v) for row in np.asarray(m, dtype=float)])
+    v = _floats(v)
+    return np.array([_sum_of_products(row, v) for row in _floats(m)])
 
 
 def matmul(a, b) -> np.ndarray:
     """a b for small matrices (rows of a . columns of b, see :func:`dot`)."""
-    columns = np.asarray(b, dtype=float).T
-    return np.array([[dot(row, column) for column in columns] for row in np.asarray(a, dtype=float)])
+    columns = _floats(np.asarray(b, dtype=float).T)
+    return np.array([[_sum_of_products(row, column) for column in columns] for row in _floats(a)])
 
 
 # Their batch forms (:mod:`contouring_ros.core.batch`): the same products summed in the same order, one per
@@ -142,15 +159,15 @@ def frenet_axes(curve: Curve, theta: float) -> tuple:
         return np.column_stack([alpha, left_normal(alpha)]), kappa, 0.0, speed
     if curve.dimension != 3:
         raise ValueError("the Frenet frame is defined for planar and spatial (2-D and 3-D) contours")
-    cross = np.cross(d1, d2)
+    cross = cross3(d1, d2)
     cross_norm = norm(cross)
     if cross_norm <= 1e-12 * speed**3:
         helper = np.eye(3)[int(np.argmin(np.abs(alpha)))]
-        beta = np.cross(np.cross(alpha, helper), alpha)
+        beta = cross3(cross3(alpha, helper), alpha)
         beta /= norm(beta)
-        return np.column_stack([alpha, beta, np.cross(alpha, beta)]), 0.0, 0.0, speed
+        return np.column_stack([alpha, beta, cross3(alpha, beta)]), 0.0, 0.0, speed
     gamma = cross / cross_norm
-    return (np.column_stack([alpha, np.cross(gamma, alpha), gamma]), cross_norm / speed**3,
+    return (np.column_stack([alpha, cross3(gamma, alpha), gamma]), cross_norm / speed**3,
             dot(cross, d3) / cross_norm**2, speed)
 
 

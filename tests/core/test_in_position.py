@@ -174,8 +174,7 @@ def test_the_graph_waits_as_the_simulation_does(tmp_path, observer):
     """The interpolator node takes every axis state and waits at each exact stop on the states of the
     step it is paced by: the graph records what the in-process simulation computes, bit for bit (with the
     paper's estimate, whose axes wait, and with the plan correction a tool path's servos get by default)."""
-    from test_graph import _assert_identical
-
+    from conftest import assert_graph_equals_simulation as _assert_identical
     from contouring_ros.runner import run_graph
     path = square_experiment(tmp_path, "paper000_b_ismc_h50_newton", 1e-5, side_mm=2, feed=600, duration=1.2,
                              observer=observer)

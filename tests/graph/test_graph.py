@@ -1,16 +1,13 @@
 """The node graph: lockstep identity with the in-process simulation, determinism, bags readable by others."""
-import numpy as np
 import pytest
 
 from contouring_ros.config import build_loop, load_experiment
 from contouring_ros.core.simulation import simulate
 from contouring_ros.runner import run_graph
-from contouring_ros.scoring import read_run, score_bag, score_run
-from conftest import CONFIG, DEFAULT, ROOT, machine_pace, shortened
+from contouring_ros.scoring import read_run, score_bag
+from conftest import CONFIG, DEFAULT, ROOT, assert_graph_equals_simulation as _assert_identical, machine_pace, shortened
 
 pytestmark = [pytest.mark.graph, pytest.mark.slow]
-SIGNALS = ["theta", "reference_position", "reference_velocity", "position", "velocity", "estimate_theta",
-           "estimate_vector", "estimate_signed", "correction", "command"]
 
 
 @pytest.fixture(scope="module")
@@ -21,16 +18,6 @@ def default_runs(tmp_path_factory):
     path.write_text(shortened(DEFAULT, 0.4))
     bags = [run_graph(path, directory / f"run{i}.mcap") for i in range(2)]
     return path, bags
-
-
-def _assert_identical(experiment_path, bag):
-    loop = build_loop(load_experiment(experiment_path))
-    expected = simulate(loop)
-    recorded = read_run(bag)
-    assert recorded.complete_steps == loop.n_steps
-    for name in SIGNALS + ["time", "reference_acceleration"]:
-        np.testing.assert_array_equal(getattr(recorded.result, name), getattr(expected, name), err_msg=name)
-    assert score_bag(bag)[0] == score_run(loop.curve, expected)
 
 
 def test_graph_reproduces_simulation_exactly(default_runs):
