@@ -396,3 +396,15 @@ def test_a_registry_is_only_made_for_a_known_role_and_the_catalogue_has_one_per_
     assert tuple(CATALOGUE_ROLES) == ROLES
     with pytest.raises(ValueError, match="unknown role 'widget'"):
         Role("widget")
+
+
+def test_a_plugin_key_named_like_a_built_in_one_gets_its_own_range_not_the_built_in_s():
+    """Ranges belong to each Param: a plugin's 'gain' without bounds gets the float default, not the range of
+    the built-in plants' 'gain' (1e-9 .. 1e9)."""
+    from contouring_ros.experiment.catalogue import PLANTS
+    from contouring_ros.experiment.schema import DEFAULT_BOUNDS, Param, _value
+    built_in = PLANTS["first_order_velocity"]["gain"].bounds
+    assert built_in[1] < 1e10 <= DEFAULT_BOUNDS["float"][1]
+    assert _value("plugin.yaml", "/x/plant.gain", Param("float"), 1e10) == 1e10
+    with pytest.raises(ConfigError, match="expected a value from"):
+        _value("file.yaml", "/x/plant.gain", PLANTS["first_order_velocity"]["gain"], 1e10)
