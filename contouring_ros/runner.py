@@ -313,8 +313,20 @@ class _Terminated(Exception):
     """SIGTERM reached the runner."""
 
 
-def _raise_terminated(signum, frame):
-    raise _Terminated()
+#: SIGTERMs received during the current run. The handler only notes the signal, and the runner raises
+#: _Terminated where it checks (after starting each node, at every poll of the nodes, 20 times a second): an
+#: exception raised in the handler itself is lost, with a traceback on stderr, where the signal lands in code
+#: whose exceptions Python ignores (an at-fork callback while a node is started, a finaliser).
+_TERMINATIONS: list = []
+
+
+def _note_termination(signum, frame):
+    _TERMINATIONS.append(signum)
+
+
+def _raise_pending_termination() -> None:
+    if _TERMINATIONS:
+        raise _Terminated()
 
 
 def _composed_process(label: str, experiment_path, bag: Path, start_time: float, namespace: str,
@@ -421,7 +433,8 @@ def run_graph(experiment_path, bag=None, *, timeout: float | None = None, domain
         nodes = composed_command(experiment_path.resolve(), bag.resolve(), start_time, namespace)
     say = progress or (lambda message: None)
     in_main_thread = threading.current_thread() is threading.main_thread()
-    previous_handler = signal.signal(signal.SIGTERM, _raise_terminated) if in_main_thread else None
+    _TERMINATIONS.clear()
+    previous_handler = signal.signal(signal.SIGTERM, _note_termination) if in_main_thread else None
     started, wall_started = time.monotonic(), time.time()
     try:
         with DomainLease(domain_id, shared=shared_domain) as lease:
@@ -441,6 +454,7 @@ def run_graph(experiment_path, bag=None, *, timeout: float | None = None, domain
                                                     stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
                                                     pass_fds=lease.lock_fds(),
                                                     preexec_fn=lambda node=node: node.preexec(runner_pid))
+                    _raise_pending_termination()
                 if on_started is not None:
                     on_started(nodes)
                 _watch(nodes, timeout, started, say)
@@ -467,6 +481,7 @@ def run_graph(experiment_path, bag=None, *, timeout: float | None = None, domain
         parameter_directory.cleanup()
         if in_main_thread:
             signal.signal(signal.SIGTERM, previous_handler)
+            _TERMINATIONS.clear()
     say(f"ran {experiment.n_steps} steps in {time.monotonic() - started:.1f} s wall time")
     return bag
 
@@ -475,6 +490,7 @@ def _watch(nodes, timeout, started, say):
     """Poll the node processes until the run completes; raise RunError naming the cause of a failure."""
     recorder_done = None
     while True:
+        _raise_pending_termination()
         codes = {node.name: node.process.poll() for node in nodes}
         early = [node for node in nodes if codes[node.name] == 0 and node.exited_early()]
         if early:           # the others would stall for want of its messages: name it, not them
