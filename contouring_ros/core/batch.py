@@ -119,7 +119,7 @@ def batch_minimum(loop: ControlLoop) -> tuple:
     cost per step that does not shrink with the batch, such as an iteration that runs until the slowest
     member has converged (bench/batch_speed.py --batch N measures it)."""
     most, which = 2, None
-    for part in (loop.curve, loop.schedule, *loop.plants, *loop.servos, loop.estimator, loop.controller):
+    for part in _parts(loop):
         members = getattr(part, "batch_minimum", 2)
         if members > most:
             most, which = members, type(part).__name__
@@ -134,8 +134,12 @@ def structure(loop: ControlLoop) -> tuple:
             return type(obj).__name__
         return (type(obj).__name__,) + tuple((name, classes(value)) for name, value in vars(obj).items()
                                               if hasattr(value, "__dict__") or value is None)
-    parts = (loop.curve, loop.schedule, *loop.plants, *loop.servos, loop.estimator, loop.controller)
-    return (loop.n_steps, loop.sample_time) + tuple(classes(part) for part in parts)
+    return (loop.n_steps, loop.sample_time) + tuple(classes(part) for part in _parts(loop))
+
+
+def _parts(loop: ControlLoop) -> tuple:
+    """The objects a loop is built of: curve, schedule, plants, servos, estimator, controller."""
+    return (loop.curve, loop.schedule, *loop.plants, *loop.servos, loop.estimator, loop.controller)
 
 
 def batch_problem(loops: list) -> str | None:

@@ -28,9 +28,9 @@ from .shared import GLOBALS, OPTIONAL_NODES
 __all__ = ["CURVES", "SCHEDULES", "DISTURBANCES", "PLANTS", "SERVOS", "ESTIMATORS", "CONTROLLERS", "ROLES",
            "ROLE_TYPES", "GLOBALS", "OPTIONAL_NODES"]
 
+_REGISTRIES = {role.role: role for role in (CURVES, SCHEDULES, DISTURBANCES, PLANTS, SERVOS, ESTIMATORS, CONTROLLERS)}
 #: role name -> its registry, in the order of registry.ROLES (a role without a registry here fails at import)
-ROLES = {name: {role.role: role for role in (CURVES, SCHEDULES, DISTURBANCES, PLANTS, SERVOS, ESTIMATORS,
-                                             CONTROLLERS)}[name] for name in registry.ROLES}
+ROLES = {name: _REGISTRIES[name] for name in registry.ROLES}
 #: node section -> (key holding the type name, registry)
 ROLE_TYPES = {"plant": ("model", PLANTS), "servo": ("law", SERVOS),
               "contour_estimator": ("type", ESTIMATORS), "ccc": ("type", CONTROLLERS)}
