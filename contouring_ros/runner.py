@@ -310,13 +310,19 @@ class DomainLease:
 
 
 class _Terminated(Exception):
-    """SIGTERM reached the runner."""
+    """SIGINT or SIGTERM reached the runner while it started or watched the nodes."""
+
+    def __init__(self, signum: int):
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
 
 
-#: SIGTERMs received during the current run. The handler only notes the signal, and the runner raises
-#: _Terminated where it checks (after starting each node, at every poll of the nodes, 20 times a second): an
-#: exception raised in the handler itself is lost, with a traceback on stderr, where the signal lands in code
-#: whose exceptions Python ignores (an at-fork callback while a node is started, a finaliser).
+#: SIGINTs and SIGTERMs received during the current run. The handler only notes the signal, and the runner
+#: raises _Terminated where it checks (after starting each node, at every poll of the nodes, 20 times a
+#: second): an exception raised in the handler itself (Python's own SIGINT handler raises KeyboardInterrupt
+#: there) is lost, with a traceback on stderr, where the signal lands in code whose exceptions Python ignores
+#: (an at-fork callback while a node is started, such as logging's lock release, or a finaliser), and the run
+#: went on to exit 0.
 _TERMINATIONS: list = []
 
 
@@ -326,7 +332,19 @@ def _note_termination(signum, frame):
 
 def _raise_pending_termination() -> None:
     if _TERMINATIONS:
-        raise _Terminated()
+        raise _Terminated(_TERMINATIONS[0])
+
+
+def _note_interruptions() -> dict:
+    """Install :func:`_note_termination` for SIGTERM, and for SIGINT unless SIGINT is ignored (a runner
+    started in the background by a shell without job control keeps ignoring Ctrl-C meant for the
+    foreground); return the handlers it replaced."""
+    _TERMINATIONS.clear()
+    replaced = {}
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        if signal.getsignal(sig) is not signal.SIG_IGN:
+            replaced[sig] = signal.signal(sig, _note_termination)
+    return replaced
 
 
 def _composed_process(label: str, experiment_path, bag: Path, start_time: float, namespace: str,
@@ -433,8 +451,7 @@ def run_graph(experiment_path, bag=None, *, timeout: float | None = None, domain
         nodes = composed_command(experiment_path.resolve(), bag.resolve(), start_time, namespace)
     say = progress or (lambda message: None)
     in_main_thread = threading.current_thread() is threading.main_thread()
-    _TERMINATIONS.clear()
-    previous_handler = signal.signal(signal.SIGTERM, _note_termination) if in_main_thread else None
+    replaced_handlers = _note_interruptions() if in_main_thread else {}
     started, wall_started = time.monotonic(), time.time()
     try:
         with DomainLease(domain_id, shared=shared_domain) as lease:
@@ -459,7 +476,7 @@ def run_graph(experiment_path, bag=None, *, timeout: float | None = None, domain
                     on_started(nodes)
                 _watch(nodes, timeout, started, say)
             except (KeyboardInterrupt, _Terminated) as interrupt:
-                terminated = isinstance(interrupt, _Terminated)
+                terminated = getattr(interrupt, "signum", signal.SIGINT) == signal.SIGTERM
                 _stop(nodes)          # every node gone (the recorder has closed the bag) before we say what exists
                 what = "SIGTERM" if terminated else "SIGINT"
                 if bag.is_file() and bag.stat().st_size > 0:
@@ -479,9 +496,14 @@ def run_graph(experiment_path, bag=None, *, timeout: float | None = None, domain
                     clean_shared_memory(wall_started - 1.0)
     finally:
         parameter_directory.cleanup()
-        if in_main_thread:
-            signal.signal(signal.SIGTERM, previous_handler)
-            _TERMINATIONS.clear()
+        for sig, handler in replaced_handlers.items():
+            signal.signal(sig, handler)
+        late = list(_TERMINATIONS)
+        _TERMINATIONS.clear()
+    if late:        # it landed after the last poll: the run is whole, and the signal is still answered
+        raise Interrupted(f"interrupted by {signal.Signals(late[0]).name} as the run ended: every node had "
+                          f"exited; the bag {bag} holds the whole run", bag=bag,
+                          code=143 if late[0] == signal.SIGTERM else 130)
     say(f"ran {experiment.n_steps} steps in {time.monotonic() - started:.1f} s wall time")
     return bag
 

@@ -108,3 +108,52 @@ def test_the_recorder_counts_the_steps_it_has_recorded():
     assert recorder.current_step() == 3000
     recorder.experiment = SimpleNamespace(timing="realtime")
     assert recorder.current_step() == 2999
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_a_signal_landing_where_python_ignores_exceptions_still_interrupts_the_run(sig):
+    """A signal that arrives in code whose exceptions Python ignores (here a finaliser; in a run, logging's
+    at-fork lock release while a node is started) is not lost: the runner's handler only notes it, and the
+    next check raises it. With Python's own SIGINT handler the KeyboardInterrupt died in the finaliser and
+    the run went on to exit 0."""
+    import os
+    from contouring_ros import runner
+
+    class SignalledWhileFinalised:
+        def __del__(self):
+            os.kill(os.getpid(), sig)
+            for _ in range(1000):       # the handler runs between bytecodes, here inside the finaliser
+                pass
+
+    previous = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        replaced = runner._note_interruptions()
+        try:
+            SignalledWhileFinalised()       # dropped at once: __del__ runs, its exceptions are ignored
+            with pytest.raises(runner._Terminated) as raised:
+                runner._raise_pending_termination()
+            assert raised.value.signum == sig
+        finally:
+            for s, handler in replaced.items():
+                signal.signal(s, handler)
+            runner._TERMINATIONS.clear()
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+
+
+def test_an_ignored_sigint_stays_ignored_during_a_run():
+    """A runner started in the background by a shell without job control ignores SIGINT; the run keeps it so."""
+    from contouring_ros import runner
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        replaced = runner._note_interruptions()
+        try:
+            assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN
+            assert signal.SIGTERM in replaced
+        finally:
+            for s, handler in replaced.items():
+                signal.signal(s, handler)
+    finally:
+        signal.signal(signal.SIGINT, previous)
