@@ -28,7 +28,8 @@ import numpy as np
 from . import cdr, graph
 from .core.simulation import SimulationResult, first_divergence, step_time
 from .errors import BagError, ContouringError
-from .experiment.build import build_schedule
+from .core.interpolation import reference_ahead
+from .experiment.build import build_curve, build_schedule, reference_preview
 from .experiment.catalogue import GLOBALS
 from .experiment.model import Experiment
 from .experiment.schema import MAX_FILE_BYTES
@@ -988,7 +989,9 @@ def write_simulation(path, experiment, result) -> Path:
     names = axes + [graph.THETA_NAME]
     metadata = {EXPERIMENT_METADATA: {"yaml": experiment.text, "axes": ",".join(axes),
                                       "steps": str(len(result.time)), "sample_time": repr(experiment.sample_time)}}
-    schedule = build_schedule(experiment)
+    preview = reference_preview(experiment)
+    curve = build_curve(experiment) if preview else None
+    schedule = build_schedule(experiment, curve)
     with BagWriter(path, [(t.name, t.type) for t in graph.topics(axes)], metadata=metadata) as writer:
         for k in range(len(result.time)):
             stamp = graph.step_to_stamp(k, ts_ns)
@@ -996,9 +999,13 @@ def write_simulation(path, experiment, result) -> Path:
             # theta's rates as the interpolator computes them (the result keeps theta alone)
             _, theta_dot, theta_ddot = schedule(step_time(k, experiment.sample_time))
             writer.write(graph.CLOCK, ns, cdr.encode_clock(*stamp))
+            # the preview a servo reading ahead got (the plan's times without exact stops' holds)
+            ahead = cdr.preview_points(reference_ahead(curve, schedule, k, result.time[k], preview,
+                                                       experiment.sample_time), ts_ns) if preview else ()
             writer.write(graph.REFERENCE, ns, cdr.encode_joint_trajectory(
                 *stamp, names, [*result.reference_position[k], result.theta[k]],
-                [*result.reference_velocity[k], float(theta_dot)], [*result.reference_acceleration[k], float(theta_ddot)]))
+                [*result.reference_velocity[k], float(theta_dot)], [*result.reference_acceleration[k], float(theta_ddot)],
+                preview=ahead))
             for i, axis in enumerate(axes):
                 writer.write(graph.state_topic(axis), ns, cdr.encode_joint_state(
                     *stamp, [axis], [result.position[k, i]], [result.velocity[k, i]]))

@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 
 __all__ = ["Stamp", "Header", "JointStateData", "TrajectoryPointData", "JointTrajectoryData", "stamp_ns",
            "encode_joint_state", "decode_joint_state", "encode_joint_trajectory", "decode_joint_trajectory",
+           "preview_points",
            "encode_clock", "array_layout", "values_struct"]
 
 _ENCAPSULATION = b"\x00\x01\x00\x00"   # CDR, little endian
@@ -312,14 +313,18 @@ def decode_joint_state(data: bytes) -> JointStateData:
     return _JOINT_STATE.decode(data, _assemble_joint_state)
 
 
-def _write_joint_trajectory(w: _Writer, stamp, time_from_start, joint_names, positions, velocities,
-                            accelerations):
+def _write_joint_trajectory(w: _Writer, stamp, *rest):
+    """``rest``: one time_from_start per point, the joint names, then each point's positions, velocities and
+    accelerations (no effort)."""
+    points = (len(rest) - 1) // 4
+    times, joint_names, arrays = rest[:points], rest[points], rest[points + 1:]
     w.header(*stamp)
     w.strings(joint_names)
-    w.pack("I", 4, 1)
-    for values in (positions, velocities, accelerations, ()):
-        w.doubles(values)
-    w.stamp(*time_from_start)
+    w.pack("I", 4, points)
+    for i in range(points):
+        for values in (*arrays[3 * i:3 * i + 3], ()):
+            w.doubles(values)
+        w.stamp(*times[i])
 
 
 def _assemble_joint_trajectory(parsed: JointTrajectoryData, stamps, arrays) -> JointTrajectoryData:
@@ -328,12 +333,25 @@ def _assemble_joint_trajectory(parsed: JointTrajectoryData, stamps, arrays) -> J
 
 
 def encode_joint_trajectory(sec: int, nanosec: int, joint_names, positions, velocities, accelerations,
-                            time_from_start: tuple = (0, 0)) -> bytes:
-    """trajectory_msgs/msg/JointTrajectory with a single point (no effort)."""
+                            time_from_start: tuple = (0, 0), preview=()) -> bytes:
+    """trajectory_msgs/msg/JointTrajectory: the point of (positions, velocities, accelerations) at
+    ``time_from_start``, then one point per ``preview`` item (time_from_start, positions): the reference
+    ahead, positions only (no effort in any point)."""
     joint_names = tuple(joint_names)
-    return _JOINT_TRAJECTORY.encode((joint_names, len(positions), len(velocities), len(accelerations)),
-                                    [(sec, nanosec), tuple(time_from_start)], (positions, velocities, accelerations),
-                                    joint_names)
+    times = [tuple(time_from_start)] + [tuple(t) for t, _ in preview]
+    arrays = [positions, velocities, accelerations]
+    for _, ahead in preview:
+        arrays += [ahead, (), ()]
+    return _JOINT_TRAJECTORY.encode((joint_names, tuple(len(a) for a in arrays)), [(sec, nanosec), *times],
+                                    arrays, joint_names)
+
+
+def preview_points(ahead, sample_time_ns: int) -> list:
+    """The preview points of a /reference message (``preview`` of :func:`encode_joint_trajectory`): for each
+    step j = 1, 2, ... of ``ahead`` (a core Reference with a leading axis), time_from_start j Ts and the
+    positions of every axis and theta."""
+    return [(divmod(j * sample_time_ns, 1_000_000_000), [*position, float(theta)])
+            for j, (position, theta) in enumerate(zip(ahead.position, ahead.theta), start=1)]
 
 
 def decode_joint_trajectory(data: bytes) -> JointTrajectoryData:

@@ -10,7 +10,7 @@ before every node and topic: /m1/x/plant publishes /m1/x/state); :func:`resolve`
 | topic               | type                             | publisher          | content (SI units)                                  |
 |---------------------|----------------------------------|--------------------|-----------------------------------------------------|
 | /clock              | rosgraph_msgs/msg/Clock          | interpolator       | simulated time t_k, once step k is under way        |
-| /reference          | trajectory_msgs/msg/JointTrajectory | interpolator    | joint_names = axes + [theta]; one point: positions [m], velocities [m/s], accelerations [m/s^2] of each axis, then theta and its derivatives |
+| /reference          | trajectory_msgs/msg/JointTrajectory | interpolator    | joint_names = axes + [theta]; one point: positions [m], velocities [m/s], accelerations [m/s^2] of each axis, then theta and its derivatives; then the preview points a ZPETC servo reads (positions only) |
 | /<axis>/state       | sensor_msgs/msg/JointState       | /<axis>/plant      | name [axis]; position [m], velocity [m/s] at step k |
 | /contour_error      | sensor_msgs/msg/JointState       | /contour_estimator | name = axes + [contour_error, foot_point_parameter]; position = error vector [m], signed error [m], theta_hat |
 | /ccc/correction     | sensor_msgs/msg/JointState       | /ccc               | name = axes; effort = correction per axis [command units] |
@@ -220,16 +220,20 @@ def recorded_topics(axes, ccc_takes_state: bool = True, interpolator_takes_state
 
 def message_problem(topic: Topic, msg) -> str | None:
     """What is wrong with a decoded message of ``topic`` (wrong joint names, wrong array length, non-finite
-    value), or None."""
+    value), or None. A /reference message may carry preview points after its first (positions only)."""
     holder = msg
     if topic.names is not None:
         names = msg.joint_names if topic.type == "trajectory_msgs/msg/JointTrajectory" else msg.name
         if tuple(names) != topic.names:
             return f"joint names {list(names)}, expected {list(topic.names)}"
     if topic.type == "trajectory_msgs/msg/JointTrajectory":
-        if len(msg.points) != 1:
-            return f"expected 1 trajectory point, got {len(msg.points)}"
+        if not msg.points:
+            return "no trajectory point"
         holder = msg.points[0]
+        for j, ahead in enumerate(msg.points[1:], start=1):     # the reference preview: positions only
+            if len(ahead.positions) != len(msg.joint_names) or not all(map(math.isfinite, ahead.positions)):
+                return f"preview point {j} has positions {list(ahead.positions)}, expected {len(msg.joint_names)} " \
+                       "finite values"
     for name, length in topic.layout:
         values = getattr(holder, name)
         if len(values) != length:

@@ -15,7 +15,9 @@ entry point names either an :class:`Entry` or a class; a class gives
   ``needs_state = True`` when it uses the reference and the axis states (the CCC node then takes them),
   ``gains``: the keys the benchmark tunes (default: its float keys whose names start with 'k'),
   ``check_combination(estimator, controller, servos)`` -> None or (key, message);
-  servos: ``direct = True`` when it passes the controller's output through;
+  servos: ``direct = True`` when it passes the controller's output through; ``preview_steps(section,
+  experiment, axis)`` -> how many steps of reference beyond the current one its law reads (its object's
+  ``preview``, given through ``look_ahead``; default none);
   plants: ``varied``: the physical parameters the benchmark's robustness checks and mismatch draws vary.
 
 Entry points are listed once per role (importlib.metadata) and each is imported when its type is first
@@ -53,6 +55,7 @@ class Entry:
     combination: Callable | None = None   # controllers: (estimator, controller, servos) -> None | (key, message)
     whole_command: bool = False           # controllers: computes every axis' whole command
     direct: bool = False                  # servos: passes the contour controller's output through
+    preview: Callable | None = None       # servos: (section, experiment, axis) -> steps of reference ahead it reads
     needs_state: bool = False             # controllers: uses the reference and the axis states
     gains: tuple | None = None            # the keys the benchmark's tuning varies (None: the float keys named k*)
     varied: tuple = ()                    # plants: the physical parameters robustness and mismatch draws vary
@@ -127,6 +130,7 @@ def entry_from_class(name: str, cls, origin: str = "") -> Entry:
     return Entry(name=name, params=dict(getattr(cls, "params", {}) or {}), build=build,
                  check=getattr(cls, "check_section", None), combination=getattr(cls, "check_combination", None),
                  whole_command=bool(getattr(cls, "whole_command", False)), direct=bool(getattr(cls, "direct", False)),
+                 preview=getattr(cls, "preview_steps", None),
                  needs_state=bool(getattr(cls, "needs_state", False)), gains=getattr(cls, "gains", None),
                  varied=tuple(getattr(cls, "varied", ()) or ()), origin=origin or getattr(cls, "__module__", ""))
 

@@ -21,6 +21,7 @@ from pathlib import Path
 
 from . import graph
 from .graph import parse_groups
+from .experiment.build import reference_preview
 from .experiment.files import load_experiment, namespaced_parameter_file
 from .experiment.model import Experiment
 from .experiment.validate import controller_uses_state, split_groups
@@ -118,10 +119,14 @@ def private_environment(domain_id: int, network: bool = False) -> dict:
 
 def shared_overrides(experiment: Experiment) -> dict:
     """Shared keys the runner sets for every node from the whole experiment: ``ccc_takes_state`` false where
-    the controller does not use the reference and states (the CCC then does not subscribe to them); a part
+    the controller does not use the reference and states (the CCC then does not subscribe to them);
+    ``reference_preview``, the steps of reference ahead the servos read (the interpolator publishes them); a part
     program's ``curve.file`` as the absolute path the experiment resolved (a node reads its parameters, not
     the experiment file's location)."""
     out = {} if controller_uses_state(experiment) else {"ccc_takes_state": False}
+    preview = reference_preview(experiment)
+    if preview != experiment.reference_preview:
+        out["reference_preview"] = preview
     if experiment.curve["type"] == "gcode":
         out["curve.file"] = experiment.curve["file"]
     return out

@@ -19,7 +19,7 @@ import numbers
 
 import numpy as np
 
-from .interpolation import Reference, reference
+from .interpolation import Reference, ahead_times, reference
 from .simulation import ControlLoop, SimulationResult, step_time
 
 __all__ = ["NotBatchable", "stack", "batch_problem", "batchable", "batch_minimum", "structure", "simulate_batch"]
@@ -134,7 +134,7 @@ def structure(loop: ControlLoop) -> tuple:
             return type(obj).__name__
         return (type(obj).__name__,) + tuple((name, classes(value)) for name, value in vars(obj).items()
                                               if hasattr(value, "__dict__") or value is None)
-    return (loop.n_steps, loop.sample_time) + tuple(classes(part) for part in _parts(loop))
+    return (loop.n_steps, loop.sample_time, loop.preview) + tuple(classes(part) for part in _parts(loop))
 
 
 def _parts(loop: ControlLoop) -> tuple:
@@ -159,8 +159,8 @@ def batchable(loops: list) -> bool:
 def _stacked(loops):
     first = loops[0]
     if any(loop.n_steps != first.n_steps or loop.sample_time != first.sample_time
-           or len(loop.plants) != len(first.plants) for loop in loops):
-        raise NotBatchable("the batch mixes durations, sample times or axis counts")
+           or len(loop.plants) != len(first.plants) or loop.preview != first.preview for loop in loops):
+        raise NotBatchable("the batch mixes durations, sample times, axis counts or reference previews")
     n = len(first.plants)
     return (stack([loop.curve for loop in loops]), stack([loop.schedule for loop in loops]),
             [stack([loop.plants[i] for loop in loops]) for i in range(n)],
@@ -180,6 +180,15 @@ def _times(clocks, k, t, positions, velocities) -> np.ndarray:
             seen = (positions[k - clock.delay, j].copy(), velocities[k - clock.delay, j].copy()) \
                 if k >= clock.delay else (None, None)
             out[j, 0] = clock.time(k, *seen)
+    return out
+
+
+def _ahead_times(clocks, k, times, count, sample_time) -> np.ndarray:
+    """Each member's reference preview times after step k, (b, count): as
+    :func:`~contouring_ros.core.interpolation.ahead_times` gives them to the member's run alone."""
+    out = np.empty((len(clocks), count))
+    for j, clock in enumerate(clocks):
+        out[j] = ahead_times(k, float(times[j, 0]), count, sample_time, clock)
     return out
 
 
@@ -229,6 +238,8 @@ def simulate_batch(loops: list[ControlLoop]) -> list[SimulationResult]:
     # (b, 1) columns of the per-step rows: a member's value, or one value for all, is written by broadcasting
     theta_rows, est_theta_rows = theta[:, :, None], est_theta[:, :, None]
     axes = [(slice(i, i + 1), plant, servo) for i, (plant, servo) in enumerate(zip(plants, servos))]
+    preview = loops[0].preview
+    previewing = [(i, servo) for i, servo in enumerate(servos) if getattr(servo, "preview", 0)]
     for k in range(m):
         t = step_time(k, ts)
         for column, plant, _ in axes:
@@ -241,6 +252,10 @@ def simulate_batch(loops: list[ControlLoop]) -> list[SimulationResult]:
         estimate = estimator.step_batch(ref, position)
         correction = np.broadcast_to(controller.step(estimate, ref, position, velocity), (b, n))
         rp, rv, ra, command_row = ref.position, ref.velocity, ref.acceleration, commands[k]
+        if preview:
+            ahead = reference(curve, schedule, _ahead_times(clocks, k, times, preview, ts)).position   # (b, P, n)
+            for i, servo in previewing:
+                servo.look_ahead(tuple(ahead[:, j, i:i + 1] for j in range(servo.preview)))
         for column, plant, servo in axes:
             command_row[:, column] = servo.step(rp[:, column], rv[:, column], ra[:, column], position[:, column],
                                                 velocity[:, column], correction[:, column])

@@ -11,7 +11,8 @@ import numpy as np
 
 from .curves import Curve
 
-__all__ = ["UniformSchedule", "FeedrateSchedule", "InPositionClock", "Reference", "reference"]
+__all__ = ["UniformSchedule", "FeedrateSchedule", "InPositionClock", "Reference", "reference", "ahead_times",
+           "reference_ahead"]
 
 
 class UniformSchedule:
@@ -185,6 +186,17 @@ class InPositionClock:
             return float(self.stop_times[self._next])
         return t
 
+    def ahead(self, t: float, count: int) -> np.ndarray:
+        """The plan's times at the ``count`` steps after the one :meth:`time` just gave ``t``, as far as they
+        are known now: held at the corner while the axes settle there, else running on with the steps up to
+        the next exact stop (where the plan will hold)."""
+        if self._held >= 0:
+            return np.full(count, float(t))
+        times = t + self.sample_time * np.arange(1, count + 1)
+        if self._next < len(self.stop_times):
+            times = np.minimum(times, self.stop_times[self._next])
+        return times
+
 
 @dataclass(frozen=True)
 class Reference:
@@ -204,6 +216,23 @@ class Reference:
     position: np.ndarray
     velocity: np.ndarray
     acceleration: np.ndarray
+
+
+def ahead_times(k: int, t: float, count: int, sample_time: float, clock=None) -> np.ndarray:
+    """The plan's times of the ``count`` steps after step k (whose time is ``t``): (k + j) Ts, j = 1 .. count,
+    as :func:`contouring_ros.core.simulation.step_time` gives them, or the ``clock``'s
+    (:meth:`InPositionClock.ahead`)."""
+    if clock is not None:
+        return clock.ahead(t, count)
+    return (k + np.arange(1, count + 1)) * sample_time
+
+
+def reference_ahead(curve: Curve, schedule, k: int, t: float, count: int, sample_time: float,
+                    clock=None) -> Reference:
+    """The reference preview of step k: the reference at the ``count`` steps after it (:func:`ahead_times`),
+    arrays with a leading axis of ``count``. The interpolator node publishes it with the reference of step k
+    and the simulation gives it to the servos that read ahead (ZPETC), the same values in both."""
+    return reference(curve, schedule, ahead_times(k, t, count, sample_time, clock))
 
 
 def reference(curve: Curve, schedule, t) -> Reference:

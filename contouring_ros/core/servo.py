@@ -7,6 +7,7 @@ correction adds to the command (Koren's cross-coupling structure; paper 000 Fig.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.linalg import expm
@@ -16,7 +17,8 @@ from .pid import DiscretePID
 from .plants import coulomb_friction, has_limit, symmetric_clip
 
 __all__ = ["PIDFeedforwardServo", "IntegralSlidingModeServo", "DisturbanceObserver", "DirectServo",
-           "ExtendedStateObserver", "ESOSlidingModeServo", "PIDServo", "CascadeServo", "saturation"]
+           "ExtendedStateObserver", "ESOSlidingModeServo", "PIDServo", "CascadeServo", "ZPETCServo",
+           "ZPETCDesign", "closed_loop", "zpetc_design", "saturation"]
 
 
 def saturation(u: float) -> float:
@@ -304,3 +306,217 @@ class CascadeServo:
         command = self.velocity_loop.step(velocity_command - velocity, 0.0) \
             + coulomb_friction(velocity_command, self.coulomb_positive, self.coulomb_negative)
         return self.velocity_loop.clamp(command, self.output_limit)
+
+
+# --------------------------------------------------------------------------------------------------- ZPETC
+
+
+@dataclass(frozen=True)
+class ZPETCDesign:
+    """A zero phase error tracking controller for one axis' closed loop (Tomizuka 1987, DOI 10.1115/1.3143822;
+    the equations below in the paper's notation, unnumbered here).
+
+    The closed loop from the loop's reference r to the position y is
+
+        G_c(z^-1) = z^-d B_a(z^-1) B_u(z^-1) / A(z^-1)                                      (closed loop)
+
+    where B_u holds the zeros that cannot be cancelled (outside the unit circle, or on the negative real side
+    of it near -1, where their inverse rings from sample to sample) and B_a the others. The feedforward
+
+        r(k) = A(z^-1) B_u*(z^-1) / (B_a(z^-1) B_u(1)^2) y_d(k + d + s)                    (ZPETC)
+
+    with B_u*(z^-1) = b_us + b_u(s-1) z^-1 + ... + b_u0 z^-s (B_u's coefficients reversed, s its degree)
+    gives y(k) = B_u(z) B_u(z^-1) / B_u(1)^2 y_d(k) (the tracking result): zero phase at every frequency and unit gain at
+    steady state, using the desired position d + s steps ahead.
+
+    Attributes
+    ----------
+    numerator, denominator : ndarray
+        G_c's B = B_a B_u and A, coefficients of z^-1 from z^0 (A(0) = 1); the delay d aside.
+    delay : int
+        d, the closed loop's delay in samples.
+    uncancelled : ndarray
+        B_u's zeros.
+    feedforward : ndarray
+        A B_u* / (B_u(1)^2 b_a0): the coefficients of y_d(k + d + s - j), j = 0, 1, ...
+    recursion : ndarray
+        B_a / b_a0 without its leading 1: r(k) = sum feedforward_j y_d(k+d+s-j) - sum recursion_i r(k-1-i).
+    """
+
+    numerator: np.ndarray
+    denominator: np.ndarray
+    delay: int
+    uncancelled: np.ndarray
+    feedforward: np.ndarray
+    recursion: np.ndarray
+
+    @property
+    def preview(self) -> int:
+        """d + s: how many steps ahead the feedforward reads the desired position."""
+        return self.delay + len(self.uncancelled)
+
+
+def _sampled_axis(gain, time_constant, sample_time) -> tuple:
+    """(alpha, pv, vu, pu) of the first-order velocity axis under a zero-order hold, as
+    :class:`~contouring_ros.core.plants.FirstOrderVelocityAxis` steps it: V+ = alpha V + vu U,
+    P+ = P + pv V + pu U."""
+    ts, tau, k = float(sample_time), float(time_constant), float(gain)
+    alpha = math.exp(-ts / tau)
+    pv, vu = tau * (1.0 - alpha), k * (1.0 - alpha)
+    return alpha, pv, vu, k * (ts - pv)
+
+
+def closed_loop(kp, ki, kd, gain, time_constant, sample_time, command_delay: int = 0) -> tuple:
+    """(B, A, d) of the position loop of :class:`ZPETCServo` on the first-order velocity axis (paper 000 eq. 2,
+    K / (s (tau s + 1)) from command to position; a mass-damper K / (M s^2 + B s) is K/B, M/B): the
+    axis discretised exactly under a zero-order hold, ``command_delay`` samples of computation delay, and
+
+        u(k) = kp e(k) + ki I(k) - kd V(k),  e = r - y,  I(k) = I(k-1) + Ts e(k).
+
+    With C(z) = kp + ki Ts z / (z - 1) = N_c / D_c and the axis' P/U = N_p / D_p, V/U = k (1 - alpha) / (z - alpha):
+
+        Y / R = N_c N_p / (z^D D_c D_p + N_c N_p + kd k (1 - alpha) (z - 1) D_c)
+
+    returned as G_c = z^-d B(z^-1) / A(z^-1), A(0) = 1."""
+    ts = float(sample_time)
+    alpha, pv, vu, pu = _sampled_axis(gain, time_constant, ts)
+    n_p, d_p = np.array([pu, pv * vu - alpha * pu]), np.polymul([1.0, -1.0], [1.0, -alpha])
+    if ki:
+        n_c, d_c = np.array([kp + ki * ts, -kp]), np.array([1.0, -1.0])
+    else:            # no integral: the (z - 1) of C's denominator and numerator would cancel
+        n_c, d_c = np.array([float(kp)]), np.array([1.0])
+    numerator = np.polymul(n_c, n_p)
+    shifted = np.polymul(np.concatenate([[1.0], np.zeros(int(command_delay))]), np.polymul(d_c, d_p))
+    denominator = np.polyadd(np.polyadd(shifted, numerator), kd * vu * np.polymul([1.0, -1.0], d_c))
+    lead = denominator[0]
+    return numerator / lead, denominator / lead, len(denominator) - len(numerator)
+
+
+def zpetc_design(numerator, denominator, delay: int, zero_radius: float = 0.5) -> ZPETCDesign:
+    """The ZPETC of G_c = z^-d B(z^-1) / A(z^-1) (:class:`ZPETCDesign`). A zero z_i of B is not cancelled
+    when |z_i| >= 1, or when Re z_i < 0 and |z_i| >= ``zero_radius`` (Tomizuka 1987: 'unacceptable' zeros;
+    a sampled axis has one near -1)."""
+    numerator, denominator = np.asarray(numerator, dtype=float), np.asarray(denominator, dtype=float)
+    zeros = np.roots(numerator)
+    bad = (np.abs(zeros) >= 1.0) | ((zeros.real < 0.0) & (np.abs(zeros) >= zero_radius))
+    b_u = np.real(np.poly(zeros[bad])) if bad.any() else np.array([1.0])
+    b_a = numerator[0] * (np.real(np.poly(zeros[~bad])) if (~bad).any() else np.array([1.0]))
+    feedforward = np.polymul(denominator, b_u[::-1]) / (np.sum(b_u) ** 2 * b_a[0])
+    return ZPETCDesign(numerator=numerator, denominator=denominator, delay=int(delay), uncancelled=zeros[bad],
+                       feedforward=feedforward, recursion=b_a[1:] / b_a[0])
+
+
+def _steady_past(taps, recursion, preview: int) -> np.ndarray:
+    """(2, 3) W: the filter's steady output r(k - i) = sum_m W[i-1, m] c_m, i = 1, 2, for the desired motion
+    y_d(k + j) = c0 + c1 j + c2 j^2 (a quadratic in the steps j from now). The recursion
+    r(j) + sum_i recursion_i r(j - 1 - i) = sum_p taps_p y_d(j + p - (L - 1 - preview)) maps a quadratic to a
+    quadratic r(j) = e0 + e1 j + e2 j^2 (B_a(1) != 0); matching it at j = 0, 1, 2 gives e for each c_m."""
+    taps, recursion = np.asarray(taps, dtype=float), np.asarray(recursion, dtype=float)
+    offsets = np.arange(len(taps)) - (len(taps) - 1 - preview)
+    lags = np.arange(len(recursion) + 1)
+    weights = np.concatenate([[1.0], recursion])
+    at = np.arange(3.0)
+    lhs = np.array([[np.sum(weights * (j - lags) ** m) for m in range(3)] for j in at])
+    rhs = np.array([[np.sum(taps * (j + offsets) ** m) for m in range(3)] for j in at])
+    e = np.linalg.solve(lhs, rhs)          # column m: r's coefficients for y_d = j^m
+    return np.array([[np.sum(e[:, m] * (-i) ** np.arange(3)) for m in range(3)] for i in (1, 2)])
+
+
+class ZPETCServo:
+    """PID position loop with a zero phase error tracking feedforward (Tomizuka, "Zero phase error tracking
+    algorithm for digital control", ASME J. Dyn. Syst. Meas. Control 109, 1987).
+
+    The loop u = kp e + ki I - kd V + correction (e = r - y, derivative on the measured velocity) follows r,
+    which the ZPETC (:func:`zpetc_design`) makes from the desired position y_d up to
+    :attr:`preview` steps ahead: the interpolator's reference at k and the preview it publishes with it
+    (:meth:`look_ahead`; docs/ARCHITECTURE.md, "Reference preview"). The design uses the axis model (gain,
+    time constant) and the computation delay the servo is given, so a plant that differs from the model
+    leaves a tracking error the feedback takes up.
+
+    Every coefficient sits in a window of fixed length over y_d(k + P - L + 1 .. k + P), P = command_delay + 3
+    (the most d + s can be) and the recursion on two past r, padded with zeros: servos of one structure
+    share their shapes whatever their gains, and step as one batch (core/batch.py).
+    """
+
+    batchable = True
+    batch_shared = ("preview",)
+
+    def __init__(self, kp, ki, kd, gain, time_constant, sample_time, command_delay: int = 0,
+                 zero_radius: float = 0.5, output_limit: float = 0.0):
+        self.pid = DiscretePID(kp, ki, kd, sample_time)
+        self.output_limit = float(output_limit)
+        numerator, denominator, delay = closed_loop(kp, ki, kd, gain, time_constant, sample_time, command_delay)
+        design = zpetc_design(numerator, denominator, delay, zero_radius)
+        self.preview = int(command_delay) + 3
+        length = int(command_delay) + 6            # the oldest y_d any design reads: k + d + s - (n + s)
+        taps = np.zeros(length)
+        first = self.preview - design.preview        # y_d(k + d + s) sits this many places before the newest
+        taps[length - 1 - first - np.arange(len(design.feedforward))] = design.feedforward
+        self.taps = tuple(float(c) for c in taps)    # oldest first, as the window
+        recursion = np.zeros(2)
+        recursion[:len(design.recursion)] = design.recursion
+        self.recursion = tuple(float(c) for c in recursion)
+        self.sample_time = float(sample_time)
+        self.gain, self.time_constant = float(gain), float(time_constant)
+        self.command_delay = int(command_delay)
+        self.starting = False
+        self.motion = ()
+        self.start_weights = tuple(float(w) for w in _steady_past(taps, recursion, self.preview).ravel())
+        self.window = ()            # y_d, oldest first, ending at k + preview; filled at the first step
+        self.past = ()              # r(k-1), r(k-2)
+        self.ahead = ()
+
+    def look_ahead(self, positions) -> None:
+        """This step's desired positions at k + 1 .. k + :attr:`preview` (floats, or (B, 1) columns)."""
+        self.ahead = tuple(positions)
+
+    def _start(self, ref_pos, ref_vel, ref_acc) -> None:
+        """At the first step the past is the motion the axis starts in: y_d before k extrapolated from the
+        reference's position, velocity and acceleration, and r(k-1), r(k-2) the filter's steady output for
+        that motion (:func:`_steady_past`): an axis that starts moving on its reference gets no transient
+        from a past held still (which the filter's 1 / b_a0 ~ 1 / (k Ts^2) gain would turn into a jolt)."""
+        ts = self.sample_time
+        self.motion = motion = (ref_pos, ref_vel * ts, 0.5 * ref_acc * ts * ts)   # y_d(k + j) = c0 + c1 j + c2 j^2
+        older = len(self.taps) - self.preview - 1
+        self.window = tuple(motion[0] - motion[1] * j + motion[2] * (j * j) for j in range(older, 0, -1)) \
+            + (ref_pos,) + self.ahead
+        w = self.start_weights
+        self.past = (w[0] * motion[0] + w[1] * motion[1] + w[2] * motion[2],
+                     w[3] * motion[0] + w[4] * motion[1] + w[5] * motion[2])
+        self.starting = True
+
+    def _start_integral(self, error, velocity) -> None:
+        """Bumpless start: the integral that makes the first command the one the sampled axis model needs to
+        move on the starting motion y(j) = c0 + c1 j + c2 j^2 (:meth:`_start`): with the axis' P/U = N_p / D_p
+        (:func:`closed_loop`), pu u(j+1) + q u(j) = y(j+2) - (1 + alpha) y(j+1) + alpha y(j) has the
+        solution u(j) = u0 + u1 j, and the command computed now acts after ``command_delay`` steps
+        (no integral: nothing to set)."""
+        pid = self.pid
+        if pid.ki:
+            alpha, pv, vu, pu = _sampled_axis(self.gain, self.time_constant, self.sample_time)
+            q = pv * vu - alpha * pu
+            c0, c1, c2 = self.motion
+            delay = self.command_delay
+
+            def moved(j):                   # y(j+2) - (1 + alpha) y(j+1) + alpha y(j); c0 cancels
+                return (1.0 - alpha) * c1 + c2 * ((j + 2) ** 2 - (1.0 + alpha) * (j + 1) ** 2 + alpha * j * j)
+            first, second = moved(0), moved(1)
+            u1 = (second - first) / (pu + q)
+            wanted = (first - pu * u1) / (pu + q) + u1 * delay
+            pid.integral = (wanted - pid.kp * error + pid.kd * velocity) / pid.ki - pid.sample_time * error
+        self.starting = False
+
+    def step(self, ref_pos, ref_vel, ref_acc, position, velocity, correction) -> float:
+        if not self.window:
+            self._start(ref_pos, ref_vel, ref_acc)
+        else:
+            self.window = self.window[1:] + self.ahead[-1:]
+        loop_reference = self.taps[0] * self.window[0]
+        for tap, value in zip(self.taps[1:], self.window[1:]):
+            loop_reference = loop_reference + tap * value
+        loop_reference = loop_reference - self.recursion[0] * self.past[0] - self.recursion[1] * self.past[1]
+        self.past = (loop_reference, self.past[0])
+        if self.starting:
+            self._start_integral(loop_reference - position, velocity)
+        command = self.pid.step(loop_reference - position, -velocity) + correction
+        return self.pid.clamp(command, self.output_limit)

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import Diverged
-from .interpolation import reference
+from .interpolation import reference, reference_ahead
 
 __all__ = ["ControlLoop", "SimulationResult", "step_time", "simulate", "divergence_bound", "path_bound", "first_divergence",
            "diverged_message",
@@ -44,6 +44,11 @@ class ControlLoop:
         Ts [s].
     n_steps : int
         Number of control steps; step k runs at t_k = k Ts for k = 0 .. n_steps - 1.
+    preview : int
+        Steps of reference beyond step k that the servos read: each servo whose ``preview`` is non-zero gets
+        its axis' positions at steps k + 1 .. k + its preview through ``look_ahead`` before its step
+        (:func:`~contouring_ros.core.interpolation.reference_ahead`; the interpolator node publishes them
+        with the reference of step k).
     """
 
     curve: object
@@ -56,6 +61,7 @@ class ControlLoop:
     n_steps: int
     divergence_factor: float = 10.0     # see simulate(); 0: never stop for divergence
     clock: object = None                # InPositionClock (exact stops wait for the axes), or None: t_k
+    preview: int = 0                    # steps of reference beyond step k the servos read (reference_ahead)
 
 
 @dataclass
@@ -152,6 +158,7 @@ def simulate(loop: ControlLoop, stop_on_divergence: bool = True, progress: bool 
     curve, schedule, estimator, controller = loop.curve, loop.schedule, loop.estimator, loop.controller
     axes = list(zip(range(n), loop.plants, loop.servos))
     clock = loop.clock
+    previewing = [(i, plant, servo) for i, plant, servo in axes if getattr(servo, "preview", 0)]
     steps = range(m)
     if progress:
         from tqdm import tqdm
@@ -162,11 +169,12 @@ def simulate(loop: ControlLoop, stop_on_divergence: bool = True, progress: bool 
             positions[k, i], velocities[k, i] = plant.measure()
         position, velocity = positions[k].copy(), velocities[k].copy()
         if clock is None:
-            ref = reference(curve, schedule, t)
+            ref_time = t
         else:         # the reference of step k sees the positions of step k - delay, as in the graph
             seen = (positions[k - clock.delay].copy(), velocities[k - clock.delay].copy()) \
                 if k >= clock.delay else (None, None)
-            ref = reference(curve, schedule, clock.time(k, *seen))
+            ref_time = clock.time(k, *seen)
+        ref = reference(curve, schedule, ref_time)
         for i in range(n if stop_on_divergence else 0):
             distance = abs(position[i] - ref.position[i])
             if not distance <= bound:        # also when not finite
@@ -179,6 +187,10 @@ def simulate(loop: ControlLoop, stop_on_divergence: bool = True, progress: bool 
         estimate = estimator.step(ref, position)
         correction = controller.step(estimate, ref, position, velocity)
         rp, rv, ra = ref.position, ref.velocity, ref.acceleration
+        if loop.preview:
+            ahead = reference_ahead(curve, schedule, k, ref_time, loop.preview, loop.sample_time, clock).position
+            for i, _, servo in previewing:
+                servo.look_ahead(tuple(ahead[:servo.preview, i]))
         for i, plant, servo in axes:
             command = servo.step(rp[i], rv[i], ra[i], position[i], velocity[i], correction[i])
             commands[k, i] = command

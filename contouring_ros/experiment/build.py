@@ -17,7 +17,7 @@ from .model import Experiment
 
 __all__ = ["build_curve_from", "build_curve", "build_schedule_from", "build_schedule", "build_disturbance",
            "initial_state", "build_plant", "in_position_windows", "build_clock", "build_servo", "build_estimator",
-           "build_controller", "build_loop"]
+           "build_controller", "build_loop", "servo_preview", "reference_preview"]
 
 
 def build_curve_from(section: dict, where: str = "curve") -> curves.Curve:
@@ -86,10 +86,33 @@ def build_clock(experiment: Experiment, curve, schedule):
                            experiment.schedule["in_position_timeout"], LOOKAHEAD)
 
 
+def servo_preview(experiment: Experiment, axis: str) -> int:
+    """How many steps of reference beyond the current one the axis' servo law reads (its catalogue entry's
+    ``preview``; 0 for most laws)."""
+    section = experiment.servos[axis]
+    entry = SERVOS.entry(section["law"])
+    return int(entry.preview(section, experiment, axis)) if entry.preview is not None else 0
+
+
+def reference_preview(experiment: Experiment) -> int:
+    """How many steps of reference beyond the current one the interpolator publishes with each: the shared key
+    ``reference_preview``, or the most any servo of the experiment reads where that is more (contouring-ros
+    run sets the key so; docs/ARCHITECTURE.md, "Reference preview")."""
+    return max([experiment.reference_preview] + [servo_preview(experiment, axis) for axis in experiment.servos])
+
+
 def build_servo(experiment: Experiment, axis: str, position: float, velocity: float, acceleration: float):
-    return SERVOS.build(experiment.servos[axis], BuildContext(experiment, axis=axis, position=position,
-                                                              velocity=velocity, acceleration=acceleration,
-                                                              where=experiment.path))
+    """The axis' servo law. Its object's ``preview`` (what the loop gives it) must be its catalogue entry's
+    (what the interpolator publishes, before anything is built)."""
+    servo = SERVOS.build(experiment.servos[axis], BuildContext(experiment, axis=axis, position=position,
+                                                               velocity=velocity, acceleration=acceleration,
+                                                               where=experiment.path))
+    wanted, has = servo_preview(experiment, axis), int(getattr(servo, "preview", 0) or 0)
+    if has != wanted:
+        raise ConfigError(f"{experiment.path}: /{axis}/servo.law: the {experiment.servos[axis]['law']} law's object "
+                          f"has preview = {has} but its registry entry gives {wanted}: give the Entry preview as its "
+                          "object has it")
+    return servo
 
 
 def build_estimator(experiment: Experiment, curve):
@@ -121,4 +144,4 @@ def build_loop(experiment: Experiment) -> ControlLoop:
                 for i, a in enumerate(axes)],
         estimator=build_estimator(experiment, curve), controller=build_controller(experiment, curve),
         sample_time=experiment.sample_time, n_steps=experiment.n_steps,
-        divergence_factor=experiment.divergence_factor)
+        divergence_factor=experiment.divergence_factor, preview=reference_preview(experiment))

@@ -30,6 +30,7 @@ class Experiment:
     ccc_takes_state: bool = True
     in_position: tuple = (1e-5,)                   # m, one or one per axis (0: exact stops do not wait)
     namespaced_clock: bool = False
+    reference_preview: int = 0                     # steps of reference ahead the interpolator publishes
     plants: dict = field(default_factory=dict)     # axis -> plant section
     servos: dict = field(default_factory=dict)     # axis -> servo section
     estimator: dict = field(default_factory=dict)

@@ -1,10 +1,12 @@
 """Interpolator node: publishes the reference of every step, a few steps ahead, and /clock; where exact stops
-wait for the axes (in-position check), it takes every axis state too."""
+wait for the axes (in-position check), it takes every axis state too. Where a servo reads the reference
+ahead (ZPETC), each /reference message carries after its point the positions of the steps after it
+(docs/ARCHITECTURE.md, "Reference preview")."""
 from __future__ import annotations
 
 from .. import cdr, graph
-from ..experiment.build import build_clock, build_curve, build_schedule
-from ..core.interpolation import reference
+from ..experiment.build import build_clock, build_curve, build_schedule, reference_preview
+from ..core.interpolation import reference, reference_ahead
 from ..core.simulation import step_time
 from .lockstep import LockstepNode, run_node
 
@@ -30,6 +32,7 @@ class InterpolatorNode(LockstepNode):
         self.reference_pub = self.add_output(graph.REFERENCE)
         self.clock_pub = self.add_output(graph.CLOCK)
         self.names = self.axes + [graph.THETA_NAME]
+        self.preview = reference_preview(self.experiment)
 
     def publish_reference(self, k: int, position=None, velocity=None):
         if k >= self.n_steps:
@@ -38,9 +41,12 @@ class InterpolatorNode(LockstepNode):
             self.clock.time(k, position, velocity)
         ref = reference(self.curve, self.schedule, t)
         stamp = self.stamp(k)
+        preview = cdr.preview_points(reference_ahead(self.curve, self.schedule, k, t, self.preview,
+                                                     self.experiment.sample_time, self.clock),
+                                     self.sample_time_ns) if self.preview else ()
         self.reference_pub.publish(cdr.encode_joint_trajectory(
             *stamp, self.names, [*ref.position, float(ref.theta)], [*ref.velocity, float(ref.theta_dot)],
-            [*ref.acceleration, float(ref.theta_ddot)]))
+            [*ref.acceleration, float(ref.theta_ddot)], preview=preview))
 
     def start(self):
         self.clock_pub.publish(cdr.encode_clock(0, 0))

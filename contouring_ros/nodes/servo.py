@@ -2,6 +2,8 @@
 from __future__ import annotations
 
 from .. import cdr, graph
+from ..errors import ConfigError
+from ..experiment.schema import GLOBAL_SECTION
 from ..experiment.build import build_servo, initial_state
 from .lockstep import LockstepNode, run_node
 
@@ -22,11 +24,20 @@ class ServoNode(LockstepNode):
             self.add_input(topic)
         self.publisher = self.add_output(graph.command_topic(self.axis))
         self.names = [self.axis]
+        self.preview = int(getattr(self.servo, "preview", 0) or 0)
+        if self.preview > self.experiment.reference_preview:
+            raise ConfigError(f"{self.name}: the {self.experiment.servos[self.axis]['law']} law reads {self.preview} "
+                              f"steps of reference ahead but the interpolator publishes "
+                              f"{self.experiment.reference_preview}: set {GLOBAL_SECTION}.reference_preview to "
+                              f"{self.preview} or more (contouring-ros run sets it)")
 
     def on_step(self, k, inputs):
         i = self.index
-        point = inputs[graph.REFERENCE].points[0]
+        points = inputs[graph.REFERENCE].points
+        point = points[0]
         state = inputs[self.state_topic]
+        if self.preview:            # the reference ahead, published with this step's (a ZPETC's)
+            self.servo.look_ahead(tuple(ahead.positions[i] for ahead in points[1:1 + self.preview]))
         command = self.servo.step(point.positions[i], point.velocities[i], point.accelerations[i],
                                   state.position[0], state.velocity[0], inputs[graph.CORRECTION].effort[i])
         self.publisher.publish(cdr.encode_joint_state(*self.stamp(k), self.names, effort=[float(command)]))

@@ -1,8 +1,11 @@
 """Servo laws (core/servo.py): each ``/<axis>/servo`` section, one axis' position loop. ``direct``: the law
-passes the contour controller's output through (for controllers that compute the whole command)."""
+passes the contour controller's output through (for controllers that compute the whole command);
+``preview``: how many steps of reference beyond the current one the law reads (the interpolator publishes
+them with each reference)."""
 from __future__ import annotations
 
 from ...core import servo
+from ...core.plants import MAX_COMMAND_DELAY
 from ...registry import Entry, Role
 from ..schema import AXIS_GAIN_RANGE, DAMPING_RANGE, FORCE_RANGE, GAIN_RANGE, MASS_RANGE, POSITIVE_RANGE, REQUIRED, \
     TIME_CONSTANT_RANGE, Param, limit, pid_gains
@@ -32,6 +35,11 @@ def plan_correction(section: dict, experiment) -> bool:
     if given is not None:
         return bool(given)
     return experiment is not None and experiment.curve["type"] in TOOL_PATH_TYPES
+
+
+def _zpetc(s, c):
+    return servo.ZPETCServo(s["kp"], s["ki"], s["kd"], s["gain"], s["time_constant"], c.sample_time,
+                            s["command_delay"], s["zero_radius"], s["output_limit"])
 
 
 def _ismc(s, c):
@@ -90,5 +98,13 @@ for _entry in (
                                                s["sigma"], c.sample_time, c.position, c.velocity,
                                                s["disturbance_compensation"], s["output_limit"]),
         check=_check_eso_smc),
+    Entry("zpetc", {
+        **pid_gains(_LIMIT), "gain": _MODEL_GAIN,
+        "time_constant": Param("float", check="positive", help="model time constant [s]", bounds=TIME_CONSTANT_RANGE),
+        "command_delay": Param("int", 0, "nonnegative", help="the drive's computation delay the design assumes "
+                               "[samples] (the plant's command_delay, where it is known)", bounds=(0, MAX_COMMAND_DELAY)),
+        "zero_radius": Param("float", 0.5, "positive", help="a closed-loop zero on the negative real side with at "
+                             "least this modulus is not inverted (nor any outside the unit circle)", bounds=(1e-3, 1.0))},
+        _zpetc, preview=lambda s, experiment, axis: s["command_delay"] + 3),
 ):
     SERVOS.add(_entry)

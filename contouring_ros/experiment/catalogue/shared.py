@@ -57,6 +57,10 @@ GLOBALS = {
     # contouring-ros run sets false where the controller does not use them (3 fewer deliveries a step with 2
     # axes); true is always safe
     "ccc_takes_state": Param("bool", True, help="the CCC node subscribes to the reference and the axis states"),
+    # contouring-ros run sets it to what the servos read (a ZPETC law: its command_delay + 3); a node started
+    # by hand needs it given
+    "reference_preview": Param("int", 0, "nonnegative", help="steps of reference after each step's that the "
+                               "interpolator publishes with it, for servos that read ahead", bounds=(0, 64)),
     # on a tool path an exact stop waits until every axis' following error is within it
     "in_position": Param("floats", [1e-5], help="drives' in-position window, one or one per axis: exact stops wait "
                          "for it, 0: no wait [m]", bounds=(0.0, 1e-2)),

@@ -1,0 +1,56 @@
+"""The reference preview (docs/ARCHITECTURE.md, "Reference preview"): a ZPETC servo reads the reference ahead,
+the interpolator publishes it with each /reference, the graph of separate processes reproduces the
+simulation bit for bit, write_simulation writes the same /reference payloads, and a servo node that would
+read further than the interpolator publishes refuses to start, naming the key."""
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from mcap.reader import make_reader
+
+from contouring_ros import cdr
+from contouring_ros.bag import write_simulation
+from contouring_ros.core.interpolation import reference
+from contouring_ros.core.simulation import simulate
+from contouring_ros.experiment.build import build_curve, build_loop, build_schedule
+from contouring_ros.experiment.files import load_experiment
+from contouring_ros.runner import DomainLease, private_environment, run_graph
+from conftest import CONFIG, ROOT, assert_graph_equals_simulation, shortened
+
+pytestmark = pytest.mark.graph
+
+
+def _references(bag) -> list:
+    with open(bag, "rb") as stream:
+        return [message.data for _, channel, message in make_reader(stream).iter_messages(topics=["/reference"])]
+
+
+def test_a_zpetc_graph_of_separate_processes_equals_the_simulation_and_carries_the_preview(tmp_path):
+    path = tmp_path / "zpetc.yaml"
+    path.write_text(shortened(CONFIG / "zpetc_ellipse.yaml", 0.08))
+    bag = run_graph(path, tmp_path / "run.mcap", layout="process")
+    assert_graph_equals_simulation(path, bag)
+    experiment = load_experiment(path)
+    messages = [cdr.decode_joint_trajectory(data) for data in _references(bag)]
+    curve = build_curve(experiment)
+    schedule = build_schedule(experiment, curve)
+    for k, message in enumerate(messages[:40]):
+        assert len(message.points) == 1 + 4        # command_delay 1 + 3
+        for j, point in enumerate(message.points[1:], start=1):
+            assert (point.time_from_start.sec, point.time_from_start.nanosec) == (0, j * 1_000_000)
+            later = reference(curve, schedule, (k + j) * experiment.sample_time)
+            np.testing.assert_allclose(point.positions[:2], later.position, rtol=0, atol=1e-15)
+    written = write_simulation(tmp_path / "written.mcap", experiment, simulate(build_loop(experiment)))
+    assert _references(written) == _references(bag)[:len(_references(written))]
+
+
+def test_a_servo_node_refuses_a_preview_shorter_than_its_law_reads(tmp_path):
+    with DomainLease() as lease:
+        process = subprocess.run(
+            [sys.executable, "-m", "contouring_ros.nodes.servo", "--ros-args", "--params-file",
+             str(CONFIG / "zpetc_ellipse.yaml"), "-r", "__ns:=/x"],
+            cwd=ROOT, env=private_environment(lease.domain_id), capture_output=True, text=True, timeout=60)
+    out = process.stdout + process.stderr
+    assert process.returncode == 1, out
+    assert "reference_preview" in out and "reads 4 steps" in out and "Traceback" not in out, out
