@@ -24,7 +24,7 @@ setup(
         (f"share/{package_name}/launch", glob("launch/*.launch.py")),
     ],
     install_requires=["setuptools", "numpy", "scipy", "PyYAML", "mcap", "mcap-ros2-support", "tqdm", "ruckig", "matplotlib",
-                      "cma", "control"],
+                      "cma", "control", "osqp"],
     extras_require={"test": ["pytest"], "cluster": ["distributed"]},
     zip_safe=True,
     maintainer="contouring_ros maintainers",

@@ -14,7 +14,8 @@ entry point names either an :class:`Entry` or a class; a class gives
 - controllers: ``whole_command = True`` when it computes every axis' whole command (servos then 'direct'),
   ``needs_state = True`` when it uses the reference and the axis states (the CCC node then takes them),
   ``gains``: the keys the benchmark tunes (default: its float keys whose names start with 'k'),
-  ``check_combination(estimator, controller, servos)`` -> None or (key, message);
+  ``check_combination(estimator, controller, servos)`` -> None or (key, message); ``preview_steps`` as a
+  servo's (below, ``axis`` None), its ``look_ahead`` given an array (preview, n axes);
   servos: ``direct = True`` when it passes the controller's output through; ``preview_steps(section,
   experiment, axis)`` -> how many steps of reference beyond the current one its law reads (its object's
   ``preview``, given through ``look_ahead``; default none);
@@ -55,7 +56,8 @@ class Entry:
     combination: Callable | None = None   # controllers: (estimator, controller, servos) -> None | (key, message)
     whole_command: bool = False           # controllers: computes every axis' whole command
     direct: bool = False                  # servos: passes the contour controller's output through
-    preview: Callable | None = None       # servos: (section, experiment, axis) -> steps of reference ahead it reads
+    preview: Callable | None = None       # servos, controllers: (section, experiment, axis or None) -> steps of
+                                          # reference ahead it reads (its object's ``preview``, via look_ahead)
     needs_state: bool = False             # controllers: uses the reference and the axis states
     gains: tuple | None = None            # the keys the benchmark's tuning varies (None: the float keys named k*)
     varied: tuple = ()                    # plants: the physical parameters robustness and mismatch draws vary

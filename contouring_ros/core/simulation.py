@@ -45,8 +45,9 @@ class ControlLoop:
     n_steps : int
         Number of control steps; step k runs at t_k = k Ts for k = 0 .. n_steps - 1.
     preview : int
-        Steps of reference beyond step k that the servos read: each servo whose ``preview`` is non-zero gets
-        its axis' positions at steps k + 1 .. k + its preview through ``look_ahead`` before its step
+        Steps of reference beyond step k that the servos and the controller read: each servo whose ``preview``
+        is non-zero gets its axis' positions at steps k + 1 .. k + its preview through ``look_ahead`` before
+        its step, a controller whose ``preview`` is non-zero every axis' (an array (preview, n))
         (:func:`~contouring_ros.core.interpolation.reference_ahead`; the interpolator node publishes them
         with the reference of step k).
     """
@@ -159,6 +160,7 @@ def simulate(loop: ControlLoop, stop_on_divergence: bool = True, progress: bool 
     axes = list(zip(range(n), loop.plants, loop.servos))
     clock = loop.clock
     previewing = [(i, plant, servo) for i, plant, servo in axes if getattr(servo, "preview", 0)]
+    controller_preview = getattr(controller, "preview", 0)
     steps = range(m)
     if progress:
         from tqdm import tqdm
@@ -185,12 +187,14 @@ def simulate(loop: ControlLoop, stop_on_divergence: bool = True, progress: bool 
                                            correction=corrections, command=commands)
                 raise Diverged(diverged_message(t, k, distance, bound), k, t, _cut(partial, k))
         estimate = estimator.step(ref, position)
-        correction = controller.step(estimate, ref, position, velocity)
-        rp, rv, ra = ref.position, ref.velocity, ref.acceleration
         if loop.preview:
             ahead = reference_ahead(curve, schedule, k, ref_time, loop.preview, loop.sample_time, clock).position
             for i, _, servo in previewing:
                 servo.look_ahead(tuple(ahead[:servo.preview, i]))
+            if controller_preview:
+                controller.look_ahead(ahead[:controller_preview])
+        correction = controller.step(estimate, ref, position, velocity)
+        rp, rv, ra = ref.position, ref.velocity, ref.acceleration
         for i, plant, servo in axes:
             command = servo.step(rp[i], rv[i], ra[i], position[i], velocity[i], correction[i])
             commands[k, i] = command

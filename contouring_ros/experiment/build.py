@@ -17,7 +17,7 @@ from .model import Experiment
 
 __all__ = ["build_curve_from", "build_curve", "build_schedule_from", "build_schedule", "build_disturbance",
            "initial_state", "build_plant", "in_position_windows", "build_clock", "build_servo", "build_estimator",
-           "build_controller", "build_loop", "servo_preview", "reference_preview"]
+           "build_controller", "build_loop", "servo_preview", "controller_preview", "reference_preview"]
 
 
 def build_curve_from(section: dict, where: str = "curve") -> curves.Curve:
@@ -98,7 +98,18 @@ def reference_preview(experiment: Experiment) -> int:
     """How many steps of reference beyond the current one the interpolator publishes with each: the shared key
     ``reference_preview``, or the most any servo of the experiment reads where that is more (contouring-ros
     run sets the key so; docs/ARCHITECTURE.md, "Reference preview")."""
-    return max([experiment.reference_preview] + [servo_preview(experiment, axis) for axis in experiment.servos])
+    return max([experiment.reference_preview, controller_preview(experiment)]
+               + [servo_preview(experiment, axis) for axis in experiment.servos])
+
+
+def controller_preview(experiment: Experiment) -> int:
+    """How many steps of reference beyond the current one the contour controller reads (its catalogue entry's
+    ``preview``; 0 for most, and for an experiment without a controller section)."""
+    section = experiment.controller
+    if not section:
+        return 0
+    entry = CONTROLLERS.entry(section["type"])
+    return int(entry.preview(section, experiment, None)) if entry.preview is not None else 0
 
 
 def build_servo(experiment: Experiment, axis: str, position: float, velocity: float, acceleration: float):
@@ -128,6 +139,10 @@ def build_controller(experiment: Experiment, curve):
         raise ConfigError(f"{experiment.path}: /ccc.type: the {entry.name} controller's object has needs_state = "
                           f"{bool(getattr(controller, 'needs_state', False))} but its registry entry has "
                           f"{entry.needs_state} ({entry.origin}): give the Entry needs_state as its object has it")
+    wanted, has = controller_preview(experiment), int(getattr(controller, "preview", 0) or 0)
+    if has != wanted:
+        raise ConfigError(f"{experiment.path}: /ccc.type: the {entry.name} controller's object has preview = {has} "
+                          f"but its registry entry gives {wanted}: give the Entry preview as its object has it")
     return controller
 
 

@@ -148,7 +148,7 @@ def test_every_role_has_a_registry_with_its_entry_point_group():
         for name in registry:
             entry = registry.entry(name)
             assert entry.name == name and callable(entry.build) and isinstance(entry.params, dict)
-    assert {n for n in CONTROLLERS if CONTROLLERS.entry(n).whole_command} == {"task_frame_pd", "tvt"}
+    assert {n for n in CONTROLLERS if CONTROLLERS.entry(n).whole_command} == {"task_frame_pd", "tvt", "mpcc"}
     assert [n for n in SERVOS if SERVOS.entry(n).direct] == ["direct"]
 
 

@@ -54,3 +54,16 @@ def test_a_servo_node_refuses_a_preview_shorter_than_its_law_reads(tmp_path):
     out = process.stdout + process.stderr
     assert process.returncode == 1, out
     assert "reference_preview" in out and "reads 4 steps" in out and "Traceback" not in out, out
+
+
+def test_an_mpcc_graph_of_separate_processes_equals_the_simulation(tmp_path):
+    # the CCC node reads the horizon's reference from the preview points; OSQP solves the same QPs in both
+    text = shortened(CONFIG / "paper003_ellipse_natural_local_fn100.yaml", 0.06)
+    text = text[:text.index("/ccc:")] + ("/ccc:\n  ros__parameters:\n    type: mpcc\n    mass: [1.0, 1.0]\n"
+                                         "    damping: [798.5, 862.75]\n    gain: [16.23, 17.58]\n    horizon: 15\n"
+                                         "    command_limit: [8.0]\n    disturbance_gain: 0.2\n")
+    path = tmp_path / "mpcc.yaml"
+    path.write_text(text)
+    bag = run_graph(path, tmp_path / "run.mcap", layout="process")
+    assert_graph_equals_simulation(path, bag)
+    assert len(cdr.decode_joint_trajectory(_references(bag)[0]).points) == 1 + 15

@@ -76,7 +76,7 @@ def test_package_xml_declares_what_setup_py_installs():
     xml = (ROOT / "package.xml").read_text()
     setup = (ROOT / "setup.py").read_text()
     required = re.search(r"install_requires=\[(.*?)\]", setup, re.S).group(1)
-    pip_only = {"mcap", "mcap-ros2-support", "ruckig", "cma", "control"}
+    pip_only = {"mcap", "mcap-ros2-support", "ruckig", "cma", "control", "osqp"}
     keys = {"setuptools": None, "PyYAML": "python3-yaml"}
     for name in re.findall(r'"([^"]+)"', required):
         if name in pip_only:

@@ -3,7 +3,8 @@
 must then be 'direct'); ``needs_state``: it uses the reference and the axis states (the CCC node takes them)."""
 from __future__ import annotations
 
-from ...core import contouring, estimators
+from ...core import contouring, estimators, mpc
+from ...core.plants import MAX_COMMAND_DELAY
 from ...registry import Entry, Role
 from ..schema import AXIS_GAIN_RANGE, BANDWIDTH_RANGE, DAMPING_RANGE, FORCE_RANGE, GAIN_RANGE, MASS_RANGE, POSITIVE_RANGE, REQUIRED, \
     Param, pid_gains
@@ -33,6 +34,22 @@ def _task_frame_pd(s, c):
     return contouring.TaskFramePD(c.curve, approximation, s["mass"], s["damping"], s["gain"],
                                   [s["f_t"], s["f_n"]] + ([s["f_b"]] if s["f_b"] is not None else []), s["zeta"],
                                   s["coulomb_positive"], s["coulomb_negative"])
+
+
+def _mpcc(s, c):
+    return mpc.ModelPredictiveContouring(s["mass"], s["damping"], s["gain"], c.sample_time, s["horizon"],
+                                         s["q_contour"], s["q_lag"], s["r_rate"], s["command_limit"] or (),
+                                         s["command_delay"], s["disturbance_gain"])
+
+
+def _check_mpcc(section, axes):
+    for key in ("mass", "damping", "gain"):
+        if len(section[key]) != len(axes):
+            return key, f"expected one value per axis ({len(axes)}), got {len(section[key])}"
+    limits = section["command_limit"]
+    if limits is not None and len(limits) not in (1, len(axes)):
+        return "command_limit", f"expected 1 value or one per axis ({len(axes)}), got {len(limits)}"
+    return None
 
 
 def _per_axis(name: str, keys: tuple):
@@ -102,6 +119,26 @@ for _entry in (
                                                s["gamma_damping"], s["mass0"], s["damping0"], c.sample_time),
         check=_per_axis("adaptive_tnb", ("coupling", "gamma_mass", "gamma_damping", "mass0", "damping0")),
         needs_state=contouring.AdaptiveTNBCCC.needs_state, gains=("coupling", "alpha", "gamma_mass", "gamma_damping")),
+    Entry("mpcc", {
+        "mass": _per_axis_values("axis model masses [kg] (a first-order velocity axis: its time constant)",
+                                 MASS_RANGE),
+        "damping": _per_axis_values("axis model damping [N s/m] (a first-order velocity axis: 1)", DAMPING_RANGE),
+        "gain": _per_axis_values("axis model gains [N per command unit] (a first-order velocity axis: its gain)",
+                                 AXIS_GAIN_RANGE),
+        "horizon": Param("int", 20, "positive", help="steps predicted", bounds=(1, 200)),
+        "q_contour": Param("float", 1e6, "nonnegative", help="weight of the squared contour error [1/m^2]",
+                           bounds=GAIN_RANGE),
+        "q_lag": Param("float", 1e4, "nonnegative", help="weight of the squared lag error [1/m^2]", bounds=GAIN_RANGE),
+        "r_rate": Param("float", 1.0, "positive", help="weight of the squared change of a command between steps",
+                        bounds=POSITIVE_RANGE),
+        "command_limit": Param("floats", None, help="|command| bound, one or one per axis, 0: none [command units]",
+                               bounds=(0.0, 1e12)),
+        "command_delay": Param("int", 0, "nonnegative", help="the drive's computation delay the model assumes "
+                               "[samples]", bounds=(0, MAX_COMMAND_DELAY)),
+        "disturbance_gain": Param("float", 0.0, "nonnegative", help="share of each step's velocity prediction error a "
+                                  "constant input disturbance estimate takes up, 0: none", bounds=(0.0, 1.0))},
+        _mpcc, check=_check_mpcc, whole_command=True, needs_state=mpc.ModelPredictiveContouring.needs_state,
+        gains=("q_contour", "q_lag", "r_rate"), preview=lambda s, experiment, axis: s["command_delay"] + s["horizon"]),
 ):
     CONTROLLERS.add(_entry)
 

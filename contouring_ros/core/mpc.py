@@ -1,0 +1,208 @@
+"""Model predictive contouring control: a quadratic programme over a horizon, solved every step, that trades
+contour error, lag error and the command's rate within the drives' command limits (D. Lam, C. Manzie and
+M. Good, "Model predictive contouring control for biaxial systems", IEEE Transactions on Control Systems
+Technology, 2013; docs/REFERENCES.md).
+
+What is the paper's and what is not. The cost splits each predicted position error e_j = P_j - R_j along the
+path: its lag part along the unit tangent t_j and its contour part across it, weighted q_lag and q_contour
+(the paper's contouring and lag errors, linearised at the reference points), plus r_rate times the squared
+change of each axis' command; the command limits are constraints. The paper also makes the path's progress
+a decision variable (a virtual input that the cost rewards); here the interpolator's schedule sets the
+progress, as it does for every other method of the catalogue, so that all are scored on the same reference
+and travel time: the horizon's reference points are the interpolator's preview
+(docs/ARCHITECTURE.md, "Reference preview"). The prediction model is each axis' mass-damper
+K / (M s^2 + B s) (a first-order velocity axis k / (s (tau s + 1)) is M = tau, B = 1, K = k) sampled
+exactly under a zero-order hold, with the drive's computation delay; an optional estimate of a constant
+input disturbance (the velocity's one-step prediction error, ``disturbance_gain``) makes it offset-free
+under a constant load, which the paper's model does not include.
+
+The QP is condensed onto the N commands of each axis (n N variables, box constraints only) and solved by
+OSQP (Stellato et al., Math. Prog. Comp. 12, 2020) where a limit is set; without limits its unconstrained
+optimum is the solution of one linear system. Every solve's wall time is kept (:attr:`solve_times`).
+"""
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+__all__ = ["ModelPredictiveContouring", "sampled_mass_damper"]
+
+
+def sampled_mass_damper(mass: float, damping: float, gain: float, sample_time: float) -> tuple:
+    """(A, B) of x = (P, V): x+ = A x + B u for K / (M s^2 + B s) under a zero-order hold, as
+    :class:`~contouring_ros.core.plants.MassDamperAxis` steps it."""
+    ts, a = float(sample_time), float(damping) / float(mass)
+    if a * ts < 1e-9:
+        vv, vw, pv, pw = 1.0, ts, ts, 0.5 * ts * ts
+    else:
+        one_minus_e = -math.expm1(-a * ts)
+        vv, vw, pv, pw = 1.0 - one_minus_e, one_minus_e / a, one_minus_e / a, (ts - one_minus_e / a) / a
+    scale = float(gain) / float(mass)
+    return np.array([[1.0, pv], [0.0, vv]]), np.array([pw * scale, vw * scale])
+
+
+class ModelPredictiveContouring:
+    """Model predictive contouring control of every axis' whole command (pair it with ``direct`` servos).
+
+    Parameters
+    ----------
+    mass, damping, gain : sequence of float
+        Each axis' model M [kg], B [N s/m], K [N per command unit].
+    sample_time : float
+        Ts [s].
+    horizon : int
+        N, the steps predicted.
+    q_contour, q_lag : float
+        Weights of the squared contour and lag errors [1/m^2].
+    r_rate : float
+        Weight of the squared change of a command between steps [1/command unit^2].
+    command_limit : sequence of float
+        Each axis' |command| bound (0: none).
+    command_delay : int
+        The drive's computation delay the model assumes [samples]: a command acts this many steps later.
+    disturbance_gain : float
+        0 .. 1: how much of each step's velocity prediction error a constant input disturbance estimate takes
+        up (0: none).
+    """
+
+    needs_state = True
+
+    def __init__(self, mass, damping, gain, sample_time, horizon: int = 20, q_contour: float = 1e6,
+                 q_lag: float = 1e4, r_rate: float = 1.0, command_limit=(), command_delay: int = 0,
+                 disturbance_gain: float = 0.0):
+        n = len(mass)
+        self.n, self.horizon, self.delay = n, int(horizon), int(command_delay)
+        self.q_contour, self.q_lag, self.r_rate = float(q_contour), float(q_lag), float(r_rate)
+        self.disturbance_gain = float(disturbance_gain)
+        limits = np.zeros(n) if command_limit is None or len(command_limit) == 0 else \
+            np.broadcast_to(np.asarray(command_limit, dtype=float), (n,))
+        self.limits = np.where(limits > 0.0, limits, np.inf)
+        self.models = [sampled_mass_damper(m, b, k, sample_time) for m, b, k in zip(mass, damping, gain)]
+        self.preview = self.delay + self.horizon        # reference steps ahead: k + D + 1 .. k + D + N
+        big_n = self.horizon
+        # per axis: the position j + 1 steps after the state x_D (j = 0 .. N-1) = free[j] @ x_D + forced[j] @ U
+        self.free, self.forced = [], []
+        for a_matrix, b_vector in self.models:
+            powers = [np.eye(2)]
+            for _ in range(big_n):
+                powers.append(a_matrix @ powers[-1])
+            self.free.append(np.array([powers[j + 1][0] for j in range(big_n)]))
+            forced = np.zeros((big_n, big_n))
+            for j in range(big_n):
+                for i in range(j + 1):
+                    forced[j, i] = (powers[j - i] @ b_vector)[0]
+            self.forced.append(forced)
+        difference = np.eye(big_n) - np.eye(big_n, k=-1)
+        self._rate = self.r_rate * difference.T @ difference
+        self._rate_first = self.r_rate * difference.T[:, 0]      # times the previous command: the first change
+        self.held = [np.zeros(n) for _ in range(self.delay)]      # computed, not yet applied (oldest first)
+        self.previous = np.zeros(n)          # the last command computed
+        self.applied = None                  # the command applied over the last step (None before the first)
+        self.last_state = None               # (position, velocity) of the last step
+        self.disturbance = np.zeros(n)       # constant input disturbance estimate [command units]
+        self.ahead = np.zeros((0, n))
+        self.solve_times = []                # wall time of each step's solve [s]
+        self._solver = None
+        self._plan = None                    # the last solution, warm start of the next
+
+    def look_ahead(self, positions) -> None:
+        """This step's reference positions at k + 1 .. k + :attr:`preview`, an array (preview, n)."""
+        self.ahead = np.asarray(positions, dtype=float)
+
+    def _estimate_disturbance(self, position, velocity) -> None:
+        if self.disturbance_gain and self.applied is not None:
+            for i, (a_matrix, b_vector) in enumerate(self.models):
+                v0 = self.last_state[1][i]
+                predicted = a_matrix[1, 1] * v0 + b_vector[1] * (self.applied[i] + self.disturbance[i])
+                self.disturbance[i] += self.disturbance_gain * (velocity[i] - predicted) / b_vector[1]
+
+    def _weights(self, reference_position) -> np.ndarray:
+        """(N, n, n): q_contour (I - t t^T) + q_lag t t^T at each predicted step, t the unit tangent of the
+        reference there (central differences of the preview; isotropic q_contour where it stands still)."""
+        points = np.vstack([reference_position, self.ahead[:self.preview]])
+        steps = self.delay + 1 + np.arange(self.horizon)              # rows of the predicted points
+        after = np.minimum(steps + 1, len(points) - 1)
+        tangents = points[after] - points[steps - 1]
+        lengths = np.linalg.norm(tangents, axis=1)
+        eye = np.eye(self.n)
+        out = np.empty((self.horizon, self.n, self.n))
+        for j, (tangent, length) in enumerate(zip(tangents, lengths)):
+            if length > 1e-15:
+                t = tangent / length
+                along = np.outer(t, t)
+                out[j] = self.q_contour * (eye - along) + self.q_lag * along
+            else:
+                out[j] = self.q_contour * eye
+        return out
+
+    def step(self, estimate=None, reference=None, position=None, velocity=None) -> np.ndarray:
+        position, velocity = np.asarray(position, dtype=float), np.asarray(velocity, dtype=float)
+        self._estimate_disturbance(position, velocity)
+        n, big_n = self.n, self.horizon
+        # the state when the command computed now acts: the held commands applied first
+        states = []
+        for i, (a_matrix, b_vector) in enumerate(self.models):
+            x = np.array([position[i], velocity[i]])
+            for command in self.held:
+                x = a_matrix @ x + b_vector * (command[i] + self.disturbance[i])
+            states.append(x)
+        targets = self.ahead[self.delay:self.delay + big_n]          # (N, n)
+        weights = self._weights(np.asarray(reference.position, dtype=float))
+        hessian = np.zeros((n * big_n, n * big_n))
+        linear = np.zeros(n * big_n)
+        offsets = []
+        for i in range(n):
+            disturbance_response = self.forced[i] @ np.full(big_n, self.disturbance[i])
+            offsets.append(self.free[i] @ states[i] + disturbance_response - targets[:, i])
+        for a in range(n):
+            rows = slice(a * big_n, (a + 1) * big_n)
+            for b in range(n):
+                weighted = weights[:, a, b][:, None] * self.forced[b]
+                hessian[rows, b * big_n:(b + 1) * big_n] = self.forced[a].T @ weighted
+                linear[rows] += self.forced[a].T @ (weights[:, a, b] * offsets[b])
+            hessian[rows, rows] += self._rate
+            linear[rows] -= self._rate_first * self.previous[a]
+        started = time.perf_counter()
+        plan = self._solve(hessian, linear)
+        self.solve_times.append(time.perf_counter() - started)
+        command = plan[::big_n].copy()             # each axis' first command
+        self._plan = plan
+        self.last_state = (position, velocity)
+        if self.delay:
+            self.applied = self.held[0]
+            self.held = self.held[1:] + [command]
+        else:
+            self.applied = command
+        self.previous = command
+        return command
+
+    def _solve(self, hessian, linear) -> np.ndarray:
+        """argmin U^T H U + 2 f^T U within the command limits."""
+        if not np.isfinite(self.limits).any():
+            return np.linalg.solve(hessian, -linear)
+        import osqp
+        from scipy import sparse
+        size = len(linear)
+        rows, columns = np.triu_indices(size)
+        bounds = np.repeat(self.limits, self.horizon)
+        bounds = np.where(np.isfinite(bounds), bounds, 1e30)
+        if self._solver is None:
+            # the whole upper triangle stored, zeros included, so that every step's update keeps the pattern
+            pattern = sparse.csc_matrix((np.arange(1.0, len(rows) + 1.0), (rows, columns)), shape=(size, size))
+            self._order = pattern.data.astype(int) - 1
+            upper = sparse.csc_matrix(((2.0 * hessian[rows, columns])[self._order], pattern.indices, pattern.indptr),
+                                      shape=(size, size))
+            self._solver = osqp.OSQP()
+            self._solver.setup(upper, 2.0 * linear, sparse.eye(size, format="csc"), -bounds, bounds,
+                               verbose=False, eps_abs=1e-10, eps_rel=1e-10, polishing=False, max_iter=20000)
+        else:
+            self._solver.update(Px=(2.0 * hessian[rows, columns])[self._order], q=2.0 * linear)
+            if self._plan is not None:
+                self._solver.warm_start(x=self._plan)
+        result = self._solver.solve(raise_error=False)
+        plan = np.asarray(result.x, dtype=float)
+        if not np.all(np.isfinite(plan)):
+            raise ValueError(f"the MPCC quadratic programme found no solution ({result.info.status})")
+        return np.clip(plan, -bounds, bounds)
