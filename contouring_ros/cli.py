@@ -84,9 +84,16 @@ def _run_config(args, config: Path, experiment=None):
             experiment = load_experiment(config)       # the one parse of the file in this process
         for warning in program_warnings(build_curve(experiment)):
             print(f"warning: {warning}", file=sys.stderr)
-        bag = run_graph(config, args.bag, progress=lambda m: print(m, flush=True),
-                        layout=layout, groups=args.group, experiment=experiment,
-                        namespace=args.namespace, domain_id=args.domain, shared_domain=args.domain is not None)
+        from .learning import passes
+
+        def run_one(path, bag, parsed):
+            return run_graph(path, bag, progress=lambda m: print(m, flush=True),
+                             layout=layout, groups=args.group, experiment=parsed,
+                             namespace=args.namespace, domain_id=args.domain, shared_domain=args.domain is not None)
+        if passes(experiment) > 1:
+            _run_passes(config, experiment, args.bag, run_one)
+            return
+        bag = run_one(config, args.bag, experiment)
     except RunError as error:
         interrupted = isinstance(error, Interrupted)
         print(f"{'' if interrupted else 'error: '}{error}", file=sys.stderr)
@@ -114,6 +121,22 @@ def _run_config(args, config: Path, experiment=None):
         print(realtime)
 
 
+def _run_passes(config: Path, experiment, bag, run_one):
+    """Every pass of a learning experiment through the graph, each pass's scores as it ends, then all side by
+    side (:mod:`contouring_ros.learning`)."""
+    from .learning import run_passes
+    from .runner import default_bag_path
+    from .scoring import curve_of, format_scores, score_run
+    rows = []
+
+    def report(j, path, recorded):
+        scores = score_run(curve_of(recorded), recorded.result)
+        rows.append((f"pass {j}", scores))
+        print(f"pass {j}: bag {path}: MCE {scores.mce * 1e6:.4g} um, TACE {scores.tace * 1e6:.4g} um", flush=True)
+    run_passes(config, experiment, Path(bag) if bag else default_bag_path(experiment), run_one, report)
+    print(format_scores(rows, list(experiment.axes)))
+
+
 LONG_RUN_STEPS = 20_000       # simulate shows a progress bar beyond this many steps (about 20 s of run)
 
 
@@ -127,6 +150,10 @@ def _simulate(args):
     with _with_settings(_experiment_path(args.config), args.set) as (config, experiment):
         if experiment is None:
             experiment = load_experiment(config)
+    from .learning import passes
+    if passes(experiment) > 1:
+        _simulate_passes(experiment)
+        return
     loop = build_loop(experiment)
     for warning in program_warnings(loop.curve):
         print(f"warning: {warning}", file=sys.stderr)
@@ -144,6 +171,24 @@ def _simulate(args):
     print(format_scores([(experiment.name, scores)], list(experiment.axes)))
     for line in cutting_lines(loop.curve, result, experiment.schedule):
         print(line)
+
+
+def _simulate_passes(experiment):
+    """Every pass of a learning experiment in-process, then their scores side by side."""
+    from .learning import simulate_passes
+    from .scoring import format_scores, score_run
+    rows = []
+
+    def report(j, loop, result):
+        rows.append((f"pass {j}", score_run(loop.curve, result)))
+    try:
+        simulate_passes(experiment, report)
+    except Diverged as error:
+        print(f"error: pass {len(rows) + 1}: {error}", file=sys.stderr)
+        if rows:
+            print(format_scores(rows, list(experiment.axes)))
+        raise SystemExit(1)
+    print(format_scores(rows, list(experiment.axes)))
 
 
 def _given(args) -> dict:

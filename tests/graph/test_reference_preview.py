@@ -67,3 +67,21 @@ def test_an_mpcc_graph_of_separate_processes_equals_the_simulation(tmp_path):
     bag = run_graph(path, tmp_path / "run.mcap", layout="process")
     assert_graph_equals_simulation(path, bag)
     assert len(cdr.decode_joint_trajectory(_references(bag)[0]).points) == 1 + 15
+
+
+def test_each_ilc_pass_through_the_graph_equals_its_simulated_pass(tmp_path):
+    # pass 2 plays back the correction learned from pass 1's bag, read from the .npy beside its own bag
+    from contouring_ros.learning import run_passes, simulate_passes
+    path = tmp_path / "ilc.yaml"
+    path.write_text(shortened(CONFIG / "ilc_ellipse.yaml", 0.05).replace("passes: 8", "passes: 2"))
+    experiment = load_experiment(path)
+    bags = run_passes(path, experiment, tmp_path / "run.mcap",
+                      lambda config, bag, parsed: run_graph(config, bag, experiment=parsed, layout="composed"))
+    assert [bag.name for bag in bags] == ["run_pass1.mcap", "run_pass2.mcap"]
+    assert (tmp_path / "run_pass2_learned.npy").is_file()
+    from contouring_ros.scoring import read_run
+    for bag, (_, expected) in zip(bags, simulate_passes(experiment)):
+        recorded = read_run(bag).result
+        for name in ("position", "correction", "command"):
+            np.testing.assert_array_equal(getattr(recorded, name), getattr(expected, name), err_msg=name)
+    assert np.any(read_run(bags[1]).result.correction != 0.0)

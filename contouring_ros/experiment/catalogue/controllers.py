@@ -3,8 +3,11 @@
 must then be 'direct'); ``needs_state``: it uses the reference and the axis states (the CCC node takes them)."""
 from __future__ import annotations
 
-from ...core import contouring, estimators, mpc
+import numpy as np
+
+from ...core import contouring, estimators, ilc, mpc
 from ...core.plants import MAX_COMMAND_DELAY
+from ...errors import ConfigError, one_line
 from ...registry import Entry, Role
 from ..schema import AXIS_GAIN_RANGE, BANDWIDTH_RANGE, DAMPING_RANGE, FORCE_RANGE, GAIN_RANGE, MASS_RANGE, POSITIVE_RANGE, REQUIRED, \
     Param, pid_gains
@@ -40,6 +43,21 @@ def _mpcc(s, c):
     return mpc.ModelPredictiveContouring(s["mass"], s["damping"], s["gain"], c.sample_time, s["horizon"],
                                          s["q_contour"], s["q_lag"], s["r_rate"], s["command_limit"] or (),
                                          s["command_delay"], s["disturbance_gain"])
+
+
+def _ilc(s, c):
+    """The learned correction of ``learned_file`` (an .npy array, steps x axes), or none (the first pass)."""
+    table = None
+    if s["learned_file"]:
+        try:
+            table = np.load(s["learned_file"], allow_pickle=False)
+        except (OSError, ValueError) as error:
+            raise ConfigError(f"{c.where}: /ccc.learned_file: cannot read {s['learned_file']!r}: "
+                              f"{one_line(error)}") from None
+        if table.ndim != 2 or table.shape[1] != c.n_axes or not np.all(np.isfinite(table)):
+            raise ConfigError(f"{c.where}: /ccc.learned_file: {s['learned_file']!r} holds a {table.shape} "
+                              f"array, expected finite values, steps x {c.n_axes} axes")
+    return ilc.LearnedCorrection(c.n_axes, table)
 
 
 def _check_mpcc(section, axes):
@@ -119,6 +137,19 @@ for _entry in (
                                                s["gamma_damping"], s["mass0"], s["damping0"], c.sample_time),
         check=_per_axis("adaptive_tnb", ("coupling", "gamma_mass", "gamma_damping", "mass0", "damping0")),
         needs_state=contouring.AdaptiveTNBCCC.needs_state, gains=("coupling", "alpha", "gamma_mass", "gamma_damping")),
+    Entry("ilc", {
+        "gamma_tracking": Param("float", 0.0, "nonnegative", help="learning gain on each axis' tracking error "
+                                "[command units/m]", bounds=GAIN_RANGE),
+        "gamma_contour": Param("float", check="nonnegative", help="learning gain on the contour error vector "
+                               "[command units/m]", bounds=GAIN_RANGE),
+        "lead": Param("int", 1, "nonnegative", help="phase lead of the learning [steps]", bounds=(0, 1000)),
+        "q_cutoff": Param("float", 100.0, "nonnegative", help="Q-filter (zero-phase Butterworth, order 2) cutoff, "
+                          "0: none [Hz]", bounds=(0.0, 1e6)),
+        "passes": Param("int", 1, "positive", help="passes of the path: run and simulate learn between them",
+                        bounds=(1, 1000)),
+        "learned_file": Param("str", "", help="the correction this pass plays back (.npy, steps x axes; the "
+                              "passes write it), empty: none")},
+        _ilc, gains=("gamma_tracking", "gamma_contour")),
     Entry("mpcc", {
         "mass": _per_axis_values("axis model masses [kg] (a first-order velocity axis: its time constant)",
                                  MASS_RANGE),

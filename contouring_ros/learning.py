@@ -1,0 +1,81 @@
+"""Passes of a learning experiment: with ``/ccc.type: ilc`` and ``passes: N`` the path is run N times, each
+pass a run of its own (a bag through the graph, or in-process), and the correction learned from one pass
+(:func:`contouring_ros.core.ilc.learn`) is what the next plays back.
+
+Through the graph, pass j + 1 reads its correction from ``learned_file``: the .npy file written next to the
+bags (``<bag stem>_pass<j+1>_learned.npy``, beside ``<bag stem>_pass<j+1>.mcap``), so that every pass can be
+run again from its bag's experiment and that file. In-process, each pass's loop gets the table directly; the
+numbers are the same as the graph's (a bag reads back the floats the simulation computed).
+"""
+from __future__ import annotations
+
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from .core.ilc import learn
+from .core.simulation import simulate
+from .experiment.build import build_loop
+from .experiment.model import Experiment
+from .scoring import read_run
+from .sweep import written_settings
+
+__all__ = ["passes", "next_correction", "simulate_passes", "pass_bag", "run_passes"]
+
+
+def passes(experiment: Experiment) -> int:
+    """How many passes the experiment runs (its controller's ``passes``; 1 for every other controller)."""
+    return int(experiment.controller.get("passes", 1) or 1) if experiment.controller.get("type") == "ilc" else 1
+
+
+def next_correction(experiment: Experiment, result, correction) -> np.ndarray:
+    """The correction the pass after the one that gave ``result`` (playing back ``correction``) plays back."""
+    section = experiment.controller
+    return learn(correction, result.reference_position, result.position, result.estimate_vector,
+                 experiment.sample_time, section["gamma_tracking"], section["gamma_contour"], section["lead"],
+                 section["q_cutoff"])
+
+
+def simulate_passes(experiment: Experiment, progress=None) -> list:
+    """(loop, result) of every pass, in-process (a diverged pass raises Diverged, as one run does)."""
+    out, table = [], None
+    for j in range(1, passes(experiment) + 1):
+        loop = build_loop(experiment)
+        if table is not None:
+            loop.controller.table = table
+        result = simulate(loop)
+        out.append((loop, result))
+        if progress is not None:
+            progress(j, loop, result)
+        table = next_correction(experiment, result, table)
+    return out
+
+
+def pass_bag(bag: Path, j: int) -> Path:
+    """Pass j's bag: ``<stem>_pass<j>.mcap`` beside ``bag``."""
+    bag = Path(bag)
+    return bag.with_name(f"{bag.stem}_pass{j}{bag.suffix or '.mcap'}")
+
+
+def run_passes(config: Path, experiment: Experiment, bag: Path, run, progress=None) -> list:
+    """Every pass through the node graph: ``run(path, bag, experiment)`` runs one (runner.run_graph with the
+    caller's layout and domain) and returns its bag. Returns the passes' bags."""
+    bags, table = [], None
+    with tempfile.TemporaryDirectory(prefix="contouring_ros_pass_") as directory:
+        for j in range(1, passes(experiment) + 1):
+            target = pass_bag(bag, j)
+            target.parent.mkdir(parents=True, exist_ok=True)
+            path, pass_experiment = config, experiment
+            if table is not None:
+                learned = target.with_name(f"{target.stem}_learned.npy").resolve()
+                np.save(learned, table)
+                folder = Path(directory) / f"pass{j}"
+                folder.mkdir()
+                path, pass_experiment = written_settings(config, [f"ccc.learned_file={learned}"], folder)
+            bags.append(run(path, target, pass_experiment))
+            recorded = read_run(bags[-1], parsed=pass_experiment)
+            if progress is not None:
+                progress(j, bags[-1], recorded)
+            table = next_correction(experiment, recorded.result, table)
+    return bags

@@ -1,0 +1,101 @@
+"""Cross-coupled iterative learning control (core/ilc.py, learning.py): the learning law on known inputs, the
+error falling pass by pass on a repeated ellipse (and rising with the learning gain's sign flipped), a batch
+of different corrections as each alone, and a learned file that cannot be used refused in one line."""
+import numpy as np
+import pytest
+
+from contouring_ros.core.batch import simulate_batch
+from contouring_ros.core.ilc import LearnedCorrection, learn
+from contouring_ros.core.simulation import simulate
+from contouring_ros.errors import ConfigError
+from contouring_ros.experiment.build import build_loop
+from contouring_ros.experiment.validate import parse_experiment
+from contouring_ros.learning import next_correction, simulate_passes
+from contouring_ros.scoring import score_run
+from conftest import CONFIG, shortened
+
+TS = 1e-3
+
+
+def _ellipse(duration=0.5, passes=4, **keys):
+    text = shortened(CONFIG / "ilc_ellipse.yaml", duration).replace("passes: 8", f"passes: {passes}")
+    for key, value in keys.items():
+        text = text.replace(f"    {key}: ", f"    {key}: {value}  # was ", 1)
+    return parse_experiment(text, "ilc_ellipse.yaml")
+
+
+def test_the_law_adds_the_errors_lead_steps_ahead_to_the_last_correction():
+    steps = 50
+    reference = np.zeros((steps, 2))
+    position = np.column_stack([np.arange(steps) * 1e-6, -np.arange(steps) * 2e-6])       # e = -position
+    contour = np.column_stack([np.full(steps, 3e-6), np.zeros(steps)])
+    previous = np.ones((steps, 2))
+    out = learn(previous, reference, position, contour, TS, gamma_tracking=2.0, gamma_contour=5.0, lead=3)
+    k = np.arange(steps - 3)
+    np.testing.assert_allclose(out[k, 0], 1.0 - 2.0 * (k + 3) * 1e-6 + 5.0 * 3e-6, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(out[k, 1], 1.0 + 2.0 * 2 * (k + 3) * 1e-6, rtol=0, atol=1e-15)
+    last = [1.0 - 2.0 * 49e-6 + 5.0 * 3e-6, 1.0 + 2.0 * 2 * 49e-6]         # the last error, held
+    np.testing.assert_allclose(out[-3:], [last] * 3, rtol=0, atol=1e-15)
+
+
+def test_the_q_filter_passes_the_slow_part_without_phase_and_stops_the_fast_part():
+    steps = 4000
+    t = np.arange(steps) * TS
+    slow, fast = np.sin(2 * np.pi * 2.0 * t), np.sin(2 * np.pi * 200.0 * t)
+    error = np.column_stack([slow + fast, np.zeros(steps)])
+    out = learn(None, error, np.zeros((steps, 2)), np.zeros((steps, 2)), TS, 1.0, 0.0, lead=0, q_cutoff=20.0)
+    middle = slice(500, 3500)
+    assert np.max(np.abs(out[middle, 0] - slow[middle])) < 0.01       # 2 Hz: unchanged, no lag; 200 Hz: gone
+
+
+def _tace_per_pass(experiment):
+    return [score_run(loop.curve, result).tace for loop, result in simulate_passes(experiment)]
+
+
+def test_the_contour_error_falls_pass_by_pass_on_a_repeated_ellipse():
+    tace = _tace_per_pass(_ellipse())
+    assert all(later < earlier for earlier, later in zip(tace, tace[1:])), tace
+    assert tace[-1] < 0.5 * tace[0], tace
+
+
+def test_a_flipped_learning_gain_makes_it_rise(monkeypatch):
+    import contouring_ros.learning as learning
+    def flipped(correction, reference, position, estimate, ts, gamma_tracking, gamma_contour, lead, q_cutoff):
+        return learn(correction, reference, position, estimate, ts, -gamma_tracking, -gamma_contour, lead, q_cutoff)
+    monkeypatch.setattr(learning, "learn", flipped)
+    tace = _tace_per_pass(_ellipse(passes=3))
+    assert tace[-1] > tace[0], tace
+
+
+def test_a_batch_of_different_corrections_gives_each_run_alone_bit_for_bit():
+    experiment = _ellipse(duration=0.2)
+    first = build_loop(experiment)
+    result = simulate(first)
+    learned = next_correction(experiment, result, None)
+    tables = [np.zeros_like(learned), learned, 2.0 * learned]       # one length: the passes of one experiment
+
+    def loop_with(table):
+        loop = build_loop(experiment)
+        loop.controller.table = table
+        return loop
+    batch = simulate_batch([loop_with(table) for table in tables])
+    for table, batched in zip(tables, batch):
+        alone = simulate(loop_with(table))
+        np.testing.assert_array_equal(batched.position, alone.position)
+        np.testing.assert_array_equal(batched.correction, alone.correction)
+
+
+def test_a_learned_file_that_cannot_be_used_is_refused_in_one_line(tmp_path):
+    bad = tmp_path / "learned.npy"
+    np.save(bad, np.zeros((10, 3)))
+    text = shortened(CONFIG / "ilc_ellipse.yaml", 0.05).replace("    passes: 8", f"    passes: 8\n    learned_file: {bad}")
+    with pytest.raises(ConfigError, match=r"/ccc\.learned_file: .* holds a \(10, 3\) array, expected .* 2 axes"):
+        build_loop(parse_experiment(text, "ilc.yaml"))
+    text = text.replace(str(bad), str(tmp_path / "missing.npy"))
+    with pytest.raises(ConfigError, match=r"/ccc\.learned_file: cannot read"):
+        build_loop(parse_experiment(text, "ilc.yaml"))
+
+
+def test_a_correction_plays_back_row_by_row_then_zeros():
+    controller = LearnedCorrection(2, np.array([[1.0, 2.0], [3.0, 4.0]]))
+    assert [list(controller.step(None)) for _ in range(3)] == [[1.0, 2.0], [3.0, 4.0], [0.0, 0.0]]
