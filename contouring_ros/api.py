@@ -52,12 +52,16 @@ class Run:
         The reference contour.
     warnings : list of str
         What a bag reader had to make do with; for a simulation, the setup words its part program read.
+    loop : ControlLoop or None
+        A simulation's core objects after the run (e.g. ``loop.controller.solve_times``, an MPCC's solve
+        time of each step); None for a recorded run.
     """
 
     experiment: object
     result: object
     curve: object
     warnings: list = field(default_factory=list)
+    loop: object = None
 
     @property
     def axes(self) -> list:
@@ -104,7 +108,7 @@ def simulate(experiment, settings: dict | None = None) -> Run:
     first (grid keys as in sweeps, e.g. {"ccc.kp": 2.0, "x/servo.a": 10}, or {"/ccc": {"type": "none"}})."""
     experiment = _with_settings(load_experiment(experiment), settings)
     loop = build_loop(experiment)
-    return Run(experiment, _simulate_loop(loop), loop.curve, program_warnings(loop.curve))
+    return Run(experiment, _simulate_loop(loop), loop.curve, program_warnings(loop.curve), loop)
 
 
 def read_bag(path, experiment=None) -> Run:

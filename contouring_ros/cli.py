@@ -152,7 +152,7 @@ def _simulate(args):
             experiment = load_experiment(config)
     from .learning import passes
     if passes(experiment) > 1:
-        _simulate_passes(experiment)
+        _simulate_passes(experiment, args.from_time)
         return
     loop = build_loop(experiment)
     for warning in program_warnings(loop.curve):
@@ -167,20 +167,21 @@ def _simulate(args):
             print(f"scores of the {len(error.result.time)} steps before it:")
             print(format_scores([(experiment.name, score_run(loop.curve, error.result))], list(experiment.axes)))
         raise SystemExit(1)
-    scores = score_run(loop.curve, result)
+    scores = score_run(loop.curve, result, args.from_time)
     print(format_scores([(experiment.name, scores)], list(experiment.axes)))
     for line in cutting_lines(loop.curve, result, experiment.schedule):
         print(line)
 
 
-def _simulate_passes(experiment):
-    """Every pass of a learning experiment in-process, then their scores side by side."""
+def _simulate_passes(experiment, from_time: float = 0.0):
+    """Every pass of a learning experiment in-process, then their scores side by side (of the samples at
+    t >= ``from_time``)."""
     from .learning import simulate_passes
     from .scoring import format_scores, score_run
     rows = []
 
     def report(j, loop, result):
-        rows.append((f"pass {j}", score_run(loop.curve, result)))
+        rows.append((f"pass {j}", score_run(loop.curve, result, from_time)))
     try:
         simulate_passes(experiment, report)
     except Diverged as error:
@@ -429,6 +430,8 @@ def main(argv=None):
     p.add_argument("config")
     p.add_argument("--set", action="append", metavar="KEY=VALUE",
                    help="change one key of the experiment for this run, as `run --set` does; repeatable")
+    p.add_argument("--from", dest="from_time", type=_seconds, default=0.0, metavar="T",
+                   help="score only the samples at t >= T seconds (steady state), as `score --from` does")
     p.set_defaults(func=_simulate)
     experiment_help = "experiment YAML, for bags recorded without one (e.g. by ros2 bag record)"
     p = sub.add_parser("score", help="score bags from their contents alone")
