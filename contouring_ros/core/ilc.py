@@ -66,6 +66,6 @@ def learn(correction, reference_position, position, estimate_vector, sample_time
     out = previous + shifted
     nyquist = 0.5 / sample_time
     if 0.0 < q_cutoff < nyquist and steps > 15:
-        b, a = signal.butter(2, q_cutoff / nyquist)
-        out = signal.filtfilt(b, a, out, axis=0)
+        sections = signal.butter(2, q_cutoff / nyquist, output="sos")   # second-order sections: sound at any cutoff
+        out = signal.sosfiltfilt(sections, out, axis=0)
     return out

@@ -27,6 +27,8 @@ import time
 
 import numpy as np
 
+from ..errors import ContouringError
+
 __all__ = ["ModelPredictiveContouring", "sampled_mass_damper"]
 
 
@@ -196,13 +198,15 @@ class ModelPredictiveContouring:
                                       shape=(size, size))
             self._solver = osqp.OSQP()
             self._solver.setup(upper, 2.0 * linear, sparse.eye(size, format="csc"), -bounds, bounds,
-                               verbose=False, eps_abs=1e-10, eps_rel=1e-10, polishing=False, max_iter=20000)
+                               verbose=False, eps_abs=1e-10, eps_rel=1e-10, polishing=False, max_iter=4000)
         else:
             self._solver.update(Px=(2.0 * hessian[rows, columns])[self._order], q=2.0 * linear)
             if self._plan is not None:
                 self._solver.warm_start(x=self._plan)
         result = self._solver.solve(raise_error=False)
         plan = np.asarray(result.x, dtype=float)
-        if not np.all(np.isfinite(plan)):
-            raise ValueError(f"the MPCC quadratic programme found no solution ({result.info.status})")
+        if result.info.status not in ("solved", "solved inaccurate") or not np.all(np.isfinite(plan)):
+            raise ContouringError(f"step {len(self.solve_times)}: the MPCC quadratic programme was not solved "
+                                  f"(OSQP: {result.info.status}): its weights q_contour, q_lag and r_rate may "
+                                  "span too many decades")
         return np.clip(plan, -bounds, bounds)

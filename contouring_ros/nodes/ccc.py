@@ -12,7 +12,7 @@ import numpy as np
 
 from .. import cdr, graph
 from ..experiment.build import build_controller, build_curve
-from ..errors import ConfigError
+from ..errors import ConfigError, RunError
 from ..experiment.schema import GLOBAL_SECTION
 from ..experiment.validate import check_ccc_takes_state, controller_uses_state
 from .lockstep import LockstepNode, run_node
@@ -47,6 +47,9 @@ class CCCNode(LockstepNode):
             message = inputs[graph.REFERENCE]
             ref = graph.reference_from_msg(message, len(self.axes))
             if self.preview:        # the reference ahead, published with this step's (an MPCC's horizon)
+                if len(message.points) - 1 < self.preview:
+                    raise RunError(f"{self.name}: step {k}: /reference carries {len(message.points) - 1} preview "
+                                   f"points; the {self.experiment.controller['type']} controller reads {self.preview}")
                 self.controller.look_ahead(np.array([point.positions[:len(self.axes)]
                                                      for point in message.points[1:1 + self.preview]]))
             position = np.array([inputs[topic].position[0] for topic in self.state_topics])

@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 from .. import cdr, graph
-from ..errors import ConfigError
+from ..errors import ConfigError, RunError
 from ..experiment.schema import GLOBAL_SECTION
 from ..experiment.build import build_servo, initial_state
 from .lockstep import LockstepNode, run_node
@@ -37,6 +37,9 @@ class ServoNode(LockstepNode):
         point = points[0]
         state = inputs[self.state_topic]
         if self.preview:            # the reference ahead, published with this step's (a ZPETC's)
+            if len(points) - 1 < self.preview:
+                raise RunError(f"{self.name}: step {k}: /reference carries {len(points) - 1} preview points; "
+                               f"the {self.experiment.servos[self.axis]['law']} law reads {self.preview}")
             self.servo.look_ahead(tuple(ahead.positions[i] for ahead in points[1:1 + self.preview]))
         command = self.servo.step(point.positions[i], point.velocities[i], point.accelerations[i],
                                   state.position[0], state.velocity[0], inputs[graph.CORRECTION].effort[i])

@@ -89,11 +89,18 @@ def test_a_learned_file_that_cannot_be_used_is_refused_in_one_line(tmp_path):
     bad = tmp_path / "learned.npy"
     np.save(bad, np.zeros((10, 3)))
     text = shortened(CONFIG / "ilc_ellipse.yaml", 0.05).replace("    passes: 8", f"    passes: 8\n    learned_file: {bad}")
-    with pytest.raises(ConfigError, match=r"/ccc\.learned_file: .* holds a \(10, 3\) array, expected .* 2 axes"):
+    with pytest.raises(ConfigError, match=r"/ccc\.learned_file: .* holds a \(10, 3\) float64 array, expected .* 2 axes"):
         build_loop(parse_experiment(text, "ilc.yaml"))
-    text = text.replace(str(bad), str(tmp_path / "missing.npy"))
-    with pytest.raises(ConfigError, match=r"/ccc\.learned_file: cannot read"):
-        build_loop(parse_experiment(text, "ilc.yaml"))
+    for name, write in (("missing.npy", None), ("text.npy", lambda p: p.write_text("0.1, 0.2\n")),
+                        ("empty.npy", lambda p: p.write_bytes(b"")),
+                        ("archive.npz", lambda p: np.savez(p, np.zeros((10, 2)))),
+                        ("words.npy", lambda p: np.save(p, np.array([["a", "b"]])))):
+        if write is not None:
+            write(tmp_path / name)
+        given = text.replace(str(bad), str(tmp_path / name))
+        with pytest.raises(ConfigError, match=r"^ilc\.yaml: /ccc\.learned_file: '.*' (is not|holds)") as raised:
+            build_loop(parse_experiment(given, "ilc.yaml"))
+        assert "\n" not in str(raised.value) and "allow_pickle" not in str(raised.value), name
 
 
 def test_a_correction_plays_back_row_by_row_then_zeros():

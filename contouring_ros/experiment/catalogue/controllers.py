@@ -3,11 +3,13 @@
 must then be 'direct'); ``needs_state``: it uses the reference and the axis states (the CCC node takes them)."""
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 from ...core import contouring, estimators, ilc, mpc
 from ...core.plants import MAX_COMMAND_DELAY
-from ...errors import ConfigError, one_line
+from ...errors import ConfigError
 from ...registry import Entry, Role
 from ..schema import AXIS_GAIN_RANGE, BANDWIDTH_RANGE, DAMPING_RANGE, FORCE_RANGE, GAIN_RANGE, MASS_RANGE, POSITIVE_RANGE, REQUIRED, \
     Param, pid_gains
@@ -45,18 +47,50 @@ def _mpcc(s, c):
                                          s["command_delay"], s["disturbance_gain"])
 
 
+#: the largest learned-correction file read [bytes] (a million steps of 3 axes is 24 MB)
+MAX_LEARNED_BYTES = 256 << 20
+
+
+def load_learned(path, where: str, n_axes: int, base=None) -> np.ndarray:
+    """The correction table of an ILC pass: the .npy file ``path`` (relative to ``base``, the experiment's
+    folder, where relative), a finite real array of steps x ``n_axes``; anything else one ConfigError line
+    naming /ccc.learned_file."""
+    path = Path(path)
+    if not path.is_absolute() and base is not None:
+        path = Path(base) / path
+
+    def refuse(what):
+        raise ConfigError(f"{where}: /ccc.learned_file: {str(path)!r} {what}")
+    if not path.is_file():
+        refuse("is not a file")
+    if path.stat().st_size > MAX_LEARNED_BYTES:
+        refuse(f"is larger than {MAX_LEARNED_BYTES >> 20} MiB")
+    try:
+        table = np.load(path, mmap_mode="r", allow_pickle=False)
+    except Exception:       # noqa: BLE001 - a text, pickle, .npz, empty or truncated file alike
+        refuse("is not a .npy array file (numpy.save of a steps x axes array)")
+    if not isinstance(table, np.ndarray) or table.dtype.kind not in "fiu" or table.ndim != 2 \
+            or table.shape[1] != n_axes:
+        shape = getattr(table, "shape", None)
+        refuse(f"holds a {shape} {getattr(table, 'dtype', type(table).__name__)} array, expected finite real "
+               f"values, steps x {n_axes} axes")
+    table = np.array(table, dtype=float)
+    if not np.all(np.isfinite(table)):
+        refuse(f"holds a {table.shape} array, expected finite values, steps x {n_axes} axes")
+    return table
+
+
+def _check_ilc(section, axes):
+    if 0.0 < section["q_cutoff"] < 0.01:
+        return "q_cutoff", f"{section['q_cutoff']!r} Hz is below 0.01 Hz, where the Q-filter is numerically " \
+                           "singular; 0 turns it off"
+    return None
+
+
 def _ilc(s, c):
     """The learned correction of ``learned_file`` (an .npy array, steps x axes), or none (the first pass)."""
-    table = None
-    if s["learned_file"]:
-        try:
-            table = np.load(s["learned_file"], allow_pickle=False)
-        except (OSError, ValueError) as error:
-            raise ConfigError(f"{c.where}: /ccc.learned_file: cannot read {s['learned_file']!r}: "
-                              f"{one_line(error)}") from None
-        if table.ndim != 2 or table.shape[1] != c.n_axes or not np.all(np.isfinite(table)):
-            raise ConfigError(f"{c.where}: /ccc.learned_file: {s['learned_file']!r} holds a {table.shape} "
-                              f"array, expected finite values, steps x {c.n_axes} axes")
+    base = Path(c.experiment.path).parent if c.experiment is not None and c.experiment.path else None
+    table = load_learned(s["learned_file"], c.where, c.n_axes, base) if s["learned_file"] else None
     return ilc.LearnedCorrection(c.n_axes, table)
 
 
@@ -149,7 +183,7 @@ for _entry in (
                         bounds=(1, 1000)),
         "learned_file": Param("str", "", help="the correction this pass plays back (.npy, steps x axes; the "
                               "passes write it), empty: none")},
-        _ilc, gains=("gamma_tracking", "gamma_contour")),
+        _ilc, check=_check_ilc, gains=("gamma_tracking", "gamma_contour")),
     Entry("mpcc", {
         "mass": _per_axis_values("axis model masses [kg] (a first-order velocity axis: its time constant)",
                                  MASS_RANGE),

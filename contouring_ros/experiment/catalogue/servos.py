@@ -37,6 +37,12 @@ def plan_correction(section: dict, experiment) -> bool:
     return experiment is not None and experiment.curve["type"] in TOOL_PATH_TYPES
 
 
+def _check_zpetc(section, axes):
+    if not section["kp"] and not section["ki"]:
+        return "kp", "the zpetc law inverts its loop from the reference to the position: kp or ki must be positive"
+    return None
+
+
 def _zpetc(s, c):
     return servo.ZPETCServo(s["kp"], s["ki"], s["kd"], s["gain"], s["time_constant"], c.sample_time,
                             s["command_delay"], s["zero_radius"], s["output_limit"])
@@ -105,6 +111,6 @@ for _entry in (
                                "[samples] (the plant's command_delay, where it is known)", bounds=(0, MAX_COMMAND_DELAY)),
         "zero_radius": Param("float", 0.5, "positive", help="a closed-loop zero on the negative real side with at "
                              "least this modulus is not inverted (nor any outside the unit circle)", bounds=(1e-3, 1.0))},
-        _zpetc, preview=lambda s, experiment, axis: s["command_delay"] + 3),
+        _zpetc, check=_check_zpetc, preview=lambda s, experiment, axis: s["command_delay"] + 3),
 ):
     SERVOS.add(_entry)
