@@ -12,8 +12,6 @@ import numpy as np
 
 from .. import cdr, graph
 from ..experiment.build import build_controller, build_curve
-from ..errors import ConfigError, RunError
-from ..experiment.schema import GLOBAL_SECTION
 from ..experiment.validate import check_ccc_takes_state, controller_uses_state
 from .lockstep import LockstepNode, run_node
 
@@ -33,12 +31,8 @@ class CCCNode(LockstepNode):
             for topic in self.state_topics:
                 self.add_input(topic, used=self.needs_state)
         self.publisher = self.add_output(graph.CORRECTION)
-        self.preview = int(getattr(self.controller, "preview", 0) or 0)
-        if self.preview > self.experiment.reference_preview:
-            raise ConfigError(f"{self.name}: the {self.experiment.controller['type']} controller reads {self.preview} "
-                              f"steps of reference ahead but the interpolator publishes "
-                              f"{self.experiment.reference_preview}: set {GLOBAL_SECTION}.reference_preview to "
-                              f"{self.preview} or more (contouring-ros run sets it)")
+        self.kind = f"the {self.experiment.controller['type']} controller"
+        self.preview = self.reads_ahead(self.controller, self.kind)
         self.names = list(self.axes)
 
     def on_step(self, k, inputs):
@@ -47,11 +41,8 @@ class CCCNode(LockstepNode):
             message = inputs[graph.REFERENCE]
             ref = graph.reference_from_msg(message, len(self.axes))
             if self.preview:        # the reference ahead, published with this step's (an MPCC's horizon)
-                if len(message.points) - 1 < self.preview:
-                    raise RunError(f"{self.name}: step {k}: /reference carries {len(message.points) - 1} preview "
-                                   f"points; the {self.experiment.controller['type']} controller reads {self.preview}")
-                self.controller.look_ahead(np.array([point.positions[:len(self.axes)]
-                                                     for point in message.points[1:1 + self.preview]]))
+                ahead = self.preview_points(k, message, self.preview, self.kind)
+                self.controller.look_ahead(np.array([point.positions[:len(self.axes)] for point in ahead]))
             position = np.array([inputs[topic].position[0] for topic in self.state_topics])
             velocity = np.array([inputs[topic].velocity[0] for topic in self.state_topics])
             correction = self.controller.step(estimate, ref, position, velocity)

@@ -32,6 +32,7 @@ from ..experiment.build import in_position_windows
 from ..experiment.validate import experiment_for_node
 from ..parameters import descriptor, node_parameters
 from ..errors import ConfigError, ContouringError, RunError
+from ..experiment.schema import GLOBAL_SECTION
 
 __all__ = ["GRAPH_QOS", "message_class", "LockstepNode", "run_node"]
 
@@ -196,6 +197,25 @@ class LockstepNode:
     def stamp(self, k: int) -> tuple:
         """(sec, nanosec) of step k."""
         return graph.step_to_stamp(k, self.sample_time_ns)
+
+    def reads_ahead(self, reader, what: str) -> int:
+        """How many steps of reference ahead ``reader`` (a servo law or a controller: ``what`` in errors) reads
+        (docs/ARCHITECTURE.md, "Reference preview"); refused unless the interpolator publishes as many."""
+        preview = int(getattr(reader, "preview", 0) or 0)
+        if preview > self.experiment.reference_preview:
+            raise ConfigError(f"{self.name}: {what} reads {preview} steps of reference ahead but the interpolator "
+                              f"publishes {self.experiment.reference_preview}: set {GLOBAL_SECTION}.reference_preview "
+                              f"to {preview} or more (contouring-ros run sets it)")
+        return preview
+
+    def preview_points(self, k: int, message, count: int, what: str) -> list:
+        """The ``count`` preview points of a /reference ``message`` (after its first); one line when it
+        carries fewer."""
+        points = message.points[1:1 + count]
+        if len(points) < count:
+            raise RunError(f"{self.name}: step {k}: /reference carries {len(message.points) - 1} preview points; "
+                           f"{what} reads {count}")
+        return points
 
     # -- to implement -----------------------------------------------------------------------------
     def setup(self):

@@ -2,8 +2,6 @@
 from __future__ import annotations
 
 from .. import cdr, graph
-from ..errors import ConfigError, RunError
-from ..experiment.schema import GLOBAL_SECTION
 from ..experiment.build import build_servo, initial_state
 from .lockstep import LockstepNode, run_node
 
@@ -24,12 +22,8 @@ class ServoNode(LockstepNode):
             self.add_input(topic)
         self.publisher = self.add_output(graph.command_topic(self.axis))
         self.names = [self.axis]
-        self.preview = int(getattr(self.servo, "preview", 0) or 0)
-        if self.preview > self.experiment.reference_preview:
-            raise ConfigError(f"{self.name}: the {self.experiment.servos[self.axis]['law']} law reads {self.preview} "
-                              f"steps of reference ahead but the interpolator publishes "
-                              f"{self.experiment.reference_preview}: set {GLOBAL_SECTION}.reference_preview to "
-                              f"{self.preview} or more (contouring-ros run sets it)")
+        self.law = f"the {self.experiment.servos[self.axis]['law']} law"
+        self.preview = self.reads_ahead(self.servo, self.law)
 
     def on_step(self, k, inputs):
         i = self.index
@@ -37,10 +31,8 @@ class ServoNode(LockstepNode):
         point = points[0]
         state = inputs[self.state_topic]
         if self.preview:            # the reference ahead, published with this step's (a ZPETC's)
-            if len(points) - 1 < self.preview:
-                raise RunError(f"{self.name}: step {k}: /reference carries {len(points) - 1} preview points; "
-                               f"the {self.experiment.servos[self.axis]['law']} law reads {self.preview}")
-            self.servo.look_ahead(tuple(ahead.positions[i] for ahead in points[1:1 + self.preview]))
+            ahead = self.preview_points(k, inputs[graph.REFERENCE], self.preview, self.law)
+            self.servo.look_ahead(tuple(point.positions[i] for point in ahead))
         command = self.servo.step(point.positions[i], point.velocities[i], point.accelerations[i],
                                   state.position[0], state.velocity[0], inputs[graph.CORRECTION].effort[i])
         self.publisher.publish(cdr.encode_joint_state(*self.stamp(k), self.names, effort=[float(command)]))

@@ -85,3 +85,15 @@ def test_each_ilc_pass_through_the_graph_equals_its_simulated_pass(tmp_path):
         for name in ("position", "correction", "command"):
             np.testing.assert_array_equal(getattr(recorded, name), getattr(expected, name), err_msg=name)
     assert np.any(read_run(bags[1]).result.correction != 0.0)
+
+
+def test_a_reference_with_fewer_preview_points_than_read_stops_the_node_in_one_line():
+    from types import SimpleNamespace
+    from contouring_ros.errors import RunError
+    from contouring_ros.nodes.lockstep import LockstepNode
+    message = cdr.decode_joint_trajectory(cdr.encode_joint_trajectory(
+        0, 0, ["x", "y", "theta"], [0.0] * 3, [0.0] * 3, [0.0] * 3, preview=[((0, 1_000_000), [0.0] * 3)]))
+    node = SimpleNamespace(name="/x/servo")
+    assert len(LockstepNode.preview_points(node, 7, message, 1, "the zpetc law")) == 1
+    with pytest.raises(RunError, match=r"^/x/servo: step 7: /reference carries 1 preview points; the zpetc law reads 4$"):
+        LockstepNode.preview_points(node, 7, message, 4, "the zpetc law")
