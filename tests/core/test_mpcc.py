@@ -90,3 +90,9 @@ def test_the_disturbance_estimate_removes_a_constant_load_s_offset():
         text = text[:text.index("/ccc:")] + "/ccc:\n  ros__parameters:\n    type: mpcc\n" + MODEL + section
         return _steady_rms(_run(text))
     assert with_load(0.2) < 0.3 * with_load(0.0)
+
+
+def test_weights_that_leave_no_error_to_lower_are_refused_in_one_line():
+    from contouring_ros.errors import ConfigError
+    with pytest.raises(ConfigError, match=r"/ccc\.q_contour: with q_contour and q_lag both 0 the MPCC has no error"):
+        _mpcc(q_contour=0.0, q_lag=0.0)

@@ -95,6 +95,8 @@ def _ilc(s, c):
 
 
 def _check_mpcc(section, axes):
+    if not section["q_contour"] and not section["q_lag"]:
+        return "q_contour", "with q_contour and q_lag both 0 the MPCC has no error to lower: the axes would stand still"
     for key in ("mass", "damping", "gain"):
         if len(section[key]) != len(axes):
             return key, f"expected one value per axis ({len(axes)}), got {len(section[key])}"
