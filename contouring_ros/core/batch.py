@@ -240,6 +240,7 @@ def simulate_batch(loops: list[ControlLoop]) -> list[SimulationResult]:
     axes = [(slice(i, i + 1), plant, servo) for i, (plant, servo) in enumerate(zip(plants, servos))]
     preview = loops[0].preview
     previewing = [(i, servo) for i, servo in enumerate(servos) if getattr(servo, "preview", 0)]
+    controller_preview = getattr(controller, "preview", 0)
     for k in range(m):
         t = step_time(k, ts)
         for column, plant, _ in axes:
@@ -250,12 +251,14 @@ def simulate_batch(loops: list[ControlLoop]) -> list[SimulationResult]:
         ref = Reference(ref.theta, ref.theta_dot, ref.theta_ddot, ref.position[:, 0], ref.velocity[:, 0],
                         ref.acceleration[:, 0])
         estimate = estimator.step_batch(ref, position)
-        correction = np.broadcast_to(controller.step(estimate, ref, position, velocity), (b, n))
-        rp, rv, ra, command_row = ref.position, ref.velocity, ref.acceleration, commands[k]
-        if preview:
+        if preview:         # as simulate() gives it: before the controller's and the servos' steps
             ahead = reference(curve, schedule, _ahead_times(clocks, k, times, preview, ts)).position   # (b, P, n)
             for i, servo in previewing:
                 servo.look_ahead(tuple(ahead[:, j, i:i + 1] for j in range(servo.preview)))
+            if controller_preview:
+                controller.look_ahead(ahead[:, :controller_preview])
+        correction = np.broadcast_to(controller.step(estimate, ref, position, velocity), (b, n))
+        rp, rv, ra, command_row = ref.position, ref.velocity, ref.acceleration, commands[k]
         for column, plant, servo in axes:
             command_row[:, column] = servo.step(rp[:, column], rv[:, column], ra[:, column], position[:, column],
                                                 velocity[:, column], correction[:, column])

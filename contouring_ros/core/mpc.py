@@ -22,12 +22,12 @@ optimum is the solution of one linear system. Every solve's wall time is kept (:
 """
 from __future__ import annotations
 
-import math
 import time
 
 import numpy as np
 
 from ..errors import ContouringError
+from .plants import mass_damper_hold_terms
 
 __all__ = ["ModelPredictiveContouring", "sampled_mass_damper"]
 
@@ -35,12 +35,7 @@ __all__ = ["ModelPredictiveContouring", "sampled_mass_damper"]
 def sampled_mass_damper(mass: float, damping: float, gain: float, sample_time: float) -> tuple:
     """(A, B) of x = (P, V): x+ = A x + B u for K / (M s^2 + B s) under a zero-order hold, as
     :class:`~contouring_ros.core.plants.MassDamperAxis` steps it."""
-    ts, a = float(sample_time), float(damping) / float(mass)
-    if a * ts < 1e-9:
-        vv, vw, pv, pw = 1.0, ts, ts, 0.5 * ts * ts
-    else:
-        one_minus_e = -math.expm1(-a * ts)
-        vv, vw, pv, pw = 1.0 - one_minus_e, one_minus_e / a, one_minus_e / a, (ts - one_minus_e / a) / a
+    vv, vw, pv, pw = mass_damper_hold_terms(float(mass), float(damping), float(sample_time))
     scale = float(gain) / float(mass)
     return np.array([[1.0, pv], [0.0, vv]]), np.array([pw * scale, vw * scale])
 
@@ -102,7 +97,7 @@ class ModelPredictiveContouring:
         self.held = [np.zeros(n) for _ in range(self.delay)]      # computed, not yet applied (oldest first)
         self.previous = np.zeros(n)          # the last command computed
         self.applied = None                  # the command applied over the last step (None before the first)
-        self.last_state = None               # (position, velocity) of the last step
+        self.last_velocity = None            # the axes' velocities of the last step
         self.disturbance = np.zeros(n)       # constant input disturbance estimate [command units]
         self.ahead = np.zeros((0, n))
         self.solve_times = []                # wall time of each step's solve [s]
@@ -116,8 +111,7 @@ class ModelPredictiveContouring:
     def _estimate_disturbance(self, position, velocity) -> None:
         if self.disturbance_gain and self.applied is not None:
             for i, (a_matrix, b_vector) in enumerate(self.models):
-                v0 = self.last_state[1][i]
-                predicted = a_matrix[1, 1] * v0 + b_vector[1] * (self.applied[i] + self.disturbance[i])
+                predicted = a_matrix[1, 1] * self.last_velocity[i] + b_vector[1] * (self.applied[i] + self.disturbance[i])
                 self.disturbance[i] += self.disturbance_gain * (velocity[i] - predicted) / b_vector[1]
 
     def _weights(self, reference_position) -> np.ndarray:
@@ -171,7 +165,7 @@ class ModelPredictiveContouring:
         self.solve_times.append(time.perf_counter() - started)
         command = plan[::big_n].copy()             # each axis' first command
         self._plan = plan
-        self.last_state = (position, velocity)
+        self.last_velocity = velocity
         if self.delay:
             self.applied = self.held[0]
             self.held = self.held[1:] + [command]
@@ -184,23 +178,10 @@ class ModelPredictiveContouring:
         """argmin U^T H U + 2 f^T U within the command limits."""
         if not np.isfinite(self.limits).any():
             return np.linalg.solve(hessian, -linear)
-        import osqp
-        from scipy import sparse
-        size = len(linear)
-        rows, columns = np.triu_indices(size)
-        bounds = np.repeat(self.limits, self.horizon)
-        bounds = np.where(np.isfinite(bounds), bounds, 1e30)
         if self._solver is None:
-            # the whole upper triangle stored, zeros included, so that every step's update keeps the pattern
-            pattern = sparse.csc_matrix((np.arange(1.0, len(rows) + 1.0), (rows, columns)), shape=(size, size))
-            self._order = pattern.data.astype(int) - 1
-            upper = sparse.csc_matrix(((2.0 * hessian[rows, columns])[self._order], pattern.indices, pattern.indptr),
-                                      shape=(size, size))
-            self._solver = osqp.OSQP()
-            self._solver.setup(upper, 2.0 * linear, sparse.eye(size, format="csc"), -bounds, bounds,
-                               verbose=False, eps_abs=1e-10, eps_rel=1e-10, polishing=False, max_iter=4000)
+            self._set_up_solver(hessian, linear)
         else:
-            self._solver.update(Px=(2.0 * hessian[rows, columns])[self._order], q=2.0 * linear)
+            self._solver.update(Px=(2.0 * hessian[self._upper])[self._order], q=2.0 * linear)
             if self._plan is not None:
                 self._solver.warm_start(x=self._plan)
         result = self._solver.solve(raise_error=False)
@@ -209,4 +190,22 @@ class ModelPredictiveContouring:
             raise ContouringError(f"step {len(self.solve_times)}: the MPCC quadratic programme was not solved "
                                   f"(OSQP: {result.info.status}): its weights q_contour, q_lag and r_rate may "
                                   "span too many decades")
-        return np.clip(plan, -bounds, bounds)
+        return np.clip(plan, -self._bounds, self._bounds)
+
+    def _set_up_solver(self, hessian, linear) -> None:
+        """OSQP, set up once with the first step's QP; what does not change from step to step (the Hessian's
+        pattern, the bounds) is kept for the updates."""
+        import osqp
+        from scipy import sparse
+        size = len(linear)
+        self._upper = rows, columns = np.triu_indices(size)
+        bounds = np.repeat(self.limits, self.horizon)
+        self._bounds = np.where(np.isfinite(bounds), bounds, 1e30)
+        # the whole upper triangle stored, zeros included, so that every step's update keeps the pattern
+        pattern = sparse.csc_matrix((np.arange(1.0, len(rows) + 1.0), (rows, columns)), shape=(size, size))
+        self._order = pattern.data.astype(int) - 1
+        upper = sparse.csc_matrix(((2.0 * hessian[rows, columns])[self._order], pattern.indices, pattern.indptr),
+                                  shape=(size, size))
+        self._solver = osqp.OSQP()
+        self._solver.setup(upper, 2.0 * linear, sparse.eye(size, format="csc"), -self._bounds, self._bounds,
+                           verbose=False, eps_abs=1e-10, eps_rel=1e-10, polishing=False, max_iter=4000)

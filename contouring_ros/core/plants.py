@@ -135,6 +135,24 @@ class Axis:
         raise NotImplementedError
 
 
+def first_order_hold_terms(gain: float, time_constant: float, sample_time: float) -> tuple:
+    """(alpha, pv, vu, pu) of the first-order velocity axis k / (s (tau s + 1)) under a zero-order hold:
+    V+ = alpha V + vu U, P+ = P + pv V + pu U (:class:`FirstOrderVelocityAxis`; the ZPETC's model)."""
+    alpha = math.exp(-sample_time / time_constant)
+    pv = time_constant * (1.0 - alpha)
+    return alpha, pv, gain * (1.0 - alpha), gain * (sample_time - pv)
+
+
+def mass_damper_hold_terms(mass: float, damping: float, sample_time: float) -> tuple:
+    """(vv, vw, pv, pw) of the mass-damper M s^2 + B s under a zero-order hold of the acceleration input w:
+    V+ = vv V + vw w, P+ = P + pv V + pw w (:class:`MassDamperAxis`; the MPCC's model)."""
+    ts, a = sample_time, damping / mass
+    if a * ts < 1e-9:
+        return 1.0, ts, ts, 0.5 * ts * ts
+    one_minus_e = -math.expm1(-a * ts)
+    return 1.0 - one_minus_e, one_minus_e / a, one_minus_e / a, (ts - one_minus_e / a) / a
+
+
 class FirstOrderVelocityAxis(Axis):
     """First-order velocity axis of paper 000 eq. 1-2.
 
@@ -178,11 +196,8 @@ class FirstOrderVelocityAxis(Axis):
         self.time_constant = float(time_constant)
         self.sample_time = float(sample_time)
         self.disturbance = disturbance or NoDisturbance()
-        alpha = math.exp(-self.sample_time / self.time_constant)
-        self._alpha = alpha
-        self._pv = self.time_constant * (1.0 - alpha)
-        self._vu = self.gain * (1.0 - alpha)
-        self._pu = self.gain * (self.sample_time - self._pv)
+        self._alpha, self._pv, self._vu, self._pu = first_order_hold_terms(self.gain, self.time_constant,
+                                                                           self.sample_time)
         self.position = float(position)
         self.velocity = float(velocity)
         self.saturation = float(saturation)
@@ -280,13 +295,7 @@ class MassDamperAxis(Axis):
         self.disturbance = disturbance or NoDisturbance()
         self.saturation = float(saturation)
         self.coulomb_positive, self.coulomb_negative = float(coulomb_positive), float(coulomb_negative)
-        a = self.damping / self.mass
-        if a * ts < 1e-9:
-            self._vv, self._vw, self._pv, self._pw = 1.0, ts, ts, 0.5 * ts * ts
-        else:
-            one_minus_e = -math.expm1(-a * ts)
-            self._vv, self._vw = 1.0 - one_minus_e, one_minus_e / a
-            self._pv, self._pw = one_minus_e / a, (ts - one_minus_e / a) / a
+        self._vv, self._vw, self._pv, self._pw = mass_damper_hold_terms(self.mass, self.damping, ts)
         self._input_scale = self.gain / self.mass
         if disturbance_unit not in ("command", "acceleration"):
             raise ValueError(f"disturbance_unit must be command or acceleration, got {disturbance_unit!r}")

@@ -14,7 +14,7 @@ from scipy.linalg import expm
 
 from .geometry import matvec
 from .pid import DiscretePID
-from .plants import coulomb_friction, has_limit, symmetric_clip
+from .plants import coulomb_friction, first_order_hold_terms, has_limit, symmetric_clip
 
 __all__ = ["PIDFeedforwardServo", "IntegralSlidingModeServo", "DisturbanceObserver", "DirectServo",
            "ExtendedStateObserver", "ESOSlidingModeServo", "PIDServo", "CascadeServo", "ZPETCServo",
@@ -356,16 +356,6 @@ class ZPETCDesign:
         return self.delay + len(self.uncancelled)
 
 
-def _sampled_axis(gain, time_constant, sample_time) -> tuple:
-    """(alpha, pv, vu, pu) of the first-order velocity axis under a zero-order hold, as
-    :class:`~contouring_ros.core.plants.FirstOrderVelocityAxis` steps it: V+ = alpha V + vu U,
-    P+ = P + pv V + pu U."""
-    ts, tau, k = float(sample_time), float(time_constant), float(gain)
-    alpha = math.exp(-ts / tau)
-    pv, vu = tau * (1.0 - alpha), k * (1.0 - alpha)
-    return alpha, pv, vu, k * (ts - pv)
-
-
 def closed_loop(kp, ki, kd, gain, time_constant, sample_time, command_delay: int = 0) -> tuple:
     """(B, A, d) of the position loop of :class:`ZPETCServo` on the first-order velocity axis (paper 000 eq. 2,
     K / (s (tau s + 1)) from command to position; a mass-damper K / (M s^2 + B s) is K/B, M/B): the
@@ -379,7 +369,7 @@ def closed_loop(kp, ki, kd, gain, time_constant, sample_time, command_delay: int
 
     returned as G_c = z^-d B(z^-1) / A(z^-1), A(0) = 1."""
     ts = float(sample_time)
-    alpha, pv, vu, pu = _sampled_axis(gain, time_constant, ts)
+    alpha, pv, vu, pu = first_order_hold_terms(float(gain), float(time_constant), ts)
     n_p, d_p = np.array([pu, pv * vu - alpha * pu]), np.polymul([1.0, -1.0], [1.0, -alpha])
     if ki:
         n_c, d_c = np.array([kp + ki * ts, -kp]), np.array([1.0, -1.0])
@@ -459,8 +449,6 @@ class ZPETCServo:
         self.sample_time = float(sample_time)
         self.gain, self.time_constant = float(gain), float(time_constant)
         self.command_delay = int(command_delay)
-        self.starting = False
-        self.motion = ()
         self.start_weights = tuple(float(w) for w in _steady_past(taps, recursion, self.preview).ravel())
         self.window = ()            # y_d, oldest first, ending at k + preview; filled at the first step
         self.past = ()              # r(k-1), r(k-2)
@@ -470,22 +458,23 @@ class ZPETCServo:
         """This step's desired positions at k + 1 .. k + :attr:`preview` (floats, or (B, 1) columns)."""
         self.ahead = tuple(positions)
 
-    def _start(self, ref_pos, ref_vel, ref_acc) -> None:
+    def _start(self, ref_pos, ref_vel, ref_acc) -> tuple:
         """At the first step the past is the motion the axis starts in: y_d before k extrapolated from the
         reference's position, velocity and acceleration, and r(k-1), r(k-2) the filter's steady output for
         that motion (:func:`_steady_past`): an axis that starts moving on its reference gets no transient
-        from a past held still (which the filter's 1 / b_a0 ~ 1 / (k Ts^2) gain would turn into a jolt)."""
+        from a past held still (which the filter's 1 / b_a0 ~ 1 / (k Ts^2) gain would turn into a jolt).
+        Returns the motion's (c0, c1, c2)."""
         ts = self.sample_time
-        self.motion = motion = (ref_pos, ref_vel * ts, 0.5 * ref_acc * ts * ts)   # y_d(k + j) = c0 + c1 j + c2 j^2
+        motion = (ref_pos, ref_vel * ts, 0.5 * ref_acc * ts * ts)   # y_d(k + j) = c0 + c1 j + c2 j^2
         older = len(self.taps) - self.preview - 1
         self.window = tuple(motion[0] - motion[1] * j + motion[2] * (j * j) for j in range(older, 0, -1)) \
             + (ref_pos,) + self.ahead
         w = self.start_weights
         self.past = (w[0] * motion[0] + w[1] * motion[1] + w[2] * motion[2],
                      w[3] * motion[0] + w[4] * motion[1] + w[5] * motion[2])
-        self.starting = True
+        return motion
 
-    def _start_integral(self, error, velocity) -> None:
+    def _start_integral(self, motion, error, velocity) -> None:
         """Bumpless start: the integral that makes the first command the one the sampled axis model needs to
         move on the starting motion y(j) = c0 + c1 j + c2 j^2 (:meth:`_start`): with the axis' P/U = N_p / D_p
         (:func:`closed_loop`), pu u(j+1) + q u(j) = y(j+2) - (1 + alpha) y(j+1) + alpha y(j) has the
@@ -493,9 +482,9 @@ class ZPETCServo:
         (no integral: nothing to set)."""
         pid = self.pid
         if pid.ki:
-            alpha, pv, vu, pu = _sampled_axis(self.gain, self.time_constant, self.sample_time)
+            alpha, pv, vu, pu = first_order_hold_terms(self.gain, self.time_constant, self.sample_time)
             q = pv * vu - alpha * pu
-            c0, c1, c2 = self.motion
+            c0, c1, c2 = motion
             delay = self.command_delay
 
             def moved(j):                   # y(j+2) - (1 + alpha) y(j+1) + alpha y(j); c0 cancels
@@ -504,19 +493,17 @@ class ZPETCServo:
             u1 = (second - first) / (pu + q)
             wanted = (first - pu * u1) / (pu + q) + u1 * delay
             pid.integral = (wanted - pid.kp * error + pid.kd * velocity) / pid.ki - pid.sample_time * error
-        self.starting = False
 
     def step(self, ref_pos, ref_vel, ref_acc, position, velocity, correction) -> float:
-        if not self.window:
-            self._start(ref_pos, ref_vel, ref_acc)
-        else:
+        motion = self._start(ref_pos, ref_vel, ref_acc) if not self.window else None
+        if motion is None:
             self.window = self.window[1:] + self.ahead[-1:]
         loop_reference = self.taps[0] * self.window[0]
         for tap, value in zip(self.taps[1:], self.window[1:]):
             loop_reference = loop_reference + tap * value
         loop_reference = loop_reference - self.recursion[0] * self.past[0] - self.recursion[1] * self.past[1]
         self.past = (loop_reference, self.past[0])
-        if self.starting:
-            self._start_integral(loop_reference - position, velocity)
+        if motion is not None:
+            self._start_integral(motion, loop_reference - position, velocity)
         command = self.pid.step(loop_reference - position, -velocity) + correction
         return self.pid.clamp(command, self.output_limit)

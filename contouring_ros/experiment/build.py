@@ -89,9 +89,7 @@ def build_clock(experiment: Experiment, curve, schedule):
 def servo_preview(experiment: Experiment, axis: str) -> int:
     """How many steps of reference beyond the current one the axis' servo law reads (its catalogue entry's
     ``preview``; 0 for most laws)."""
-    section = experiment.servos[axis]
-    entry = SERVOS.entry(section["law"])
-    return int(entry.preview(section, experiment, axis)) if entry.preview is not None else 0
+    return _reads_ahead(SERVOS, experiment.servos[axis], experiment, axis)
 
 
 def reference_preview(experiment: Experiment) -> int:
@@ -105,11 +103,22 @@ def reference_preview(experiment: Experiment) -> int:
 def controller_preview(experiment: Experiment) -> int:
     """How many steps of reference beyond the current one the contour controller reads (its catalogue entry's
     ``preview``; 0 for most, and for an experiment without a controller section)."""
-    section = experiment.controller
-    if not section:
-        return 0
-    entry = CONTROLLERS.entry(section["type"])
-    return int(entry.preview(section, experiment, None)) if entry.preview is not None else 0
+    return _reads_ahead(CONTROLLERS, experiment.controller, experiment, None) if experiment.controller else 0
+
+
+def _reads_ahead(role, section: dict, experiment: Experiment, axis) -> int:
+    """The ``preview`` of the catalogue entry of ``section``'s type in ``role`` (0 where it states none)."""
+    entry = role.entry(section[role.type_key])
+    return int(entry.preview(section, experiment, axis)) if entry.preview is not None else 0
+
+
+def _check_preview(built, wanted: int, where: str) -> None:
+    """Refuse a built object whose ``preview`` (what the loop gives it) differs from its catalogue entry's
+    (what the interpolator publishes, decided before anything is built); ``where`` names the type."""
+    has = int(getattr(built, "preview", 0) or 0)
+    if has != wanted:
+        raise ConfigError(f"{where}'s object has preview = {has} but its registry entry gives {wanted}: give the "
+                          "Entry preview as its object has it")
 
 
 def build_servo(experiment: Experiment, axis: str, position: float, velocity: float, acceleration: float):
@@ -118,11 +127,8 @@ def build_servo(experiment: Experiment, axis: str, position: float, velocity: fl
     servo = SERVOS.build(experiment.servos[axis], BuildContext(experiment, axis=axis, position=position,
                                                                velocity=velocity, acceleration=acceleration,
                                                                where=experiment.path))
-    wanted, has = servo_preview(experiment, axis), int(getattr(servo, "preview", 0) or 0)
-    if has != wanted:
-        raise ConfigError(f"{experiment.path}: /{axis}/servo.law: the {experiment.servos[axis]['law']} law's object "
-                          f"has preview = {has} but its registry entry gives {wanted}: give the Entry preview as its "
-                          "object has it")
+    _check_preview(servo, servo_preview(experiment, axis),
+                   f"{experiment.path}: /{axis}/servo.law: the {experiment.servos[axis]['law']} law")
     return servo
 
 
@@ -139,10 +145,7 @@ def build_controller(experiment: Experiment, curve):
         raise ConfigError(f"{experiment.path}: /ccc.type: the {entry.name} controller's object has needs_state = "
                           f"{bool(getattr(controller, 'needs_state', False))} but its registry entry has "
                           f"{entry.needs_state} ({entry.origin}): give the Entry needs_state as its object has it")
-    wanted, has = controller_preview(experiment), int(getattr(controller, "preview", 0) or 0)
-    if has != wanted:
-        raise ConfigError(f"{experiment.path}: /ccc.type: the {entry.name} controller's object has preview = {has} "
-                          f"but its registry entry gives {wanted}: give the Entry preview as its object has it")
+    _check_preview(controller, controller_preview(experiment), f"{experiment.path}: /ccc.type: the {entry.name} controller")
     return controller
 
 

@@ -27,12 +27,12 @@ class ServoNode(LockstepNode):
 
     def on_step(self, k, inputs):
         i = self.index
-        points = inputs[graph.REFERENCE].points
-        point = points[0]
+        message = inputs[graph.REFERENCE]
+        point = message.points[0]
         state = inputs[self.state_topic]
         if self.preview:            # the reference ahead, published with this step's (a ZPETC's)
-            ahead = self.preview_points(k, inputs[graph.REFERENCE], self.preview, self.law)
-            self.servo.look_ahead(tuple(point.positions[i] for point in ahead))
+            ahead = self.preview_points(k, message, self.preview, self.law)
+            self.servo.look_ahead(tuple(later.positions[i] for later in ahead))
         command = self.servo.step(point.positions[i], point.velocities[i], point.accelerations[i],
                                   state.position[0], state.velocity[0], inputs[graph.CORRECTION].effort[i])
         self.publisher.publish(cdr.encode_joint_state(*self.stamp(k), self.names, effort=[float(command)]))
