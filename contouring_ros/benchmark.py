@@ -16,8 +16,14 @@ scenario's files define (the servos are tuned to the scenario's plants; none is 
 scenario's own section of that type (estimators: else the first section of that type in any scenario file;
 controllers: else a section of a controller with the same parameters, whose gains are in the same units).
 A combination that validation refuses, that has no gains to start from, or that fails in its first steps
-cannot be paired; the reason is kept. The controller ``none`` reads no estimate: it is paired with the
-scenario's own estimator only.
+cannot be paired; the reason is kept. Three rules keep the pairings to those that can differ:
+a controller that reads no estimate (its Entry's ``reads_estimate``: ``none``, the adaptive TNB, the MPCC) is
+paired with the scenario's own estimator only (every other would give the same run); a learning controller
+(its section runs ``passes`` > 1, each evaluation of its tuning running every pass) with the scenario's own
+estimator and first servo set it can drive; a servo set whose law reads the reference ahead (a feedforward
+such as the ZPETC) with ``none`` (the feedforward alone) and the proposed controller, on the scenario's own
+estimator. Sections that model the drive (a ``command_delay`` key of a servo or controller, a controller's
+``command_limit``) are given the realistic machine's delay and actuator limits (:func:`fit_to_machine`).
 
 Tuning: :mod:`contouring_ros.tuning` (every gain on its own, CMA-ES, equal budget, equal noise,
 saturation and robustness constraints, a realistic machine, intervals over seeds and model mismatch).
@@ -52,7 +58,8 @@ from .tuning import (
 )
 
 __all__ = ["GOAL", "Family", "Combination", "Excluded", "Row", "Reference",
-           "scenario_families", "select_families", "plan", "reference_job", "run_benchmark", "write_csv", "draw_heatmap",
+           "scenario_families", "select_families", "plan", "fit_to_machine", "reference_ranks", "Part", "save_part",
+           "load_parts", "write_outputs", "reference_job", "run_benchmark", "write_csv", "draw_heatmap",
            "draw_pareto", "benchmark_report", "paper_best", "verdict"]
 
 GOAL = 0.5              # a combination beats the proposed method 2x when both ratios' intervals are below this
@@ -263,11 +270,15 @@ def plan(family: Family, catalogue: dict | None = None) -> tuple:
     direct = {label: all(SERVOS.entry(s["law"]).direct for s in servos.values())
               for label, servos in servo_sets.items()}
     own_estimator = _params(family.data[family.proposed], "/contour_estimator")["type"]
+    own_controller = _params(family.data[family.proposed], "/ccc")["type"]
+    feedforward = {label for label, servos in servo_sets.items()
+                   if any(SERVOS.entry(s["law"]).preview is not None for s in servos.values())}
     combos, excluded = [], []
     for controller in CONTROLLERS.names():
         entry = CONTROLLERS.entry(controller)
-        estimators = [own_estimator] if controller == "none" else ESTIMATORS.names()
-        usable = {label for label in servo_sets if direct[label] == entry.whole_command}
+        estimators = ESTIMATORS.names() if entry.reads_estimate else [own_estimator]
+        usable = {label for label in servo_sets if direct[label] == entry.whole_command
+                  and (label not in feedforward or controller in ("none", own_controller))}
         if not usable:
             why = (f"computes every axis' whole command and needs 'direct' servos; the scenario's files drive "
                    f"its plants only through {', '.join(sorted(servo_sets))}") if entry.whole_command else \
@@ -279,9 +290,15 @@ def plan(family: Family, catalogue: dict | None = None) -> tuple:
         if seed is None:
             excluded += [Excluded(e, controller, "any", why) for e in estimators]
             continue
+        learning = any(int(section.get("passes", 1) or 1) > 1 for section in seed)
+        if learning:
+            estimators = [own_estimator]
+            usable = {next(label for label in servo_sets if label in usable)}
         for estimator in estimators:
             for label in servo_sets:
                 if label not in usable:
+                    continue
+                if label in feedforward and estimator != own_estimator:
                     continue
                 problems = []
                 for section in seed:
@@ -396,6 +413,33 @@ def reference_job(data: dict, from_time: float, where: str, protocol: Protocol |
                      worst_case(data, {}, machine, from_time, protocol or Protocol(), where))
 
 
+def fit_to_machine(data: dict, sections: dict, machine: dict) -> dict:
+    """``sections`` with what models the drive set to the machine's (``machine``: grid settings of
+    :func:`contouring_ros.tuning.machine_settings` over the plants of ``data``): a servo's or controller's
+    ``command_delay`` the axis' computation delay (a controller: the largest), a controller's unset
+    ``command_limit`` each axis' actuator limit. A method that models its drive is told the drive it runs
+    on, as an engineer commissioning it would be."""
+    plants = {node.split("/")[1]: params for node, params in
+              ((f"/{a}/plant", data[f"/{a}/plant"]["ros__parameters"]) for a in data[GLOBAL_SECTION]["ros__parameters"]["axes"])}
+    delay = {a: int(machine.get(f"{a}/plant.command_delay", p.get("command_delay") or 0)) for a, p in plants.items()}
+    limit = [float(machine.get(f"{a}/plant.saturation", p.get("saturation") or 0.0)) for a, p in plants.items()]
+    out = dict(sections)
+    for axis in plants:
+        servo = out.get(f"/{axis}/servo")
+        if servo and "command_delay" in SERVOS.entry(servo["law"]).params:
+            out[f"/{axis}/servo"] = dict(servo, command_delay=delay[axis])
+    ccc = out.get("/ccc")
+    if ccc and ccc.get("type") in CONTROLLERS:
+        params = CONTROLLERS.entry(ccc["type"]).params
+        ccc = dict(ccc)
+        if "command_delay" in params:
+            ccc["command_delay"] = max(delay.values())
+        if "command_limit" in params and not any(ccc.get("command_limit") or ()) and any(limit):
+            ccc["command_limit"] = limit
+        out["/ccc"] = ccc
+    return out
+
+
 def _tune_job(data, sections, keys, machine, noise_limit, from_time, protocol, where, robust_floor):
     return tune(data, sections, keys, machine, noise_limit, from_time, protocol, where, robust_floor=robust_floor)
 
@@ -421,13 +465,20 @@ def run_benchmark(families: list, protocol: Protocol | None = None, workers: int
             for combo in combos:
                 row = Row(family, combo, bound=reference)
                 rows.append(row)
-                jobs.append((row, pool.submit(_tune_job, family.data[family.proposed], combo.sections,
-                                              combo.gain_keys, reference.machine, reference.noise_limit,
-                                              family.from_time, protocol, f"{family.name} {combo.label}",
-                                              reference.worst if math.isfinite(reference.worst) else 0.0)))
+                jobs.append(row)
             rows += [Row(family, None, e, status=f"cannot be paired: {e.reason}") for e in excluded]
+        # the longest first (a learning controller runs every pass per evaluation), so that none starts last
+        futures = [None] * len(jobs)
+        for i in sorted(range(len(jobs)), key=lambda i: -int(jobs[i].combination.sections["/ccc"].get("passes", 1) or 1)):
+            row = jobs[i]
+            family, combo, reference = row.family, row.combination, row.bound
+            futures[i] = (row, pool.submit(
+                _tune_job, family.data[family.proposed], fit_to_machine(family.data[family.proposed], combo.sections,
+                                                                        reference.machine),
+                combo.gain_keys, reference.machine, reference.noise_limit, family.from_time, protocol,
+                f"{family.name} {combo.label}", reference.worst if math.isfinite(reference.worst) else 0.0))
         with tqdm(total=len(jobs), desc="benchmark", disable=not progress, leave=False) as bar:
-            for row, job in jobs:
+            for row, job in futures:
                 row.tuned = job.result()
                 row.status = row.tuned.status
                 bar.update(1)
@@ -685,6 +736,36 @@ def _best_table(rows: list, families: list) -> list:
     return lines
 
 
+#: the literature's reference methods the report ranks apart: servo laws and controllers by name
+REFERENCE_SERVOS = ("zpetc",)
+REFERENCE_CONTROLLERS = ("ilc", "mpcc")
+
+
+def _is_reference(combination: Combination) -> bool:
+    return combination.controller in REFERENCE_CONTROLLERS or combination.servo.split(" ")[0] in REFERENCE_SERVOS
+
+
+def reference_ranks(rows: list, family: Family) -> list:
+    """(row, rank or None, admissible count) of each reference-method row of ``family``: its place by median
+    TACE among the rows that met every constraint (status ok); None where it did not."""
+    mine = [r for r in rows if r.family is family and r.combination]
+    admissible = sorted((r for r in mine if r.ok and r.status == "ok"), key=lambda r: r.figure("tace")[0])
+    return [(r, admissible.index(r) + 1 if r in admissible else None, len(admissible))
+            for r in mine if _is_reference(r.combination)]
+
+
+def _reference_table(rows: list, families: list) -> list:
+    lines = ["| scenario | combination | rank | TACE [um] median [95%] | MCE [um] median [95%] | TACE ratio to "
+             "proposed [95%] | MCE ratio [95%] | verdict | status |", "|---|---|---|---|---|---|---|---|---|"]
+    for family in families:
+        for r, rank, count in reference_ranks(rows, family):
+            tr = r.ratio("tace")
+            lines.append(f"| {family.name} | {r.label} | {f'{rank} of {count}' if rank else '-'} | "
+                         f"{_iv(r.figure('tace'), 1e6)} | {_iv(r.figure('mce'), 1e6)} | {_iv(tr)} | "
+                         f"{_iv(r.ratio('mce'))} | {verdict(tr[1], tr[2]) if r.ok else '-'} | {r.status} |")
+    return lines
+
+
 def _gain_text(row: Row) -> str:
     if not row.ok or not row.gains:
         return "-"
@@ -748,8 +829,8 @@ def _excluded_table(rows: list) -> list:
     return lines
 
 
-def benchmark_report(rows: list, families: list, protocol: Protocol, seconds: float, command: str,
-                     heatmap: str = "benchmark_heatmap.png", notes: dict | None = None, cpu: float = 0.0,
+def benchmark_report(rows: list, families: list, protocol: Protocol, where: str,
+                     heatmap: str = "benchmark_heatmap.png", notes: dict | None = None,
                      pareto: dict | None = None) -> str:
     """reports/benchmark.md: header, the protocol, per paper the best combination against the proposed
     method with intervals and the findings, per scenario every combination, the pairs that cannot be made."""
@@ -762,13 +843,11 @@ def benchmark_report(rows: list, families: list, protocol: Protocol, seconds: fl
     upper = [r for r in tuned if any("upper" in b for b in r.tuned.at_bound)]
     not_robust = [r for r in compatible if r.tuned and r.status.startswith("not robust")]
     none = [r for r in compatible if not r.ok]
-    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     machine = ", ".join(f"{k} {v}" for k, v in REALISTIC.items())
     lines = [
         "# Contouring benchmark: every estimator and controller on every scenario, each gain tuned under equal "
         "constraints on a realistic machine", "",
-        f"Generated by `{command}` in {seconds / 60:.1f} min of wall time on {os.cpu_count()} cores ({cpu / 60:.1f} "
-        f"min of CPU time; load average {load:.1f} at the end; in-process simulation): {len(families)} scenarios "
+        f"{where}; in-process simulation): {len(families)} scenarios "
         f"of {len({f.paper for f in families})} papers, {len(compatible)} combinations ({runs} runs), "
         f"{len(rows) - len(compatible)} pairings that cannot be made. Every figure in micrometres is the exact "
         "contour error (distance to the whole curve) in the scenario's steady state; ratios are to the scenario's "
@@ -813,6 +892,13 @@ def benchmark_report(rows: list, families: list, protocol: Protocol, seconds: fl
             lines += [notes[paper].strip(), ""]
         if paper in pareto:
             lines += [f"![Paper {paper}: TACE against noise sensitivity]({pareto[paper]})", ""]
+    lines += ["## The literature's reference methods", "",
+              "ZPETC feedforward (a servo law), cross-coupled ILC and MPCC (contour controllers) "
+              "(docs/REFERENCES.md), each tuned and scored as every other combination. Rank: its place by "
+              "median TACE among the scenario's combinations that met every constraint (1 = lowest).", ""] \
+        + _reference_table(rows, families) + [""]
+    if "reference" in notes:
+        lines += [notes["reference"].strip(), ""]
     lines += ["## Per scenario", ""]
     for family in families:
         lines += [f"### {family.name}", ""] + _family_table(rows, family) + [""]
@@ -829,25 +915,93 @@ def read_notes(path) -> dict:
     return {str(k): str(v) for k, v in data.items()}
 
 
-def main_benchmark(patterns=None, protocol: Protocol | None = None, out="reports", workers=None, progress=False,
-                   say=None, command: str = "contouring-ros benchmark", scheduler: str | None = None) -> tuple:
-    """Run the benchmark and write benchmark.md, benchmark.csv, benchmark_heatmap.png and one
-    benchmark_pareto_paper<N>.png per paper into ``out``."""
-    import resource
-    protocol = protocol or Protocol()
-    start = time.perf_counter()
-    families = select_families(scenario_families(), patterns)
-    rows = run_benchmark(families, protocol, workers, progress, say, scheduler)
+@dataclass
+class Part:
+    """One run of the benchmark over some scenarios, kept to be reported with others (``--save-part``,
+    ``--from-parts``): a cluster or a large machine can run the papers apart."""
+
+    families: list
+    rows: list
+    protocol: Protocol
+    seconds: float                # wall time
+    cpu: float                    # CPU time of the process and its workers
+    cores: int
+    command: str
+    host: str = ""
+    load: float = math.nan        # load average as it ended
+
+
+def save_part(part: Part, path) -> Path:
+    """Pickle ``part`` to ``path`` (read back by :func:`load_parts` with the same version of the package)."""
+    import pickle
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_atomically(path, lambda tmp: tmp.write_bytes(pickle.dumps(part, protocol=pickle.HIGHEST_PROTOCOL)))
+    return path
+
+
+def load_parts(paths: list) -> list:
+    """The :class:`Part` of each file in ``paths`` (ConfigError naming a file that is not one, or whose
+    protocol differs from the first's: their rows would not compare)."""
+    import pickle
+    parts = []
+    for path in paths:
+        try:
+            part = pickle.loads(Path(path).read_bytes())
+        except (OSError, pickle.UnpicklingError, EOFError, AttributeError, ImportError) as error:
+            raise ConfigError(f"--from-parts {path}: not a benchmark part of this version ({type(error).__name__}: "
+                              f"{error})") from None
+        if not isinstance(part, Part):
+            raise ConfigError(f"--from-parts {path}: not a benchmark part (written by benchmark --save-part)")
+        if parts and part.protocol != parts[0].protocol:
+            raise ConfigError(f"--from-parts {path}: its tuning protocol differs from {paths[0]}'s")
+        parts.append(part)
+    return parts
+
+
+def write_outputs(parts: list, out) -> tuple:
+    """benchmark.md, benchmark.csv, benchmark_heatmap.png and one benchmark_pareto_paper<N>.png per paper in
+    ``out`` from the rows of ``parts`` (their scenarios in paper order)."""
+    families = sorted((f for p in parts for f in p.families), key=lambda f: f.paper)
+    order = {id(f): i for i, f in enumerate(families)}
+    rows = sorted((r for p in parts for r in p.rows), key=lambda r: order[id(r.family)])
     out = Path(out)
     csv_path = write_csv(rows, out / "benchmark.csv")
     png = draw_heatmap(rows, out / "benchmark_heatmap.png")
     pareto = {paper: draw_pareto(rows, families, paper, out / f"benchmark_pareto_paper{paper}.png").name
               for paper in sorted({f.paper for f in families})}
+    if len(parts) == 1:
+        p = parts[0]
+        where = (f"Generated by `{p.command}` in {p.seconds / 60:.1f} min of wall time on {p.cores} cores "
+                 f"({p.cpu / 60:.1f} min of CPU time; load average {p.load:.1f} at the end")
+    else:
+        where = (f"Generated in {len(parts)} parts, then reported together: " + "; ".join(
+            f"`{p.command}` in {p.seconds / 60:.1f} min of wall time on {p.cores} cores{f' ({p.host})' if p.host else ''}"
+            f", {p.cpu / 60:.1f} min of CPU time" for p in parts) + f" ({sum(p.cpu for p in parts) / 60:.1f} min of CPU "
+            "time in all")
+    text = benchmark_report(rows, families, parts[0].protocol, where, png.name,
+                            read_notes(CONFIG_DIR / "benchmark" / "notes.yaml"), pareto)
+    md = out / "benchmark.md"
+    write_atomically(md, lambda tmp: tmp.write_text(text + "\n"))
+    return md, csv_path, png
+
+
+def main_benchmark(patterns=None, protocol: Protocol | None = None, out="reports", workers=None, progress=False,
+                   say=None, command: str = "contouring-ros benchmark", scheduler: str | None = None,
+                   save_part_to=None, host: str = "") -> tuple:
+    """Run the benchmark and write benchmark.md, benchmark.csv, benchmark_heatmap.png and one
+    benchmark_pareto_paper<N>.png per paper into ``out`` (and the run as a :class:`Part` to ``save_part_to``)."""
+    import resource
+    protocol = protocol or Protocol()
+    start = time.perf_counter()
+    families = select_families(scenario_families(), patterns)
+    rows = run_benchmark(families, protocol, workers, progress, say, scheduler)
     seconds = time.perf_counter() - start
     cpu = sum(resource.getrusage(who).ru_utime + resource.getrusage(who).ru_stime
               for who in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN))
-    text = benchmark_report(rows, families, protocol, seconds, command, png.name,
-                            read_notes(CONFIG_DIR / "benchmark" / "notes.yaml"), cpu, pareto)
-    md = out / "benchmark.md"
-    write_atomically(md, lambda tmp: tmp.write_text(text + "\n"))
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else math.nan
+    part = Part(families, rows, protocol, seconds, cpu, os.cpu_count() or 1, command, host, load)
+    if save_part_to:
+        save_part(part, save_part_to)
+    md, csv_path, png = write_outputs([part], out)
     return md, csv_path, png, seconds

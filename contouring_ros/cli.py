@@ -397,11 +397,18 @@ def _benchmark(args):
     command = "contouring-ros benchmark" + (f" --scenarios {' '.join(args.scenarios)}" if args.scenarios else "") \
         + (f" --budget {args.budget}" if args.budget != Protocol.evaluations else "") \
         + (f" --draws {args.draws}" if args.draws != Protocol.draws else "")
+    if args.from_parts:
+        from .benchmark import load_parts, write_outputs
+        md, table, png = write_outputs(load_parts(args.from_parts), args.out)
+        print(f"wrote {md}, {table} and {png} from {len(args.from_parts)} parts")
+        return
     say = lambda m: print(m, file=sys.stderr, flush=True)  # noqa: E731
     md, table, png, seconds = main_benchmark(args.scenarios, protocol, args.out, args.workers,
                                              progress=sys.stderr.isatty(), say=say, command=command,
-                                             scheduler=args.scheduler)
-    print(f"wrote {md}, {table} and {png} in {seconds / 60:.1f} min")
+                                             scheduler=args.scheduler, save_part_to=args.save_part,
+                                             host=args.host or "")
+    print(f"wrote {md}, {table} and {png} in {seconds / 60:.1f} min" + (f"; the part in {args.save_part}"
+                                                                         if args.save_part else ""))
 
 
 def main(argv=None):
@@ -514,6 +521,11 @@ def main(argv=None):
                    help=f"noise-seed and model-mismatch draws per tuned combination (default {Protocol.draws})")
     p.add_argument("--out", default="reports", help="folder for benchmark.md, .csv and the figures (default: reports/)")
     p.add_argument("--workers", type=int, help="processes (default: one per core)")
+    p.add_argument("--save-part", metavar="FILE", help="also keep this run's rows in FILE, to report them with other "
+                                                       "parts (e.g. each paper run on another machine)")
+    p.add_argument("--host", help="the machine's name or description a saved part records (default: none)")
+    p.add_argument("--from-parts", nargs="+", metavar="FILE", help="run nothing: write the report, CSV and figures "
+                                                                   "from parts saved by --save-part")
     _scheduler_option(p)
     p.set_defaults(func=_benchmark)
     args = parser.parse_args(argv)

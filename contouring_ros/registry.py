@@ -59,6 +59,8 @@ class Entry:
     preview: Callable | None = None       # servos, controllers: (section, experiment, axis or None) -> steps of
                                           # reference ahead it reads (its object's ``preview``, via look_ahead)
     needs_state: bool = False             # controllers: uses the reference and the axis states
+    reads_estimate: bool = True           # controllers: reads the contour estimate (False: every estimator gives
+                                          # the same run, and the benchmark pairs it with the scenario's own only)
     gains: tuple | None = None            # the keys the benchmark's tuning varies (None: the float keys named k*)
     varied: tuple = ()                    # plants: the physical parameters robustness and mismatch draws vary
     origin: str = "contouring_ros"        # the package (or entry point) it comes from
@@ -134,6 +136,7 @@ def entry_from_class(name: str, cls, origin: str = "") -> Entry:
                  whole_command=bool(getattr(cls, "whole_command", False)), direct=bool(getattr(cls, "direct", False)),
                  preview=getattr(cls, "preview_steps", None),
                  needs_state=bool(getattr(cls, "needs_state", False)), gains=getattr(cls, "gains", None),
+                 reads_estimate=bool(getattr(cls, "reads_estimate", True)),
                  varied=tuple(getattr(cls, "varied", ()) or ()), origin=origin or getattr(cls, "__module__", ""))
 
 

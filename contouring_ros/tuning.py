@@ -73,8 +73,9 @@ from .experiment.catalogue import CONTROLLERS, PLANTS
 from .experiment.validate import experiment_from_data
 from .experiment.schema import GLOBAL_SECTION
 from .core.margins import axis_loop, coupled_loop, margins, quick_robustness
-from .errors import ConfigError
-from .sweep import apply_settings, score_one, simulate_experiments
+from .errors import ConfigError, Diverged
+from .learning import passes, simulate_passes
+from .sweep import RUN_FAILURES, apply_settings, score_one, simulate_experiments
 
 __all__ = ["REALISTIC", "SATURATION_MARGIN", "varied_parameters", "Protocol", "Outcome",
            "Evaluation", "Tuned", "gain_keys", "anchors", "machine_settings", "perturbations", "draw_settings",
@@ -313,11 +314,27 @@ def draw_settings(data: dict, j: int, mismatch: float) -> dict:
 def _outcomes(experiments: list, from_time: float, limits: list) -> list:
     """An :class:`Outcome` per experiment, ``limits[i]`` the actuator limits of experiment i's axes: those of
     one structure run as one vectorised batch where every class has a batch path
-    (:func:`contouring_ros.sweep.simulate_experiments`), the others one by one."""
+    (:func:`contouring_ros.sweep.simulate_experiments`), the others one by one. A learning experiment (more
+    than one pass, :mod:`contouring_ros.learning`) runs every pass and is judged by its last: what the part
+    is like once the correction has been learned."""
+    learning = [i for i, e in enumerate(experiments) if passes(e) > 1]
+    rest = [i for i in range(len(experiments)) if i not in set(learning)]
+    out = [None] * len(experiments)
     with np.errstate(all="ignore"):
-        loops, results, _, failures = simulate_experiments(experiments)
-        return [Outcome(failure=failure) if result is None else _figures(loop, result, from_time, limit)
-                for loop, result, failure, limit in zip(loops, results, failures, limits)]
+        loops, results, _, failures = simulate_experiments([experiments[i] for i in rest])
+        for i, loop, result, failure in zip(rest, loops, results, failures):
+            out[i] = Outcome(failure=failure) if result is None else _figures(loop, result, from_time, limits[i])
+        for i in learning:
+            try:
+                loop, result = simulate_passes(experiments[i])[-1]
+            except Diverged as error:
+                out[i] = Outcome(failure=str(error))
+                continue
+            except RUN_FAILURES as error:
+                out[i] = Outcome(failure=f"diverged: {error}")
+                continue
+            out[i] = _figures(loop, result, from_time, limits[i])
+    return out
 
 
 def _figures(loop, result, from_time: float, limits: tuple) -> Outcome:

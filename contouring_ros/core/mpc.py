@@ -101,6 +101,7 @@ class ModelPredictiveContouring:
         self.disturbance = np.zeros(n)       # constant input disturbance estimate [command units]
         self.ahead = np.zeros((0, n))
         self.solve_times = []                # wall time of each step's solve [s]
+        self.unconverged = 0                 # solves that ended at OSQP's iteration limit (their iterate, clipped)
         self._solver = None
         self._plan = None                    # the last solution, warm start of the next
 
@@ -122,16 +123,10 @@ class ModelPredictiveContouring:
         after = np.minimum(steps + 1, len(points) - 1)
         tangents = points[after] - points[steps - 1]
         lengths = np.linalg.norm(tangents, axis=1)
-        eye = np.eye(self.n)
-        out = np.empty((self.horizon, self.n, self.n))
-        for j, (tangent, length) in enumerate(zip(tangents, lengths)):
-            if length > 1e-15:
-                t = tangent / length
-                along = np.outer(t, t)
-                out[j] = self.q_contour * (eye - along) + self.q_lag * along
-            else:
-                out[j] = self.q_contour * eye
-        return out
+        moving = lengths > 1e-15
+        t = tangents / np.where(moving, lengths, 1.0)[:, None]
+        along = t[:, :, None] * t[:, None, :] * moving[:, None, None]
+        return self.q_contour * (np.eye(self.n) - along) + self.q_lag * along
 
     def step(self, estimate=None, reference=None, position=None, velocity=None) -> np.ndarray:
         position, velocity = np.asarray(position, dtype=float), np.asarray(velocity, dtype=float)
@@ -178,6 +173,8 @@ class ModelPredictiveContouring:
         """argmin U^T H U + 2 f^T U within the command limits."""
         if not np.isfinite(self.limits).any():
             return np.linalg.solve(hessian, -linear)
+        scale = 1.0 / max(float(np.max(np.abs(np.diag(hessian)))), 1e-300)   # OSQP's tolerances act on O(1) costs
+        hessian, linear = hessian * scale, linear * scale
         if self._solver is None:
             self._set_up_solver(hessian, linear)
         else:
@@ -186,7 +183,9 @@ class ModelPredictiveContouring:
                 self._solver.warm_start(x=self._plan)
         result = self._solver.solve(raise_error=False)
         plan = np.asarray(result.x, dtype=float)
-        if result.info.status not in ("solved", "solved inaccurate") or not np.all(np.isfinite(plan)):
+        if result.info.status == "maximum iterations reached" and np.all(np.isfinite(plan)):
+            self.unconverged += 1       # the last iterate, within the bounds once clipped: still a usable plan
+        elif result.info.status not in ("solved", "solved inaccurate") or not np.all(np.isfinite(plan)):
             raise ContouringError(f"step {len(self.solve_times)}: the MPCC quadratic programme was not solved "
                                   f"(OSQP: {result.info.status}): its weights q_contour, q_lag and r_rate may "
                                   "span too many decades")

@@ -50,6 +50,76 @@ def test_pairings_that_cannot_be_made_are_listed_with_a_reason():
         {("tangent_line", "task_frame_pd", "first_order"), ("natural_local", "task_frame_pd", "natural_local")}
 
 
+def test_pairings_skip_what_cannot_differ_and_bound_the_reference_methods():
+    """A controller that reads no estimate runs once per servo set; a servo set with a feedforward that
+    reads the reference ahead (ZPETC) is paired with no CCC and the proposed one; a learning controller
+    with the scenario's own estimator and first servo set it can drive; the MPCC only with direct servos."""
+    families = {f.name: f for f in scenario_families()}
+    combos, excluded = plan(families["paper001_caseIII"])
+    own = "osculating_circle"
+    assert [c.estimator for c in combos if c.controller == "adaptive_tnb" and c.servo == "pid"] == [own]
+    assert sorted(c.label for c in combos if c.servo == "zpetc") == \
+        [f"{own} + adaptive_tnb / zpetc", f"{own} + none / zpetc"]
+    ilc = [c for c in combos if c.controller == "ilc"]
+    assert [(c.estimator, c.servo) for c in ilc] == [(own, "pid")] and ilc[0].sections["/ccc"]["passes"] == 4
+    assert len({c.estimator for c in combos if c.controller == "variable_gain" and c.servo == "pid"}) > 1
+    assert any(e.controller == "mpcc" and "needs 'direct' servos" in e.reason for e in excluded)
+    combos, _ = plan(families["paper003_ellipse"])
+    mpcc = [c for c in combos if c.controller == "mpcc"]
+    assert [(c.estimator, c.servo, c.gain_keys) for c in mpcc] == [("natural_local", "direct",
+                                                                     ("q_contour", "q_lag", "r_rate"))]
+
+
+def test_a_method_that_models_its_drive_is_given_the_realistic_machine():
+    families = {f.name: f for f in scenario_families()}
+    family = families["paper000_h50"]
+    data = family.data[family.proposed]
+    machine = tuning.machine_settings(data, "realistic", (2.0, 3.0))
+    sections = {"/x/servo": {"law": "zpetc", "kp": 8.0, "ki": 90.0, "gain": 10.3, "time_constant": 0.04},
+                "/y/servo": {"law": "ismc"}, "/ccc": {"type": "mpcc", "command_limit": None}}
+    fitted = benchmark.fit_to_machine(data, sections, machine)
+    assert fitted["/x/servo"]["command_delay"] == machine["x/plant.command_delay"] == 1
+    assert "command_delay" not in fitted["/y/servo"]                     # the ISMC has no delay model
+    assert fitted["/ccc"]["command_delay"] == 1
+    assert fitted["/ccc"]["command_limit"] == [machine["x/plant.saturation"], machine["y/plant.saturation"]] \
+        == [4.0, 6.0]
+    assert "command_delay" not in sections["/x/servo"]                   # the caller's sections are kept
+    kept = benchmark.fit_to_machine(data, dict(sections, **{"/ccc": {"type": "mpcc", "command_limit": [7.0]}}),
+                                    machine)
+    assert kept["/ccc"]["command_limit"] == [7.0]                         # a limit the file sets stays
+
+
+def test_a_learning_controller_is_judged_by_its_last_pass():
+    from conftest import ROOT
+    from contouring_ros.experiment.ros_yaml import read_yaml
+    from contouring_ros.learning import simulate_passes
+    path = ROOT / "config" / "ilc_ellipse.yaml"
+    data = read_yaml(path.read_text(), str(path))
+    settings = {"ccc.passes": 3}
+    last, = tuning.run_outcomes(data, {}, [settings], 0.5, "ilc")
+    first, = tuning.run_outcomes(data, {}, [{"ccc.passes": 1}], 0.5, "ilc")
+    passes = simulate_passes(tuning.experiment_for(data, {}, settings, "ilc"))
+    assert len(passes) == 3
+    expected = tuning._figures(*passes[-1], 0.5, ())
+    assert last.tace == expected.tace and last.mce == expected.mce
+    assert last.tace < 0.5 * first.tace                                  # it learned
+
+
+def test_parts_run_apart_are_reported_together(small_run, tmp_path):
+    families, rows = small_run
+    part = benchmark.Part(families, rows, FAST, 60.0, 100.0, 2, "contouring-ros benchmark --scenarios x", "here")
+    first = benchmark.save_part(part, tmp_path / "a.pkl")
+    benchmark.save_part(part, tmp_path / "b.pkl")
+    loaded = benchmark.load_parts([first])
+    assert [r.label for r in loaded[0].rows] == [r.label for r in rows]
+    assert loaded[0].rows[0].figure("tace") == rows[0].figure("tace")
+    assert main(["benchmark", "--from-parts", str(first), str(tmp_path / "b.pkl"), "--out", str(tmp_path)]) == 0
+    text = (tmp_path / "benchmark.md").read_text()
+    assert "Generated in 2 parts" in text and "(here)" in text
+    (tmp_path / "bad.pkl").write_text("not a part")
+    assert main(["benchmark", "--from-parts", str(tmp_path / "bad.pkl"), "--out", str(tmp_path)]) == 2
+
+
 # ------------------------------------------------------------------------------------ the protocol
 
 

@@ -138,7 +138,7 @@ def _task_frame_estimator(estimator, controller, servos):
 
 
 for _entry in (
-    Entry("none", {}, lambda s, c: contouring.NoCoupling(c.n_axes), gains=()),
+    Entry("none", {}, lambda s, c: contouring.NoCoupling(c.n_axes), gains=(), reads_estimate=False),
     Entry("variable_gain", pid_gains(_LIMIT),
           lambda s, c: contouring.VariableGainCCC(c.curve, s["kp"], s["ki"], s["kd"], c.sample_time, s["output_limit"]),
           gains=_PID),
@@ -172,7 +172,8 @@ for _entry in (
         lambda s, c: contouring.AdaptiveTNBCCC(c.curve, s["coupling"], s["alpha"], s["gamma_mass"],
                                                s["gamma_damping"], s["mass0"], s["damping0"], c.sample_time),
         check=_per_axis("adaptive_tnb", ("coupling", "gamma_mass", "gamma_damping", "mass0", "damping0")),
-        needs_state=contouring.AdaptiveTNBCCC.needs_state, gains=("coupling", "alpha", "gamma_mass", "gamma_damping")),
+        needs_state=contouring.AdaptiveTNBCCC.needs_state, gains=("coupling", "alpha", "gamma_mass", "gamma_damping"),
+        reads_estimate=False),
     Entry("ilc", {
         "gamma_tracking": Param("float", 0.0, "nonnegative", help="learning gain on each axis' tracking error "
                                 "[command units/m]", bounds=GAIN_RANGE),
@@ -205,7 +206,8 @@ for _entry in (
         "disturbance_gain": Param("float", 0.0, "nonnegative", help="share of each step's velocity prediction error a "
                                   "constant input disturbance estimate takes up, 0: none", bounds=(0.0, 1.0))},
         _mpcc, check=_check_mpcc, whole_command=True, needs_state=mpc.ModelPredictiveContouring.needs_state,
-        gains=("q_contour", "q_lag", "r_rate"), preview=lambda s, experiment, axis: s["command_delay"] + s["horizon"]),
+        gains=("q_contour", "q_lag", "r_rate"), preview=lambda s, experiment, axis: s["command_delay"] + s["horizon"],
+        reads_estimate=False),
 ):
     CONTROLLERS.add(_entry)
 
