@@ -7,7 +7,7 @@ after changing the template: python tools/make_paper000_configs.py
 import sys
 from pathlib import Path
 
-from scenario_template import shared_section, with_adds
+from scenario_template import write_reference_methods, shared_section, with_adds
 
 HEADER = """\
 # Paper 000 (Ghaffari & Ulsoy, Newton-based CEE and robust CCC), section {section}.
@@ -226,6 +226,31 @@ def write_mechanism_scenarios(out=None):
         print(out / f"{stem}.yaml")
 
 
+# ------------------------------------------------------------------------------------------------------------
+# Reference methods (config/paper000_zpetc_*.yaml, paper000_ilc_t1.yaml): the literature's methods on the
+# paper's scenarios, for the benchmark (tools/scenario_template.py, REFERENCE_WHAT).
+
+ZPETC_AXES = {"x": "law: zpetc  # PID_1 of section IV-A, derivative on the velocity\nkp: 8.08\nki: 93.2\nkd: 0.24\n"
+                   "gain: 10.3\ntime_constant: 0.040",
+              "y": "law: zpetc  # PID_2 of section IV-A, derivative on the velocity\nkp: 9.36\nki: 108.0\nkd: 0.3\n"
+                   "gain: 10.0\ntime_constant: 0.045"}
+ZPETC = {"/x/servo": ZPETC_AXES["x"], "/y/servo": ZPETC_AXES["y"], "/ccc": "type: none"}
+ILC = {"/ccc": "type: ilc  # u_j+1 = Q[u_j + gamma_contour eps_j(k + lead)], on the ISMC axes\ngamma_contour: 10.0\n"
+               "gamma_tracking: 0.0\nlead: 5\nq_cutoff: 10.0\npasses: 4"}
+PID_WORDS = "PID_1, PID_2 of section IV-A"
+REFERENCE_METHODS = [
+    ("paper000_b_ismc_h50_newton", "paper000_zpetc_h50", "zpetc", "PID + ZPETC feedforward, no CCC, h = 50, T = 2 s",
+     ZPETC, PID_WORDS),
+    ("paper000_b_ismc_h100_newton", "paper000_zpetc_h100", "zpetc", "PID + ZPETC feedforward, no CCC, h = 100, "
+     "T = 2 s", ZPETC, PID_WORDS),
+    ("paper000_c_ismc_t1_newton", "paper000_zpetc_t1", "zpetc", "PID + ZPETC feedforward, no CCC, h = 50, T = 1 s",
+     ZPETC, PID_WORDS),
+    ("paper000_c_ismc_t1_newton", "paper000_ilc_t1", "ilc", "ISMC + disturbance estimate, Newton CEE, cross-coupled "
+     "ILC over 4 passes, h = 50, T = 1 s", ILC, ""),
+]
+
 if __name__ == "__main__":
     main(*sys.argv[1:2])       # the output directory, default config/
     write_mechanism_scenarios(*sys.argv[1:2])
+    write_reference_methods(sys.argv[1] if sys.argv[1:] else Path(__file__).resolve().parent.parent / "config",
+                            "000", REFERENCE_METHODS)

@@ -23,7 +23,7 @@ import math
 import sys
 from pathlib import Path
 
-from scenario_template import shared_section, with_adds
+from scenario_template import write_reference_methods, shared_section, with_adds
 
 SCREW = 228.0                     # 2 pi / lead [rad/m] of the x ball screw (see the header)
 J_X, B_X_ROT = 0.05916, 0.01725   # x: kg m^2, N m s/rad
@@ -215,5 +215,27 @@ def main(out=None):
               MECH_COUPLING, friction=FRICTION)
 
 
+# ------------------------------------------------------------------------------------------------------------
+# Reference methods: the literature's methods on the paper's scenarios, for the benchmark
+# (tools/scenario_template.py, REFERENCE_WHAT).
+
+# the paper's PD on each axis; the ZPETC's model of a mass-damper M x'' + B x' = K u is K / B, M / B
+ZPETC = {"/x/servo": "law: zpetc  # the paper's PD, derivative on the velocity\nkp: 19610586.489482205\nki: 0.0\n"
+                     "kd: 490264.66223705513\ngain: 0.0011151703311163747  # K / B\n"
+                     "time_constant: 3.429565217391304  # M / B [s]",
+         "/y/servo": "law: zpetc  # the paper's PD, derivative on the velocity\nkp: 7244033.465559332\nki: 0.0\n"
+                     "kd: 181100.83663898328\ngain: 0.001034126163391934  # K / B\n"
+                     "time_constant: 1.1830403309203723  # M / B [s]",
+         "/ccc": "type: none"}
+ILC = {"/ccc": "type: ilc  # u_j+1 = Q[u_j + gamma_contour eps_j(k + lead)], on the paper's PD axes\n"
+               "gamma_contour: 1.0e+7\ngamma_tracking: 0.0\nlead: 5\nq_cutoff: 10.0\npasses: 4"}
+REFERENCE_METHODS = [
+    (f"paper001_case{case}_adaptive_tnb", f"paper001_case{case}_zpetc", "zpetc",
+     f"case {case}: PD + ZPETC feedforward, no CCC", ZPETC, "the paper's PD") for case in ("I", "II", "III")
+] + [("paper001_caseIII_adaptive_tnb", "paper001_caseIII_ilc", "ilc",
+      "case III: PD axes, cross-coupled ILC over 4 passes", ILC, "")]
+
 if __name__ == "__main__":
     main(*sys.argv[1:2])       # the output directory, default config/
+    write_reference_methods(sys.argv[1] if sys.argv[1:] else Path(__file__).resolve().parent.parent / "config",
+                            "001", REFERENCE_METHODS)

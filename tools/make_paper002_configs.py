@@ -14,7 +14,7 @@ python tools/make_paper002_configs.py
 import sys
 from pathlib import Path
 
-from scenario_template import shared_section, with_adds
+from scenario_template import write_reference_methods, shared_section, with_adds
 
 READINGS = """\
 # Readings these files had to choose (the paper's equations and Tables 1-2 are lost from its text; the same
@@ -136,5 +136,19 @@ def main(out=None):
             print(out / f"{name}.yaml")
 
 
+# ------------------------------------------------------------------------------------------------------------
+# Reference methods: the literature's methods on the paper's scenarios, for the benchmark
+# (tools/scenario_template.py, REFERENCE_WHAT).
+
+ZPETC_AXIS = ("law: zpetc  # C1/C2's P position loop of 40 1/s\nkp: 40.0\nki: 0.0\nkd: 0.0\ngain: 1.0\n"
+              "time_constant: 0.005")
+REFERENCE_METHODS = [
+    ("paper002_butterfly_c3_tvt", "paper002_butterfly_zpetc", "zpetc", "butterfly at 100 mm/s, P loop + ZPETC "
+     "feedforward, no CCC", {"/x/servo": ZPETC_AXIS, "/y/servo": ZPETC_AXIS, "/ccc": "type: none"},
+     "C1/C2's P position loop"),
+]
+
 if __name__ == "__main__":
     main(*sys.argv[1:2])       # the output directory, default config/
+    write_reference_methods(sys.argv[1] if sys.argv[1:] else Path(__file__).resolve().parent.parent / "config",
+                            "002", REFERENCE_METHODS)

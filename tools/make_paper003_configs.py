@@ -12,7 +12,7 @@ python tools/make_paper003_configs.py
 import sys
 from pathlib import Path
 
-from scenario_template import shared_section, with_adds
+from scenario_template import write_reference_methods, shared_section, with_adds
 
 HEADER = """\
 # Paper 003 (Meng, Lou & Zhou, natural local approximation based contouring control), section IV-A.
@@ -248,5 +248,18 @@ def main(out=None):
                 print(out / f"{name}.yaml")
 
 
+# ------------------------------------------------------------------------------------------------------------
+# Reference methods: the literature's methods on the paper's scenarios, for the benchmark
+# (tools/scenario_template.py, REFERENCE_WHAT).
+
+MPCC = {"/ccc": "type: mpcc  # on the task-frame PD's own axis model\nmass: [1.0, 1.0]\ndamping: [798.5, 862.75]\n"
+                "gain: [16.23, 17.58]\nhorizon: 10\nq_contour: 1.0e+6\nq_lag: 1.0e+4\nr_rate: 1.0e-6\n"
+                "command_limit: [10.0]  # the drives' saturation\ndisturbance_gain: 0.2  # offset-free under Coulomb friction"}
+REFERENCE_METHODS = [
+    ("paper003_ellipse_natural_local_fn100", "paper003_ellipse_mpcc", "mpcc", "ellipse, MPCC (horizon 10)", MPCC, ""),
+]
+
 if __name__ == "__main__":
     main(*sys.argv[1:2])       # the output directory, default config/
+    write_reference_methods(sys.argv[1] if sys.argv[1:] else Path(__file__).resolve().parent.parent / "config",
+                            "003", REFERENCE_METHODS)

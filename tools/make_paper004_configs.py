@@ -17,7 +17,7 @@ Every file's header says what it reads into the paper and why its numbers were c
 import sys
 from pathlib import Path
 
-from scenario_template import shared_section, with_adds
+from scenario_template import write_reference_methods, shared_section, with_adds
 
 GRAVITY = 9.81          # m/s^2
 CCC_KP = 2.66e4         # (M_x / K_fx) c_x k_x = 5.8 / 10.9 * 500 * 100 = 26606: see MECH_CCC below
@@ -169,5 +169,18 @@ def main(out=None):
         print(out / f"{name}.yaml")
 
 
+# ------------------------------------------------------------------------------------------------------------
+# Reference methods: the literature's methods on the paper's scenarios, for the benchmark
+# (tools/scenario_template.py, REFERENCE_WHAT).
+
+ILC = {"/ccc": "type: ilc  # u_j+1 = Q[u_j + gamma_contour eps_j(k + lead)], on the ESO-SMC axes\n"
+               "gamma_contour: 1.0e+4\ngamma_tracking: 0.0\nlead: 5\nq_cutoff: 10.0\npasses: 4"}
+REFERENCE_METHODS = [
+    ("paper004_saddle_eso", "paper004_saddle_ilc", "ilc", "saddle, ESO-SMC axes, cross-coupled ILC over 4 passes",
+     ILC, ""),
+]
+
 if __name__ == "__main__":
     main(*sys.argv[1:2])       # the output directory, default config/
+    write_reference_methods(sys.argv[1] if sys.argv[1:] else Path(__file__).resolve().parent.parent / "config",
+                            "004", REFERENCE_METHODS)
