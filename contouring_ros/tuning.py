@@ -79,7 +79,8 @@ from .sweep import RUN_FAILURES, apply_settings, score_one, simulate_experiments
 
 __all__ = ["REALISTIC", "SATURATION_MARGIN", "varied_parameters", "Protocol", "Outcome",
            "Evaluation", "Tuned", "gain_keys", "anchors", "machine_settings", "perturbations", "draw_settings",
-           "experiment_for", "experiment_margins", "worst_margins", "loop_robustness", "MS_LIMIT", "run_outcomes", "worst_case", "minimise",
+           "experiment_for", "section_with_gains",
+           "experiment_margins", "worst_margins", "loop_robustness", "MS_LIMIT", "run_outcomes", "worst_case", "minimise",
            "nelder_mead_restarts", "tune", "interval", "pareto_front"]
 
 #: plant keys of the realistic machine (a key the scenario file sets is kept)
@@ -230,6 +231,15 @@ def _set_gain(section: dict, key: str, magnitude: float) -> None:
         section[key] = [magnitude * float(v) / top for v in value] if top > 0 else [magnitude] * len(value)
     else:
         section[key] = magnitude
+
+
+def section_with_gains(section: dict, gains: dict) -> dict:
+    """A copy of the controller ``section`` with the tuned ``gains`` (key -> magnitude, as a
+    :class:`Tuned` and the benchmark's CSV give them) set."""
+    out = dict(section)
+    for key, magnitude in gains.items():
+        _set_gain(out, key, magnitude)
+    return out
 
 
 def _gains_from(x, keys: tuple, anchor: dict, decades: float) -> dict:
@@ -558,10 +568,7 @@ def tune(data: dict, sections: dict, keys: tuple, machine: dict, noise_limit: fl
     limits = _limits(data, machine)
 
     def with_gains(gains: dict) -> dict:
-        section = dict(ccc)
-        for key, magnitude in gains.items():
-            _set_gain(section, key, magnitude)
-        return dict(sections, **{"/ccc": section})
+        return dict(sections, **{"/ccc": section_with_gains(ccc, gains)})
 
     def measure_many(points: list) -> list:
         """An Evaluation per gains mapping, run as one batch where the classes allow; a point is refused
