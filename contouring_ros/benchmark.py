@@ -53,7 +53,7 @@ from .errors import ConfigError, Diverged, write_atomically
 from .executors import pool as executor
 from .experiment.scenarios import CONFIG_DIR
 from .tuning import (
-    Protocol, REALISTIC, SATURATION_MARGIN, experiment_for, gain_keys, interval, machine_settings,
+    Protocol, REALISTIC, SATURATION_MARGIN, experiment_for, fit_to_machine, gain_keys, interval, machine_settings,
     pareto_front, run_outcomes, tune, worst_case
 )
 
@@ -411,33 +411,6 @@ def reference_job(data: dict, from_time: float, where: str, protocol: Protocol |
     published = run_outcomes(data, {}, [machine], from_time, where)[0]
     return Reference(machine, published, ideal, math.nan,
                      worst_case(data, {}, machine, from_time, protocol or Protocol(), where))
-
-
-def fit_to_machine(data: dict, sections: dict, machine: dict) -> dict:
-    """``sections`` with what models the drive set to the machine's (``machine``: grid settings of
-    :func:`contouring_ros.tuning.machine_settings` over the plants of ``data``): a servo's or controller's
-    ``command_delay`` the axis' computation delay (a controller: the largest), a controller's unset
-    ``command_limit`` each axis' actuator limit. A method that models its drive is told the drive it runs
-    on, as an engineer commissioning it would be."""
-    plants = {node.split("/")[1]: params for node, params in
-              ((f"/{a}/plant", data[f"/{a}/plant"]["ros__parameters"]) for a in data[GLOBAL_SECTION]["ros__parameters"]["axes"])}
-    delay = {a: int(machine.get(f"{a}/plant.command_delay", p.get("command_delay") or 0)) for a, p in plants.items()}
-    limit = [float(machine.get(f"{a}/plant.saturation", p.get("saturation") or 0.0)) for a, p in plants.items()]
-    out = dict(sections)
-    for axis in plants:
-        servo = out.get(f"/{axis}/servo")
-        if servo and "command_delay" in SERVOS.entry(servo["law"]).params:
-            out[f"/{axis}/servo"] = dict(servo, command_delay=delay[axis])
-    ccc = out.get("/ccc")
-    if ccc and ccc.get("type") in CONTROLLERS:
-        params = CONTROLLERS.entry(ccc["type"]).params
-        ccc = dict(ccc)
-        if "command_delay" in params:
-            ccc["command_delay"] = max(delay.values())
-        if "command_limit" in params and not any(ccc.get("command_limit") or ()) and any(limit):
-            ccc["command_limit"] = limit
-        out["/ccc"] = ccc
-    return out
 
 
 def _tune_job(data, sections, keys, machine, noise_limit, from_time, protocol, where, robust_floor):

@@ -69,7 +69,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .experiment.build import build_controller, build_curve, build_plant, build_servo
-from .experiment.catalogue import CONTROLLERS, PLANTS
+from .experiment.catalogue import CONTROLLERS, PLANTS, SERVOS
 from .experiment.validate import experiment_from_data
 from .experiment.schema import GLOBAL_SECTION
 from .core.margins import axis_loop, coupled_loop, margins, quick_robustness
@@ -79,7 +79,7 @@ from .sweep import RUN_FAILURES, apply_settings, score_one, simulate_experiments
 
 __all__ = ["REALISTIC", "SATURATION_MARGIN", "varied_parameters", "Protocol", "Outcome",
            "Evaluation", "Tuned", "gain_keys", "anchors", "machine_settings", "perturbations", "draw_settings",
-           "experiment_for", "section_with_gains",
+           "experiment_for", "fit_to_machine", "section_with_gains",
            "experiment_margins", "worst_margins", "loop_robustness", "MS_LIMIT", "run_outcomes", "worst_case", "minimise",
            "nelder_mead_restarts", "tune", "interval", "pareto_front"]
 
@@ -328,7 +328,7 @@ def _outcomes(experiments: list, from_time: float, limits: list) -> list:
     than one pass, :mod:`contouring_ros.learning`) runs every pass and is judged by its last: what the part
     is like once the correction has been learned."""
     learning = [i for i, e in enumerate(experiments) if passes(e) > 1]
-    rest = [i for i in range(len(experiments)) if i not in set(learning)]
+    rest = [i for i, e in enumerate(experiments) if passes(e) <= 1]
     out = [None] * len(experiments)
     with np.errstate(all="ignore"):
         loops, results, _, failures = simulate_experiments([experiments[i] for i in rest])
@@ -364,6 +364,34 @@ def _figures(loop, result, from_time: float, limits: tuple) -> Outcome:
 def _limits(data: dict, settings: dict) -> tuple:
     return tuple(float(settings.get(f"{node[1:]}.saturation", params.get("saturation") or 0.0))
                  for node, params in _plants(data).items())
+
+
+def fit_to_machine(data: dict, sections: dict, machine: dict) -> dict:
+    """``sections`` with what models the drive set to the machine's (``machine``: grid settings of
+    :func:`machine_settings` over the plants of ``data``): a servo's or controller's ``command_delay`` the
+    axis' computation delay (a controller: the largest), a controller's unset ``command_limit`` each axis'
+    actuator limit (:func:`_limits`). A method that models its drive is told the drive it runs on, as an
+    engineer commissioning it would be."""
+    plants = _plants(data)
+    delay = {node: int(machine.get(f"{node[1:]}.command_delay", params.get("command_delay") or 0))
+             for node, params in plants.items()}
+    limit = list(_limits(data, machine))
+    out = dict(sections)
+    for node in plants:
+        servo_node = node.replace("/plant", "/servo")
+        servo = out.get(servo_node)
+        if servo and "command_delay" in SERVOS.entry(servo["law"]).params:
+            out[servo_node] = dict(servo, command_delay=delay[node])
+    ccc = out.get("/ccc")
+    if ccc and ccc.get("type") in CONTROLLERS:
+        params = CONTROLLERS.entry(ccc["type"]).params
+        ccc = dict(ccc)
+        if "command_delay" in params:
+            ccc["command_delay"] = max(delay.values())
+        if "command_limit" in params and not any(ccc.get("command_limit") or ()) and any(limit):
+            ccc["command_limit"] = limit
+        out["/ccc"] = ccc
+    return out
 
 
 def experiment_for(data: dict, sections: dict, settings: dict, where: str):

@@ -4,7 +4,7 @@ run: no model mismatch, the machine's first noise seeds).
 
 It reads the tuned gains of a benchmark CSV (``contouring-ros benchmark`` writes reports/benchmark.csv),
 rebuilds each row's sections as the benchmark did (:func:`contouring_ros.benchmark.plan`,
-:func:`~contouring_ros.benchmark.fit_to_machine`) and runs them in-process. ``--file-gains`` runs the rows'
+:func:`~contouring_ros.tuning.fit_to_machine`) and runs them in-process. ``--file-gains`` runs the rows'
 file gains instead (for a scenario whose tuning found no admissible point).
 
 Usage: python tools/reference_methods.py [reports/benchmark.csv] [--file-gains]
@@ -22,12 +22,13 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from contouring_ros.benchmark import fit_to_machine, plan, scenario_families  # noqa: E402
+from contouring_ros.benchmark import plan, scenario_families  # noqa: E402
 from contouring_ros.core.simulation import simulate  # noqa: E402
 from contouring_ros.experiment.build import build_loop  # noqa: E402
 from contouring_ros.learning import simulate_passes  # noqa: E402
 from contouring_ros.sweep import score_one  # noqa: E402
-from contouring_ros.tuning import experiment_for, machine_settings, run_outcomes, section_with_gains  # noqa: E402
+from contouring_ros.tuning import (  # noqa: E402
+    experiment_for, fit_to_machine, machine_settings, run_outcomes, section_with_gains)
 
 
 def _sections(family, row: dict, file_gains: bool) -> tuple:
