@@ -9,6 +9,7 @@ numbers are the same as the graph's (a bag reads back the floats the simulation 
 """
 from __future__ import annotations
 
+import dataclasses
 import tempfile
 from pathlib import Path
 
@@ -21,7 +22,10 @@ from .experiment.model import Experiment
 from .scoring import read_run
 from .sweep import written_settings
 
-__all__ = ["passes", "next_correction", "simulate_passes", "pass_bag", "run_passes"]
+__all__ = ["passes", "next_correction", "pass_settings", "pass_experiment", "simulate_passes", "pass_bag",
+           "run_passes"]
+
+PASS_SEED_STRIDE = 104_729      # a prime, far from the seeds the benchmark's draws use (1 + 16 j + axis)
 
 
 def passes(experiment: Experiment) -> int:
@@ -37,11 +41,40 @@ def next_correction(experiment: Experiment, result, correction) -> np.ndarray:
                  section["q_cutoff"])
 
 
+def pass_settings(experiment: Experiment, j: int) -> dict:
+    """The settings (grid keys: ``x/plant.noise_seed``) that give pass ``j`` its own noise: each plant's
+    ``noise_seed`` and a random disturbance's ``seed`` moved by (j - 1) x PASS_SEED_STRIDE; none for pass 1."""
+    out = {}
+    if j <= 1:
+        return out
+    for axis, plant in experiment.plants.items():
+        out[f"{axis}/plant.noise_seed"] = int(plant.get("noise_seed", 0) or 0) + (j - 1) * PASS_SEED_STRIDE
+        disturbance = plant.get("disturbance") or {}
+        if disturbance.get("type") == "random":
+            out[f"{axis}/plant.disturbance.seed"] = int(disturbance.get("seed", 0) or 0) + (j - 1) * PASS_SEED_STRIDE
+    return out
+
+
+def pass_experiment(experiment: Experiment, j: int) -> Experiment:
+    """``experiment`` with pass ``j``'s seeds (:func:`pass_settings`)."""
+    settings = pass_settings(experiment, j)
+    if not settings:
+        return experiment
+    plants = {axis: dict(plant) for axis, plant in experiment.plants.items()}
+    for key, value in settings.items():
+        axis, name = key.split("/plant.", 1)
+        if name == "disturbance.seed":
+            plants[axis]["disturbance"] = {**plants[axis]["disturbance"], "seed": value}
+        else:
+            plants[axis][name] = value
+    return dataclasses.replace(experiment, plants=plants)
+
+
 def simulate_passes(experiment: Experiment, progress=None) -> list:
     """(loop, result) of every pass, in-process (a diverged pass raises Diverged, as one run does)."""
     out, table = [], None
     for j in range(1, passes(experiment) + 1):
-        loop = build_loop(experiment)
+        loop = build_loop(pass_experiment(experiment, j))
         if table is not None:
             loop.controller.table = table
         result = simulate(loop)
@@ -66,15 +99,18 @@ def run_passes(config: Path, experiment: Experiment, bag: Path, run, progress=No
         for j in range(1, passes(experiment) + 1):
             target = pass_bag(bag, j)
             target.parent.mkdir(parents=True, exist_ok=True)
-            path, pass_experiment = config, experiment
+            path, this_pass = config, experiment
+            specs = [f"{key}={value}" for key, value in pass_settings(experiment, j).items()]
             if table is not None:
                 learned = target.with_name(f"{target.stem}_learned.npy").resolve()
                 np.save(learned, table)
+                specs.append(f"ccc.learned_file={learned}")
+            if specs:
                 folder = Path(directory) / f"pass{j}"
                 folder.mkdir()
-                path, pass_experiment = written_settings(config, [f"ccc.learned_file={learned}"], folder)
-            bags.append(run(path, target, pass_experiment))
-            recorded = read_run(bags[-1], parsed=pass_experiment)
+                path, this_pass = written_settings(config, specs, folder)
+            bags.append(run(path, target, this_pass))
+            recorded = read_run(bags[-1], parsed=this_pass)
             if progress is not None:
                 progress(j, bags[-1], recorded)
             table = next_correction(experiment, recorded.result, table)

@@ -10,7 +10,7 @@ from contouring_ros.core.simulation import simulate
 from contouring_ros.errors import ConfigError
 from contouring_ros.experiment.build import build_loop
 from contouring_ros.experiment.validate import parse_experiment
-from contouring_ros.learning import next_correction, simulate_passes
+from contouring_ros.learning import next_correction, pass_settings, simulate_passes
 from contouring_ros.scoring import score_run
 from conftest import CONFIG, shortened
 
@@ -65,6 +65,23 @@ def test_a_flipped_learning_gain_makes_it_rise(monkeypatch):
     monkeypatch.setattr(learning, "learn", flipped)
     tace = _tace_per_pass(_ellipse(passes=3))
     assert tace[-1] > tace[0], tace
+
+
+def test_each_pass_meets_noise_of_its_own_and_the_first_is_the_file_as_it_is():
+    text = shortened(CONFIG / "ilc_ellipse.yaml", 0.05).replace("passes: 8", "passes: 3").replace(
+        "    time_constant: 0.040\n", "    time_constant: 0.040\n    measurement_noise: 1.0e-6\n"
+        "    disturbance: {type: random, std: 0.01, seed: 3}\n")
+    experiment = parse_experiment(text, "ilc_ellipse.yaml")
+    assert pass_settings(experiment, 1) == {}
+    assert pass_settings(experiment, 3)["x/plant.noise_seed"] != pass_settings(experiment, 2)["x/plant.noise_seed"]
+    assert pass_settings(experiment, 2)["x/plant.disturbance.seed"] != 3
+    runs = simulate_passes(experiment)
+    alone = simulate(build_loop(experiment))
+    np.testing.assert_array_equal(runs[0][1].position, alone.position)
+    # the noise table each pass's x plant reads, and its random disturbance's seed
+    tables = [loop.plants[0]._noise for loop, _ in runs]
+    assert not np.array_equal(tables[0], tables[1]) and not np.array_equal(tables[1], tables[2])
+    assert len({loop.plants[0].disturbance.seed for loop, _ in runs}) == 3
 
 
 def test_a_batch_of_different_corrections_gives_each_run_alone_bit_for_bit():

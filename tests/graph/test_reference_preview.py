@@ -73,7 +73,9 @@ def test_each_ilc_pass_through_the_graph_equals_its_simulated_pass(tmp_path):
     # pass 2 plays back the correction learned from pass 1's bag, read from the .npy beside its own bag
     from contouring_ros.learning import run_passes, simulate_passes
     path = tmp_path / "ilc.yaml"
-    path.write_text(shortened(CONFIG / "ilc_ellipse.yaml", 0.05).replace("passes: 8", "passes: 2"))
+    # with measurement noise: pass 2 reads its own noise seed from the file the runner writes for it
+    path.write_text(shortened(CONFIG / "ilc_ellipse.yaml", 0.05).replace("passes: 8", "passes: 2").replace(
+        "    time_constant: 0.040\n", "    time_constant: 0.040\n    measurement_noise: 1.0e-6\n"))
     experiment = load_experiment(path)
     bags = run_passes(path, experiment, tmp_path / "run.mcap",
                       lambda config, bag, parsed: run_graph(config, bag, experiment=parsed, layout="composed"))
