@@ -142,10 +142,19 @@ def main(out=None):
 
 ZPETC_AXIS = ("law: zpetc  # C1/C2's P position loop of 40 1/s\nkp: 40.0\nki: 0.0\nkd: 0.0\ngain: 1.0\n"
               "time_constant: 0.005")
+ILC = ("type: ilc  # u_j+1 = Q[u_j + gamma_contour eps_j(k + lead)], on C1/C2's P position loops\n"
+       "gamma_contour: 20.0\ngamma_tracking: 0.0\nlead: 5\nq_cutoff: 10.0\npasses: 4")
+MPCC = ("type: mpcc  # on the axes' own model: a first-order velocity axis is M = tau, B = 1, K = its gain\n"
+        "mass: [0.005, 0.005]\ndamping: [1.0, 1.0]\ngain: [1.0, 1.0]\nhorizon: 10\nq_contour: 1.0e+6\n"
+        "q_lag: 1.0e+4\nr_rate: 1.0e-4")
 REFERENCE_METHODS = [
     ("paper002_butterfly_c3_tvt", "paper002_butterfly_zpetc", "zpetc", "butterfly at 100 mm/s, P loop + ZPETC "
      "feedforward, no CCC", {"/x/servo": ZPETC_AXIS, "/y/servo": ZPETC_AXIS, "/ccc": "type: none"},
      "C1/C2's P position loop"),
+    ("paper002_butterfly_c1_tangent_line", "paper002_butterfly_ilc", "ilc", "butterfly at 100 mm/s, C1/C2's P "
+     "loops, cross-coupled ILC over 4 passes", {"/ccc": ILC}, ""),
+    ("paper002_butterfly_c3_tvt", "paper002_butterfly_mpcc", "mpcc", "butterfly at 100 mm/s, MPCC (horizon 10)",
+     {"/ccc": MPCC}, ""),
 ]
 
 if __name__ == "__main__":

@@ -255,8 +255,14 @@ def main(out=None):
 MPCC = {"/ccc": "type: mpcc  # on the task-frame PD's own axis model\nmass: [1.0, 1.0]\ndamping: [798.5, 862.75]\n"
                 "gain: [16.23, 17.58]\nhorizon: 10\nq_contour: 1.0e+6\nq_lag: 1.0e+4\nr_rate: 1.0e-6\n"
                 "command_limit: [10.0]  # the drives' saturation\ndisturbance_gain: 0.2  # offset-free under Coulomb friction"}
+MPCC_HELIX = {"/ccc": "type: mpcc  # on the task-frame PD's own axis model\nmass: [1.0, 1.0, 1.0]\n"
+                      "damping: [205.0, 230.0, 180.0]\ngain: [1.0, 1.0, 1.0]\nhorizon: 10\nq_contour: 1.0e+6\n"
+                      "q_lag: 1.0e+4\nr_rate: 1.0e-6\ndisturbance_gain: 0.2"}
 REFERENCE_METHODS = [
     ("paper003_ellipse_natural_local_fn100", "paper003_ellipse_mpcc", "mpcc", "ellipse, MPCC (horizon 10)", MPCC, ""),
+    ("paper003_figure_eight_natural_local_fn100", "paper003_figure_eight_mpcc", "mpcc",
+     "figure eight, MPCC (horizon 10)", MPCC, ""),
+    ("paper003_helix_natural_local_f15_10", "paper003_helix_mpcc", "mpcc", "helix, MPCC (horizon 10)", MPCC_HELIX, ""),
 ]
 
 if __name__ == "__main__":

@@ -80,19 +80,22 @@ class ModelPredictiveContouring:
         self.preview = self.delay + self.horizon        # reference steps ahead: k + D + 1 .. k + D + N
         big_n = self.horizon
         # per axis: the position j + 1 steps after the state x_D (j = 0 .. N-1) = free[j] @ x_D + forced[j] @ U
-        self.free, self.forced = [], []
+        free, forced_all = [], []
         for a_matrix, b_vector in self.models:
             powers = [np.eye(2)]
             for _ in range(big_n):
                 powers.append(a_matrix @ powers[-1])
-            self.free.append(np.array([powers[j + 1][0] for j in range(big_n)]))
+            free.append(np.array([powers[j + 1][0] for j in range(big_n)]))
             forced = np.zeros((big_n, big_n))
             for j in range(big_n):
                 for i in range(j + 1):
                     forced[j, i] = (powers[j - i] @ b_vector)[0]
-            self.forced.append(forced)
+            forced_all.append(forced)
+        self._free, self._forced = np.array(free), np.array(forced_all)            # (n, N, 2), (n, N, N)
+        self._forced_sum = self._forced.sum(axis=2)          # the response to a constant input of 1, (n, N)
         difference = np.eye(big_n) - np.eye(big_n, k=-1)
         self._rate = self.r_rate * difference.T @ difference
+        self._rates = np.kron(np.eye(n), self._rate)         # the rate's Hessian, block diagonal over the axes
         self._rate_first = self.r_rate * difference.T[:, 0]      # times the previous command: the first change
         self.held = [np.zeros(n) for _ in range(self.delay)]      # computed, not yet applied (oldest first)
         self.previous = np.zeros(n)          # the last command computed
@@ -141,20 +144,14 @@ class ModelPredictiveContouring:
             states.append(x)
         targets = self.ahead[self.delay:self.delay + big_n]          # (N, n)
         weights = self._weights(np.asarray(reference.position, dtype=float))
-        hessian = np.zeros((n * big_n, n * big_n))
-        linear = np.zeros(n * big_n)
-        offsets = []
-        for i in range(n):
-            disturbance_response = self.forced[i] @ np.full(big_n, self.disturbance[i])
-            offsets.append(self.free[i] @ states[i] + disturbance_response - targets[:, i])
-        for a in range(n):
-            rows = slice(a * big_n, (a + 1) * big_n)
-            for b in range(n):
-                weighted = weights[:, a, b][:, None] * self.forced[b]
-                hessian[rows, b * big_n:(b + 1) * big_n] = self.forced[a].T @ weighted
-                linear[rows] += self.forced[a].T @ (weights[:, a, b] * offsets[b])
-            hessian[rows, rows] += self._rate
-            linear[rows] -= self._rate_first * self.previous[a]
+        # e_j = offsets[:, j] + forced[:, j] @ U: H = F^T W F + the rate's, f = F^T W offsets - the first change's
+        offsets = np.einsum("ajk,ak->aj", self._free, np.asarray(states)) \
+            + self._forced_sum * self.disturbance[:, None] - targets.T                # (n, N)
+        weighted = np.einsum("jab,bjk->ajbk", weights, self._forced)                   # W F, (n, N, n, N)
+        hessian = np.einsum("aji,ajbk->aibk", self._forced, weighted).reshape(n * big_n, n * big_n) + self._rates
+        linear = np.einsum("aji,jab,bj->ai", self._forced, weights, offsets)
+        linear -= self._rate_first[None, :] * self.previous[:, None]
+        linear = linear.reshape(n * big_n)
         started = time.perf_counter()
         plan = self._solve(hessian, linear)
         self.solve_times.append(time.perf_counter() - started)
