@@ -417,10 +417,27 @@ def _tune_job(data, sections, keys, machine, noise_limit, from_time, protocol, w
     return tune(data, sections, keys, machine, noise_limit, from_time, protocol, where, robust_floor=robust_floor)
 
 
+def matches_methods(label_of, methods) -> bool:
+    """Whether a combination or excluded pairing (anything with estimator, controller and servo) is one of
+    ``methods``: globs matched against its estimator, its controller and its servo set's label."""
+    return any(fnmatch.fnmatch(name, pattern) for pattern in methods
+               for name in (label_of.estimator, label_of.controller, label_of.servo))
+
+
+def _is_proposed(family: Family, combination: Combination) -> bool:
+    data = family.data[family.proposed]
+    axes = data[GLOBAL_SECTION]["ros__parameters"]["axes"]
+    return (combination.estimator == _params(data, "/contour_estimator")["type"]
+            and combination.controller == _params(data, "/ccc")["type"]
+            and all(combination.sections[f"/{a}/servo"] == _params(data, f"/{a}/servo") for a in axes))
+
+
 def run_benchmark(families: list, protocol: Protocol | None = None, workers: int | None = None,
-                  progress: bool = False, say=None, scheduler: str | None = None) -> list:
+                  progress: bool = False, say=None, scheduler: str | None = None, methods=()) -> list:
     """Every row (one per scenario x combination, the excluded ones included) of ``families``, on local
-    processes or the Dask cluster at ``scheduler`` (:func:`contouring_ros.executors.pool`)."""
+    processes or the Dask cluster at ``scheduler`` (:func:`contouring_ros.executors.pool`). ``methods``
+    (globs, :func:`matches_methods`): only those combinations, and each scenario's proposed one (the ratios
+    are to it)."""
     from tqdm import tqdm
     protocol = protocol or Protocol()
     say = say or (lambda message: None)
@@ -431,6 +448,9 @@ def run_benchmark(families: list, protocol: Protocol | None = None, workers: int
         jobs = []
         for family in families:
             combos, excluded = plan(family, catalogue)
+            if methods:
+                combos = [c for c in combos if matches_methods(c, methods) or _is_proposed(family, c)]
+                excluded = [e for e in excluded if matches_methods(e, methods)]
             say(f"{family.name}: {len(combos)} combinations, {len(excluded)} cannot be paired")
             reference = references[family.name].result()
             reference.noise_limit = protocol.noise_factor * reference.published.noise \
@@ -464,13 +484,7 @@ def run_benchmark(families: list, protocol: Protocol | None = None, workers: int
 
 
 def _proposed_row(family: Family, rows: list) -> Row | None:
-    data = family.data[family.proposed]
-    estimator = _params(data, "/contour_estimator")["type"]
-    controller = _params(data, "/ccc")["type"]
-    axes = data[GLOBAL_SECTION]["ros__parameters"]["axes"]
-    servos = {f"/{a}/servo": _params(data, f"/{a}/servo") for a in axes}
-    return next((r for r in rows if r.combination.estimator == estimator and r.combination.controller == controller
-                 and all(r.combination.sections[k] == v for k, v in servos.items())), None)
+    return next((r for r in rows if _is_proposed(family, r.combination)), None)
 
 
 # ---------------------------------------------------------------------------------------------- output
@@ -902,6 +916,7 @@ class Part:
     command: str
     host: str = ""
     load: float = math.nan        # load average as it ended
+    methods: tuple = ()           # --methods: only these combinations (and each scenario's proposed one) ran
 
 
 def save_part(part: Part, path) -> Path:
@@ -932,12 +947,48 @@ def load_parts(paths: list) -> list:
     return parts
 
 
+def merged_rows(parts: list) -> tuple:
+    """(families, rows) of ``parts`` read in order: a later part's scenario replaces an earlier part's rows
+    of it, all of them, or with ``methods`` those of its methods and the proposed combination (so that a
+    method added or changed is rerun alone and reported with the rest). ConfigError where the proposed
+    combination of a scenario did not tune to the same figures in both (the parts ran different code or
+    settings: their ratios would not compare)."""
+    families, rows = {}, {}
+    for i, part in enumerate(parts):
+        for family in part.families:
+            new = [r for r in part.rows if r.family is family]
+            kept = [] if not part.methods or family.name not in rows else [
+                r for r in rows[family.name]
+                if not matches_methods(r.combination or r.excluded, part.methods)
+                and not (r.combination and _is_proposed(family, r.combination))]
+            before = next((r for r in rows.get(family.name, []) if r.combination
+                           and _is_proposed(family, r.combination)), None)
+            after = next((r for r in new if r.combination and _is_proposed(family, r.combination)), None)
+            if part.methods and before is not None and after is not None and before.ok and after.ok and \
+                    [d.tace for d in before.tuned.draws] != [d.tace for d in after.tuned.draws]:
+                raise ConfigError(f"--from-parts: part {i + 1} ({part.command}) tuned {family.name}'s proposed "
+                                  "combination to other figures than the parts before it: they ran different "
+                                  "code or settings, so its rows would not compare with theirs")
+            for r in kept:
+                r.family = family
+            families[family.name] = family
+            rows[family.name] = kept + new
+    ordered = sorted(families.values(), key=lambda f: f.paper)
+    out = []
+    for family in ordered:
+        mine = rows[family.name]
+        proposed = _proposed_row(family, [r for r in mine if r.combination])
+        for r in mine:
+            if r.combination:
+                r.reference = proposed
+        out += mine
+    return ordered, out
+
+
 def write_outputs(parts: list, out) -> tuple:
     """benchmark.md, benchmark.csv, benchmark_heatmap.png and one benchmark_pareto_paper<N>.png per paper in
-    ``out`` from the rows of ``parts`` (their scenarios in paper order)."""
-    families = sorted((f for p in parts for f in p.families), key=lambda f: f.paper)
-    order = {id(f): i for i, f in enumerate(families)}
-    rows = sorted((r for p in parts for r in p.rows), key=lambda r: order[id(r.family)])
+    ``out`` from the rows of ``parts`` (their scenarios in paper order; :func:`merged_rows`)."""
+    families, rows = merged_rows(parts)
     out = Path(out)
     csv_path = write_csv(rows, out / "benchmark.csv")
     png = draw_heatmap(rows, out / "benchmark_heatmap.png")
@@ -961,19 +1012,20 @@ def write_outputs(parts: list, out) -> tuple:
 
 def main_benchmark(patterns=None, protocol: Protocol | None = None, out="reports", workers=None, progress=False,
                    say=None, command: str = "contouring-ros benchmark", scheduler: str | None = None,
-                   save_part_to=None, host: str = "") -> tuple:
+                   save_part_to=None, host: str = "", methods=()) -> tuple:
     """Run the benchmark and write benchmark.md, benchmark.csv, benchmark_heatmap.png and one
     benchmark_pareto_paper<N>.png per paper into ``out`` (and the run as a :class:`Part` to ``save_part_to``)."""
     import resource
     protocol = protocol or Protocol()
     start = time.perf_counter()
     families = select_families(scenario_families(), patterns)
-    rows = run_benchmark(families, protocol, workers, progress, say, scheduler)
+    rows = run_benchmark(families, protocol, workers, progress, say, scheduler, tuple(methods or ()))
     seconds = time.perf_counter() - start
     cpu = sum(resource.getrusage(who).ru_utime + resource.getrusage(who).ru_stime
               for who in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN))
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else math.nan
-    part = Part(families, rows, protocol, seconds, cpu, os.cpu_count() or 1, command, host, load)
+    part = Part(families, rows, protocol, seconds, cpu, os.cpu_count() or 1, command, host, load,
+                tuple(methods or ()))
     if save_part_to:
         save_part(part, save_part_to)
     md, csv_path, png = write_outputs([part], out)

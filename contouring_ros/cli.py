@@ -396,7 +396,8 @@ def _benchmark(args):
     protocol = Protocol(evaluations=args.budget, draws=args.draws)
     command = "contouring-ros benchmark" + (f" --scenarios {' '.join(args.scenarios)}" if args.scenarios else "") \
         + (f" --budget {args.budget}" if args.budget != Protocol.evaluations else "") \
-        + (f" --draws {args.draws}" if args.draws != Protocol.draws else "")
+        + (f" --draws {args.draws}" if args.draws != Protocol.draws else "") \
+        + (f" --methods {' '.join(args.methods)}" if args.methods else "")
     if args.from_parts:
         from .benchmark import load_parts, write_outputs
         md, table, png = write_outputs(load_parts(args.from_parts), args.out)
@@ -406,7 +407,7 @@ def _benchmark(args):
     md, table, png, seconds = main_benchmark(args.scenarios, protocol, args.out, args.workers,
                                              progress=sys.stderr.isatty(), say=say, command=command,
                                              scheduler=args.scheduler, save_part_to=args.save_part,
-                                             host=args.host or "")
+                                             host=args.host or "", methods=args.methods or ())
     print(f"wrote {md}, {table} and {png} in {seconds / 60:.1f} min" + (f"; the part in {args.save_part}"
                                                                          if args.save_part else ""))
 
@@ -523,6 +524,10 @@ def main(argv=None):
     p.add_argument("--workers", type=int, help="processes (default: one per core)")
     p.add_argument("--save-part", metavar="FILE", help="also keep this run's rows in FILE, to report them with other "
                                                        "parts (e.g. each paper run on another machine)")
+    p.add_argument("--methods", nargs="+", metavar="GLOB",
+                   help="only the combinations whose estimator, controller or servo set matches, e.g. 'ilc' "
+                        "'mpcc' (and each scenario's proposed combination); with --save-part, a later "
+                        "--from-parts puts their rows in place of an earlier full run's")
     p.add_argument("--host", help="the machine's name or description a saved part records (default: none)")
     p.add_argument("--from-parts", nargs="+", metavar="FILE", help="run nothing: write the report, CSV and figures "
                                                                    "from parts saved by --save-part")

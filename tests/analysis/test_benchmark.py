@@ -121,6 +121,31 @@ def test_parts_run_apart_are_reported_together(small_run, tmp_path):
     assert main(["benchmark", "--from-parts", str(tmp_path / "bad.pkl"), "--out", str(tmp_path)]) == 2
 
 
+def test_a_method_rerun_alone_takes_its_rows_place_in_an_earlier_full_run(small_run):
+    import copy
+    import dataclasses
+    families, rows = small_run
+    full = benchmark.Part(families, rows, FAST, 60.0, 100.0, 2, "full")
+    alone = run_benchmark(families, FAST, workers=2, methods=("tangent_line",))
+    proposed = [r for r in alone if r.combination and benchmark._is_proposed(families[0], r.combination)]
+    assert len(proposed) == 1 and proposed[0].combination.estimator != "tangent_line"   # run for the ratios
+    assert all(r is proposed[0] or (r.combination or r.excluded).estimator == "tangent_line" for r in alone)
+    part = benchmark.Part(families, alone, FAST, 10.0, 20.0, 2, "methods", methods=("tangent_line",))
+    merged_families, merged = benchmark.merged_rows([full, part])
+    assert sorted(r.label for r in merged) == sorted(r.label for r in rows)          # nothing lost, none twice
+    replaced = {r.label for r in alone}
+    assert all((r in alone) == (r.label in replaced) for r in merged)
+    assert all(r.reference is proposed[0] for r in merged if r.combination)
+    assert [d.tace for d in proposed[0].tuned.draws] == \
+        [d.tace for d in next(r for r in rows if r.is_proposed).tuned.draws]          # the same tuning
+    # a part whose proposed combination tuned otherwise ran other code: refused, naming the scenario
+    other = copy.deepcopy(part)
+    mine = next(r for r in other.rows if r.combination and benchmark._is_proposed(other.families[0], r.combination))
+    mine.tuned.draws[0] = dataclasses.replace(mine.tuned.draws[0], tace=1.5 * mine.tuned.draws[0].tace)
+    with pytest.raises(ConfigError, match=f"{families[0].name}'s proposed combination"):
+        benchmark.merged_rows([full, other])
+
+
 # ------------------------------------------------------------------------------------ the protocol
 
 
