@@ -442,15 +442,23 @@ def run_benchmark(families: list, protocol: Protocol | None = None, workers: int
     protocol = protocol or Protocol()
     say = say or (lambda message: None)
     catalogue = _catalogue_estimators(scenario_families() if families else [])
+    plans, matched = {}, 0
+    for family in families:
+        combos, excluded = plan(family, catalogue)
+        if methods:
+            matched += sum(matches_methods(c, methods) for c in combos + excluded)
+            combos = [c for c in combos if matches_methods(c, methods) or _is_proposed(family, c)]
+            excluded = [e for e in excluded if matches_methods(e, methods)]
+        plans[family.name] = combos, excluded
+    if methods and not matched:
+        raise ConfigError(f"--methods {' '.join(methods)}: no estimator, controller or servo set of the chosen "
+                          "scenarios matches")
     rows = []
     with executor(workers, scheduler) as (pool, _):
         references = {f.name: pool.submit(reference_job, f.data[f.proposed], f.from_time, f.name, protocol) for f in families}
         jobs = []
         for family in families:
-            combos, excluded = plan(family, catalogue)
-            if methods:
-                combos = [c for c in combos if matches_methods(c, methods) or _is_proposed(family, c)]
-                excluded = [e for e in excluded if matches_methods(e, methods)]
+            combos, excluded = plans[family.name]
             say(f"{family.name}: {len(combos)} combinations, {len(excluded)} cannot be paired")
             reference = references[family.name].result()
             reference.noise_limit = protocol.noise_factor * reference.published.noise \
@@ -947,6 +955,19 @@ def load_parts(paths: list) -> list:
     return parts
 
 
+def _same_tuning(before: Row, after: Row) -> bool:
+    """Whether two runs of one combination gave the same figures (every draw's TACE and MCE, and the proposed
+    method's with the paper's gains; a diverged draw's nan equal to nan)."""
+    def figures(row):
+        draws = row.tuned.draws if row.ok else []
+        published = row.bound.published if row.bound is not None else None
+        return np.array([[d.tace, d.mce] for d in draws] + ([[published.tace, published.mce]] if published else []),
+                        dtype=float)
+    mine, theirs = figures(before), figures(after)
+    return before.ok == after.ok and mine.shape == theirs.shape and bool(np.allclose(mine, theirs, rtol=1e-9,
+                                                                                     atol=0.0, equal_nan=True))
+
+
 def merged_rows(parts: list) -> tuple:
     """(families, rows) of ``parts`` read in order: a later part's scenario replaces an earlier part's rows
     of it, all of them, or with ``methods`` those of its methods and the proposed combination (so that a
@@ -964,13 +985,14 @@ def merged_rows(parts: list) -> tuple:
             before = next((r for r in rows.get(family.name, []) if r.combination
                            and _is_proposed(family, r.combination)), None)
             after = next((r for r in new if r.combination and _is_proposed(family, r.combination)), None)
-            if part.methods and before is not None and after is not None and before.ok and after.ok and \
-                    [d.tace for d in before.tuned.draws] != [d.tace for d in after.tuned.draws]:
+            if part.methods and before is not None and after is not None and not _same_tuning(before, after):
                 raise ConfigError(f"--from-parts: part {i + 1} ({part.command}) tuned {family.name}'s proposed "
                                   "combination to other figures than the parts before it: they ran different "
                                   "code or settings, so its rows would not compare with theirs")
             for r in kept:
                 r.family = family
+                if after is not None:
+                    r.bound = after.bound
             families[family.name] = family
             rows[family.name] = kept + new
     ordered = sorted(families.values(), key=lambda f: f.paper)

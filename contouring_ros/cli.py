@@ -400,6 +400,9 @@ def _benchmark(args):
         + (f" --methods {' '.join(args.methods)}" if args.methods else "")
     if args.from_parts:
         from .benchmark import load_parts, write_outputs
+        if args.methods or args.scenarios or args.save_part:
+            raise ConfigError("--from-parts runs nothing: --methods, --scenarios and --save-part belong to the runs "
+                              "that wrote the parts")
         md, table, png = write_outputs(load_parts(args.from_parts), args.out)
         print(f"wrote {md}, {table} and {png} from {len(args.from_parts)} parts")
         return

@@ -19,6 +19,7 @@ from .core.ilc import learn
 from .core.simulation import simulate
 from .experiment.build import build_loop
 from .experiment.model import Experiment
+from .experiment.schema import SEED_RANGE
 from .scoring import read_run
 from .sweep import written_settings
 
@@ -48,11 +49,16 @@ def pass_settings(experiment: Experiment, j: int) -> dict:
     if j <= 1:
         return out
     for axis, plant in experiment.plants.items():
-        out[f"{axis}/plant.noise_seed"] = int(plant.get("noise_seed", 0) or 0) + (j - 1) * PASS_SEED_STRIDE
+        out[f"{axis}/plant.noise_seed"] = _moved(plant.get("noise_seed", 0), j)
         disturbance = plant.get("disturbance") or {}
         if disturbance.get("type") == "random":
-            out[f"{axis}/plant.disturbance.seed"] = int(disturbance.get("seed", 0) or 0) + (j - 1) * PASS_SEED_STRIDE
+            out[f"{axis}/plant.disturbance.seed"] = _moved(disturbance.get("seed", 0), j)
     return out
+
+
+def _moved(seed, j: int) -> int:
+    """``seed`` moved by pass ``j``'s stride, within the seeds a file may hold (SEED_RANGE)."""
+    return (int(seed or 0) + (j - 1) * PASS_SEED_STRIDE) % (SEED_RANGE[1] + 1)
 
 
 def pass_experiment(experiment: Experiment, j: int) -> Experiment:

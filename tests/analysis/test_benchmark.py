@@ -144,6 +144,8 @@ def test_a_method_rerun_alone_takes_its_rows_place_in_an_earlier_full_run(small_
     mine.tuned.draws[0] = dataclasses.replace(mine.tuned.draws[0], tace=1.5 * mine.tuned.draws[0].tace)
     with pytest.raises(ConfigError, match=f"{families[0].name}'s proposed combination"):
         benchmark.merged_rows([full, other])
+    with pytest.raises(ConfigError, match=r"^--methods zpetc_nowhere: no estimator, controller or servo set"):
+        run_benchmark(families, FAST, workers=1, methods=("zpetc_nowhere",))
 
 
 # ------------------------------------------------------------------------------------ the protocol

@@ -75,6 +75,9 @@ def test_each_pass_meets_noise_of_its_own_and_the_first_is_the_file_as_it_is():
     assert pass_settings(experiment, 1) == {}
     assert pass_settings(experiment, 3)["x/plant.noise_seed"] != pass_settings(experiment, 2)["x/plant.noise_seed"]
     assert pass_settings(experiment, 2)["x/plant.disturbance.seed"] != 3
+    # a seed near the top of the range wraps within it (the graph path validates what it writes)
+    top = parse_experiment(text.replace("seed: 3}", "seed: 4294967295}"), "ilc_ellipse.yaml")
+    assert 0 <= pass_settings(top, 1000)["x/plant.disturbance.seed"] <= 2 ** 32 - 1
     runs = simulate_passes(experiment)
     alone = simulate(build_loop(experiment))
     np.testing.assert_array_equal(runs[0][1].position, alone.position)
