@@ -378,7 +378,7 @@ class Row:
         values = values[~np.isnan(values)]
         if not values.size:
             return math.nan, math.nan, math.nan
-        return (float(np.median(values)), float(np.percentile(values, 2.5)), float(np.percentile(values, 97.5)))
+        return _infinite_aware(values, 50.0), _infinite_aware(values, 2.5), _infinite_aware(values, 97.5)
 
     @property
     def noise_ratio(self) -> float:
@@ -386,6 +386,14 @@ class Row:
         if not self.ok or self.bound is None or not self.bound.published.ok or self.bound.published.noise <= 0:
             return math.nan
         return self.tuned.nominal.noise / self.bound.published.noise
+
+
+def _infinite_aware(values: np.ndarray, q: float) -> float:
+    """The q-th percentile of ``values`` where inf (a diverged draw) is larger than any number: numpy's linear
+    interpolation gives nan between two infs; here it gives inf, as it does between a number and inf."""
+    huge = np.finfo(float).max / 4
+    found = float(np.percentile(np.where(np.isinf(values), np.sign(values) * huge, values), q))
+    return math.copysign(math.inf, found) if abs(found) >= huge / 2 else found
 
 
 def verdict(low: float, high: float, threshold: float = 1.0) -> str:

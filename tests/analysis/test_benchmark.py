@@ -224,6 +224,18 @@ def test_robustness_and_draws_vary_every_plant_parameter_and_are_the_same_for_ev
     assert "x/plant.disturbance.phase" in tuning.draw_settings(data, 1, 0.1)
 
 
+def test_a_diverged_draw_makes_the_ratio_interval_reach_infinity_not_nan():
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        values = np.array([0.5, 0.6, 0.7, 0.8, 0.9, 1.0, np.inf, np.inf])
+        assert benchmark._infinite_aware(values, 97.5) == math.inf
+        assert benchmark._infinite_aware(values, 2.5) == pytest.approx(0.5 + 0.025 * 7 * 0.1)    # numpy's linear
+        assert benchmark._infinite_aware(values, 50.0) == pytest.approx(0.85)
+        assert benchmark._infinite_aware(np.array([1.0, 2.0, 3.0]), 97.5) == np.percentile([1.0, 2.0, 3.0], 97.5)
+    assert verdict(1.46, math.inf) == "higher"
+
+
 def test_intervals_verdicts_and_fronts():
     assert tuning.interval([1.0, 2.0, 3.0, float("nan")])[0] == 2.0
     assert all(math.isnan(v) for v in tuning.interval([]))
