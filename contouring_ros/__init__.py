@@ -1,11 +1,11 @@
 """contouring_ros: multi-axis contouring control of CNC feed drives as a ROS 2 graph of rclpy nodes.
 
 The Python API (:mod:`contouring_ros.api`) is available at the top level: ``load_experiment``, ``simulate``,
-``read_bag``, ``sweep_grid`` and ``Run``; it is imported on first use, so the nodes start without it.
+``simulate_passes``, ``read_bag``, ``sweep_grid`` and ``Run``; it is imported on first use, so the nodes start without it.
 """
 
 __version__ = "0.1.0"
-_API = ("Run", "load_experiment", "simulate", "read_bag", "sweep_grid")
+_API = ("Run", "load_experiment", "simulate", "simulate_passes", "read_bag", "sweep_grid")
 __all__ = list(_API)
 
 

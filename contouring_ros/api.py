@@ -34,7 +34,7 @@ from .export import run_table
 from .scoring import check_experiment_matches, curve_of, read_run, score_run
 from .sweep import apply_settings, run_sweep
 
-__all__ = ["Run", "load_experiment", "simulate", "read_bag", "sweep_grid"]
+__all__ = ["Run", "load_experiment", "simulate", "simulate_passes", "read_bag", "sweep_grid"]
 
 
 @dataclass
@@ -105,10 +105,23 @@ def _with_settings(experiment, settings: dict | None):
 
 def simulate(experiment, settings: dict | None = None) -> Run:
     """Simulate an experiment in-process (the node graph gives the same numbers), with ``settings`` applied
-    first (grid keys as in sweeps, e.g. {"ccc.kp": 2.0, "x/servo.a": 10}, or {"/ccc": {"type": "none"}})."""
+    first (grid keys as in sweeps, e.g. {"ccc.kp": 2.0, "x/servo.a": 10}, or {"/ccc": {"type": "none"}}).
+    A learning experiment (ILC with ``passes`` > 1) runs its first pass here: :func:`simulate_passes` runs
+    them all."""
     experiment = _with_settings(load_experiment(experiment), settings)
     loop = build_loop(experiment)
     return Run(experiment, _simulate_loop(loop), loop.curve, program_warnings(loop.curve), loop)
+
+
+def simulate_passes(experiment, settings: dict | None = None) -> list:
+    """A :class:`Run` per pass of a learning experiment (ILC: each pass plays back the correction learned
+    from the one before, and meets noise of its own; :mod:`contouring_ros.learning`), in order; one Run
+    for any other experiment."""
+    from .learning import pass_experiment
+    from .learning import simulate_passes as run_passes_in_process
+    experiment = _with_settings(load_experiment(experiment), settings)
+    return [Run(pass_experiment(experiment, j), result, loop.curve, program_warnings(loop.curve), loop)
+            for j, (loop, result) in enumerate(run_passes_in_process(experiment), 1)]
 
 
 def read_bag(path, experiment=None) -> Run:

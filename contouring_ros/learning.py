@@ -78,8 +78,8 @@ def pass_experiment(experiment: Experiment, j: int) -> Experiment:
 
 def simulate_passes(experiment: Experiment, progress=None) -> list:
     """(loop, result) of every pass, in-process (a diverged pass raises Diverged, as one run does)."""
-    out, table = [], None
-    for j in range(1, passes(experiment) + 1):
+    out, table, last = [], None, passes(experiment)
+    for j in range(1, last + 1):
         loop = build_loop(pass_experiment(experiment, j))
         if table is not None:
             loop.controller.table = table
@@ -87,7 +87,8 @@ def simulate_passes(experiment: Experiment, progress=None) -> list:
         out.append((loop, result))
         if progress is not None:
             progress(j, loop, result)
-        table = next_correction(experiment, result, table)
+        if j < last:
+            table = next_correction(experiment, result, table)
     return out
 
 
@@ -100,9 +101,9 @@ def pass_bag(bag: Path, j: int) -> Path:
 def run_passes(config: Path, experiment: Experiment, bag: Path, run, progress=None) -> list:
     """Every pass through the node graph: ``run(path, bag, experiment)`` runs one (runner.run_graph with the
     caller's layout and domain) and returns its bag. Returns the passes' bags."""
-    bags, table = [], None
+    bags, table, last = [], None, passes(experiment)
     with tempfile.TemporaryDirectory(prefix="contouring_ros_pass_") as directory:
-        for j in range(1, passes(experiment) + 1):
+        for j in range(1, last + 1):
             target = pass_bag(bag, j)
             target.parent.mkdir(parents=True, exist_ok=True)
             path, this_pass = config, experiment
@@ -119,5 +120,6 @@ def run_passes(config: Path, experiment: Experiment, bag: Path, run, progress=No
             recorded = read_run(bags[-1], parsed=this_pass)
             if progress is not None:
                 progress(j, bags[-1], recorded)
-            table = next_correction(experiment, recorded.result, table)
+            if j < last:
+                table = next_correction(experiment, recorded.result, table)
     return bags

@@ -87,6 +87,18 @@ def test_each_pass_meets_noise_of_its_own_and_the_first_is_the_file_as_it_is():
     assert len({loop.plants[0].disturbance.seed for loop, _ in runs}) == 3
 
 
+def test_the_api_gives_a_run_per_pass_and_its_first_is_simulate():
+    import contouring_ros as cr
+    text = shortened(CONFIG / "ilc_ellipse.yaml", 0.3).replace("passes: 8", "passes: 3")
+    experiment = parse_experiment(text, "ilc_ellipse.yaml")
+    runs = cr.simulate_passes(experiment)
+    tace = [run.scores().tace for run in runs]
+    assert len(runs) == 3 and tace[2] < tace[1] < tace[0], tace
+    np.testing.assert_array_equal(runs[0].result.position, cr.simulate(experiment).result.position)
+    other = parse_experiment(shortened(CONFIG / "paper000_b_ismc_h50_newton.yaml", 0.05), "h50.yaml")
+    assert len(cr.simulate_passes(other)) == 1
+
+
 def test_a_batch_of_different_corrections_gives_each_run_alone_bit_for_bit():
     experiment = _ellipse(duration=0.2)
     first = build_loop(experiment)
