@@ -370,8 +370,9 @@ def fit_to_machine(data: dict, sections: dict, machine: dict) -> dict:
     """``sections`` with what models the drive set to the machine's (``machine``: grid settings of
     :func:`machine_settings` over the plants of ``data``): a servo's or controller's ``command_delay`` the
     axis' computation delay (a controller: the largest), a controller's unset ``command_limit`` each axis'
-    actuator limit (:func:`_limits`). A method that models its drive is told the drive it runs on, as an
-    engineer commissioning it would be."""
+    actuator limit (:func:`_limits`), and where the machine's velocity is the differentiated encoder, a
+    controller's unset ``velocity_estimate`` 'model' (its observer, not the mean velocity of the last step).
+    A method that models its drive is told the drive it runs on, as an engineer commissioning it would be."""
     plants = _plants(data)
     delay = {node: int(machine.get(f"{node[1:]}.command_delay", params.get("command_delay") or 0))
              for node, params in plants.items()}
@@ -390,6 +391,10 @@ def fit_to_machine(data: dict, sections: dict, machine: dict) -> dict:
             ccc["command_delay"] = max(delay.values())
         if "command_limit" in params and not any(ccc.get("command_limit") or ()) and any(limit):
             ccc["command_limit"] = limit
+        encoder = any(machine.get(f"{node[1:]}.velocity_measurement", params_.get("velocity_measurement")) == "encoder"
+                      for node, params_ in plants.items())
+        if "velocity_estimate" in params and "velocity_estimate" not in ccc and encoder:
+            ccc["velocity_estimate"] = "model"
         out["/ccc"] = ccc
     return out
 

@@ -29,7 +29,9 @@ import numpy as np
 from ..errors import ContouringError
 from .plants import mass_damper_hold_terms
 
-__all__ = ["ModelPredictiveContouring", "sampled_mass_damper"]
+__all__ = ["ModelPredictiveContouring", "sampled_mass_damper", "VELOCITY_ESTIMATES"]
+
+VELOCITY_ESTIMATES = ("measured", "model")
 
 
 def sampled_mass_damper(mass: float, damping: float, gain: float, sample_time: float) -> tuple:
@@ -62,17 +64,26 @@ class ModelPredictiveContouring:
     disturbance_gain : float
         0 .. 1: how much of each step's velocity prediction error a constant input disturbance estimate takes
         up (0: none).
+    velocity_estimate : str
+        'measured': each axis' velocity as the drive reports it; 'model': the velocity reconstructed from the
+        last two position readings and the command applied between them through the axis model, carried to
+        now (a deadbeat observer: where the drive's velocity is its differentiated encoder, the reported one
+        is the mean over the last step, half a sample late, which a fast axis mode turns into a wrong state).
     """
 
     needs_state = True
 
     def __init__(self, mass, damping, gain, sample_time, horizon: int = 20, q_contour: float = 1e6,
                  q_lag: float = 1e4, r_rate: float = 1.0, command_limit=(), command_delay: int = 0,
-                 disturbance_gain: float = 0.0):
+                 disturbance_gain: float = 0.0, velocity_estimate: str = "measured"):
         n = len(mass)
         self.n, self.horizon, self.delay = n, int(horizon), int(command_delay)
         self.q_contour, self.q_lag, self.r_rate = float(q_contour), float(q_lag), float(r_rate)
         self.disturbance_gain = float(disturbance_gain)
+        if velocity_estimate not in VELOCITY_ESTIMATES:
+            raise ValueError(f"velocity_estimate must be one of {', '.join(VELOCITY_ESTIMATES)}, got {velocity_estimate!r}")
+        self.velocity_estimate = velocity_estimate
+        self.last_position = None            # the axes' position readings of the last step
         limits = np.zeros(n) if command_limit is None or len(command_limit) == 0 else \
             np.broadcast_to(np.asarray(command_limit, dtype=float), (n,))
         self.limits = np.where(limits > 0.0, limits, np.inf)
@@ -112,6 +123,16 @@ class ModelPredictiveContouring:
         """This step's reference positions at k + 1 .. k + :attr:`preview`, an array (preview, n)."""
         self.ahead = np.asarray(positions, dtype=float)
 
+    def _reconstructed_velocity(self, position) -> np.ndarray:
+        """Each axis' velocity now from P_k, P_k-1 and the command u (+ disturbance d) applied between them:
+        P_k = P_k-1 + pv V_k-1 + b0 (u + d) gives V_k-1, and V_k = vv V_k-1 + b1 (u + d)."""
+        out = np.empty(self.n)
+        for i, (a_matrix, b_vector) in enumerate(self.models):
+            drive = self.applied[i] + self.disturbance[i]
+            before = (position[i] - self.last_position[i] - b_vector[0] * drive) / a_matrix[0, 1]
+            out[i] = a_matrix[1, 1] * before + b_vector[1] * drive
+        return out
+
     def _estimate_disturbance(self, position, velocity) -> None:
         if self.disturbance_gain and self.applied is not None:
             for i, (a_matrix, b_vector) in enumerate(self.models):
@@ -133,6 +154,9 @@ class ModelPredictiveContouring:
 
     def step(self, estimate=None, reference=None, position=None, velocity=None) -> np.ndarray:
         position, velocity = np.asarray(position, dtype=float), np.asarray(velocity, dtype=float)
+        if self.velocity_estimate == "model" and self.applied is not None:
+            velocity = self._reconstructed_velocity(position)
+        self.last_position = position
         self._estimate_disturbance(position, velocity)
         n, big_n = self.n, self.horizon
         # the state when the command computed now acts: the held commands applied first

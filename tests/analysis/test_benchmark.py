@@ -84,6 +84,7 @@ def test_a_method_that_models_its_drive_is_given_the_realistic_machine():
     assert fitted["/ccc"]["command_delay"] == 1
     assert fitted["/ccc"]["command_limit"] == [machine["x/plant.saturation"], machine["y/plant.saturation"]] \
         == [4.0, 6.0]
+    assert fitted["/ccc"]["velocity_estimate"] == "model"        # the machine's velocity is the encoder's
     assert "command_delay" not in sections["/x/servo"]                   # the caller's sections are kept
     kept = benchmark.fit_to_machine(data, dict(sections, **{"/ccc": {"type": "mpcc", "command_limit": [7.0]}}),
                                     machine)

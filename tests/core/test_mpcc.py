@@ -2,6 +2,8 @@
 its command limits, its contour weighting is what lowers the contour error (flipped weights raise it), it
 beats paper 003's task-frame PD on that paper's ellipse and drives, and its delay model and disturbance
 estimate do what they are for."""
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -96,3 +98,34 @@ def test_weights_that_leave_no_error_to_lower_are_refused_in_one_line():
     from contouring_ros.errors import ConfigError
     with pytest.raises(ConfigError, match=r"/ccc\.q_contour: with q_contour and q_lag both 0 the MPCC has no error"):
         _mpcc(q_contour=0.0, q_lag=0.0)
+
+
+def test_the_model_velocity_estimate_is_the_plants_velocity_and_beats_a_differentiated_encoder():
+    """On a mass-damper whose time constant (1.25 ms) is near the sample time the encoder's difference is the
+    mean velocity of the last step, half a sample late: the deadbeat reconstruction through the model gives
+    the true velocity (model matched, no noise), and the MPCC reading it tracks the ellipse far closer."""
+    from contouring_ros.core.plants import MassDamperAxis
+    from contouring_ros.core.mpc import ModelPredictiveContouring
+    ts, mass, damping, gain = 1e-3, 1.0, 800.0, 16.0
+    mpcc = ModelPredictiveContouring([mass], [damping], [gain], ts, horizon=5, velocity_estimate="model")
+    plant = MassDamperAxis(mass, damping, gain, ts)
+    mpcc.applied, mpcc.last_position = np.array([0.0]), np.array([plant.position])
+    for k, u in enumerate(np.sin(np.arange(40) * 0.3) * 2.0):
+        before = plant.position
+        plant.step(u, k * ts)
+        mpcc.applied, mpcc.last_position = np.array([u]), np.array([before])
+        assert mpcc._reconstructed_velocity(np.array([plant.position]))[0] == pytest.approx(plant.velocity, rel=1e-9,
+                                                                                            abs=1e-15), k
+    text = shortened(CONFIG / "paper003_ellipse_natural_local_fn100.yaml", 0.5)
+    text = text[:text.index("/ccc:")] + ("/ccc:\n  ros__parameters:\n    type: mpcc\n    mass: [1.0, 1.0]\n"
+                                         "    damping: [798.5, 862.75]\n    gain: [16.23, 17.58]\n    horizon: 10\n"
+                                         "    r_rate: 1.0e-6\n    command_limit: [10.0]\n    command_delay: 1\n    disturbance_gain: 0.2\n")
+    tace = {}
+    for estimate in ("measured", "model"):
+        experiment = parse_experiment(text.replace("    horizon: 10\n", f"    horizon: 10\n    velocity_estimate: {estimate}\n"),
+                                      "mpcc.yaml")
+        plants = {a: {**p, "velocity_measurement": "encoder", "command_delay": 1, "encoder_resolution": 1e-7}
+                  for a, p in experiment.plants.items()}
+        loop = build_loop(dataclasses.replace(experiment, plants=plants))
+        tace[estimate] = score_run(loop.curve, simulate(loop)).tace
+    assert tace["model"] < 0.1 * tace["measured"], tace

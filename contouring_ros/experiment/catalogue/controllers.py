@@ -44,7 +44,7 @@ def _task_frame_pd(s, c):
 def _mpcc(s, c):
     return mpc.ModelPredictiveContouring(s["mass"], s["damping"], s["gain"], c.sample_time, s["horizon"],
                                          s["q_contour"], s["q_lag"], s["r_rate"], s["command_limit"] or (),
-                                         s["command_delay"], s["disturbance_gain"])
+                                         s["command_delay"], s["disturbance_gain"], s["velocity_estimate"])
 
 
 #: the largest learned-correction file read [bytes] (a million steps of 3 axes is 24 MB)
@@ -204,7 +204,11 @@ for _entry in (
         "command_delay": Param("int", 0, "nonnegative", help="the drive's computation delay the model assumes "
                                "[samples]", bounds=(0, MAX_COMMAND_DELAY)),
         "disturbance_gain": Param("float", 0.0, "nonnegative", help="share of each step's velocity prediction error a "
-                                  "constant input disturbance estimate takes up, 0: none", bounds=(0.0, 1.0))},
+                                  "constant input disturbance estimate takes up, 0: none", bounds=(0.0, 1.0)),
+        "velocity_estimate": Param("str", "measured", choices=mpc.VELOCITY_ESTIMATES, help="measured: the drive's "
+                                   "velocity reading; model: reconstructed from the last two position readings and "
+                                   "the applied command through the axis model (for a velocity differentiated from "
+                                   "the encoder)")},
         _mpcc, check=_check_mpcc, whole_command=True, needs_state=mpc.ModelPredictiveContouring.needs_state,
         gains=("q_contour", "q_lag", "r_rate"), preview=lambda s, experiment, axis: s["command_delay"] + s["horizon"],
         reads_estimate=False),
