@@ -32,6 +32,8 @@ from .errors import ConfigError
 from .experiment.scenarios import experiment_path
 from .export import run_table
 from .scoring import check_experiment_matches, curve_of, read_run, score_run
+from .learning import pass_experiment
+from .learning import simulate_passes as run_passes_in_process
 from .sweep import apply_settings, run_sweep
 
 __all__ = ["Run", "load_experiment", "simulate", "simulate_passes", "read_bag", "sweep_grid"]
@@ -117,8 +119,6 @@ def simulate_passes(experiment, settings: dict | None = None) -> list:
     """A :class:`Run` per pass of a learning experiment (ILC: each pass plays back the correction learned
     from the one before, and meets noise of its own; :mod:`contouring_ros.learning`), in order; one Run
     for any other experiment."""
-    from .learning import pass_experiment
-    from .learning import simulate_passes as run_passes_in_process
     experiment = _with_settings(load_experiment(experiment), settings)
     return [Run(pass_experiment(experiment, j), result, loop.curve, program_warnings(loop.curve), loop)
             for j, (loop, result) in enumerate(run_passes_in_process(experiment), 1)]
