@@ -105,8 +105,8 @@ class ModelPredictiveContouring:
         self._free, self._forced = np.array(free), np.array(forced_all)            # (n, N, 2), (n, N, N)
         self._forced_sum = self._forced.sum(axis=2)          # the response to a constant input of 1, (n, N)
         difference = np.eye(big_n) - np.eye(big_n, k=-1)
-        self._rate = self.r_rate * difference.T @ difference
-        self._rates = np.kron(np.eye(n), self._rate)         # the rate's Hessian, block diagonal over the axes
+        # the rate's Hessian, r_rate D^T D on each axis' block of the diagonal
+        self._rates = np.kron(np.eye(n), self.r_rate * difference.T @ difference)
         self._rate_first = self.r_rate * difference.T[:, 0]      # times the previous command: the first change
         self.held = [np.zeros(n) for _ in range(self.delay)]      # computed, not yet applied (oldest first)
         self.previous = np.zeros(n)          # the last command computed
