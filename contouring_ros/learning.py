@@ -42,37 +42,40 @@ def next_correction(experiment: Experiment, result, correction) -> np.ndarray:
                  section["q_cutoff"])
 
 
-def pass_settings(experiment: Experiment, j: int) -> dict:
-    """The settings (grid keys: ``x/plant.noise_seed``) that give pass ``j`` its own noise: each plant's
-    ``noise_seed`` and a random disturbance's ``seed`` moved by (j - 1) x PASS_SEED_STRIDE; none for pass 1."""
-    out = {}
+def _pass_seeds(experiment: Experiment, j: int) -> list:
+    """(axis, plant key, seed) that give pass ``j`` its own noise: each plant's ``noise_seed`` and a random
+    disturbance's ``seed`` (key ``disturbance.seed``) moved by (j - 1) x PASS_SEED_STRIDE, within the seeds a
+    file may hold (SEED_RANGE); none for pass 1."""
     if j <= 1:
-        return out
+        return []
+    def moved(seed) -> int:
+        return (int(seed or 0) + (j - 1) * PASS_SEED_STRIDE) % (SEED_RANGE[1] + 1)
+    out = []
     for axis, plant in experiment.plants.items():
-        out[f"{axis}/plant.noise_seed"] = _moved(plant.get("noise_seed", 0), j)
+        out.append((axis, "noise_seed", moved(plant.get("noise_seed", 0))))
         disturbance = plant.get("disturbance") or {}
         if disturbance.get("type") == "random":
-            out[f"{axis}/plant.disturbance.seed"] = _moved(disturbance.get("seed", 0), j)
+            out.append((axis, "disturbance.seed", moved(disturbance.get("seed", 0))))
     return out
 
 
-def _moved(seed, j: int) -> int:
-    """``seed`` moved by pass ``j``'s stride, within the seeds a file may hold (SEED_RANGE)."""
-    return (int(seed or 0) + (j - 1) * PASS_SEED_STRIDE) % (SEED_RANGE[1] + 1)
+def pass_settings(experiment: Experiment, j: int) -> dict:
+    """Pass ``j``'s seeds (:func:`_pass_seeds`) as grid keys (``x/plant.noise_seed``), for the file a graph
+    run of the pass reads."""
+    return {f"{axis}/plant.{key}": seed for axis, key, seed in _pass_seeds(experiment, j)}
 
 
 def pass_experiment(experiment: Experiment, j: int) -> Experiment:
-    """``experiment`` with pass ``j``'s seeds (:func:`pass_settings`)."""
-    settings = pass_settings(experiment, j)
-    if not settings:
+    """``experiment`` with pass ``j``'s seeds (:func:`_pass_seeds`)."""
+    seeds = _pass_seeds(experiment, j)
+    if not seeds:
         return experiment
     plants = {axis: dict(plant) for axis, plant in experiment.plants.items()}
-    for key, value in settings.items():
-        axis, name = key.split("/plant.", 1)
-        if name == "disturbance.seed":
-            plants[axis]["disturbance"] = {**plants[axis]["disturbance"], "seed": value}
+    for axis, key, seed in seeds:
+        if key == "disturbance.seed":
+            plants[axis]["disturbance"] = {**plants[axis]["disturbance"], "seed": seed}
         else:
-            plants[axis][name] = value
+            plants[axis][key] = seed
     return dataclasses.replace(experiment, plants=plants)
 
 
