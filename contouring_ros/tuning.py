@@ -391,8 +391,8 @@ def fit_to_machine(data: dict, sections: dict, machine: dict) -> dict:
             ccc["command_delay"] = max(delay.values())
         if "command_limit" in params and not any(ccc.get("command_limit") or ()) and any(limit):
             ccc["command_limit"] = limit
-        encoder = any(machine.get(f"{node[1:]}.velocity_measurement", params_.get("velocity_measurement")) == "encoder"
-                      for node, params_ in plants.items())
+        encoder = any(machine.get(f"{node[1:]}.velocity_measurement", plant.get("velocity_measurement")) == "encoder"
+                      for node, plant in plants.items())
         if "velocity_estimate" in params and "velocity_estimate" not in ccc and encoder:
             ccc["velocity_estimate"] = "model"
         out["/ccc"] = ccc
