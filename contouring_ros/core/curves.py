@@ -16,6 +16,27 @@ __all__ = ["Curve", "Parabola", "Line", "Circle", "Ellipse", "FigureEight", "Sad
            "PathBlock", "MAX_PATH_LENGTH"]
 
 
+def _scalar_or_array(scalar, array):
+    """``scalar`` (the math module's) for a Python float, ``array`` (numpy's) for anything else: one step's
+    curve evaluation is a few dozen float operations, which math does at a fraction of the cost of numpy
+    scalars, with the same correctly rounded results here (numpy's float64 sin, cos and exp are the C
+    library's on this build: tests/core/test_curves_geometry.py checks the two agree). A float the math
+    function refuses (sin of an infinity, an exp that overflows: a diverging run) goes to numpy, which
+    gives nan or inf as before."""
+    def function(x):
+        if x.__class__ is float:
+            try:
+                return scalar(x)
+            except (ValueError, OverflowError):
+                pass
+        return array(x)
+    function.__name__ = array.__name__
+    return function
+
+
+_sin, _cos, _exp = (_scalar_or_array(getattr(math, name), getattr(np, name)) for name in ("sin", "cos", "exp"))
+
+
 class Curve(ABC):
     """A smooth parametric contour R(theta) in R^dimension.
 
@@ -166,7 +187,7 @@ class Circle(PlanarLoop):
 
     def columns(self, t) -> list:
         r, (cx, cy) = self.radius, self._center
-        c, s = r * np.cos(t), r * np.sin(t)
+        c, s = r * _cos(t), r * _sin(t)
         return [(cx + c, cy + s), (-s, c), (-c, -s), (s, -c)]
 
 
@@ -187,8 +208,8 @@ class Ellipse(PlanarLoop):
         super().__init__(center)
 
     def columns(self, t) -> list:
-        (cx, cy), ca, sb = self._center, self.a * np.cos(t), self.b * np.sin(t)
-        sa, cb = self.a * np.sin(t), self.b * np.cos(t)
+        (cx, cy), ca, sb = self._center, self.a * _cos(t), self.b * _sin(t)
+        sa, cb = self.a * _sin(t), self.b * _cos(t)
         return [(cx + ca, cy + sb), (-sa, cb), (-ca, -sb), (sa, -cb)]
 
 
@@ -206,7 +227,7 @@ class FigureEight(PlanarLoop):
 
     def columns(self, t) -> list:
         (cx, cy), a, b = self._center, self.a, self.b
-        c1, s1, c2, s2 = np.cos(t), np.sin(t), np.cos(2.0 * t), np.sin(2.0 * t)
+        c1, s1, c2, s2 = _cos(t), _sin(t), _cos(2.0 * t), _sin(2.0 * t)
         return [(cx + a * (1.0 - c1), cy + b * s2), (a * s1, 2.0 * b * c2), (a * c1, -4.0 * b * s2),
                 (-a * s1, -8.0 * b * c2)]
 
@@ -230,7 +251,7 @@ class Helix(Curve):
 
     def columns(self, t) -> list:
         a, b, c, w = self.a, self.b, self.c, self.omega
-        cw, sw = np.cos(w * t), np.sin(w * t)
+        cw, sw = _cos(w * t), _sin(w * t)
         zero = 0.0 * t
         return [(a * cw, b * sw, c * t), (-a * w * sw, b * w * cw, c + zero),
                 (-a * w * w * cw, -b * w * w * sw, zero), (a * w**3 * sw, -b * w**3 * cw, zero)]
@@ -254,7 +275,7 @@ class Saddle(Curve):
 
     def columns(self, t) -> list:
         a, b, h, w = self.a, self.b, self.h, self.omega
-        c1, s1, c2, s2 = np.cos(w * t), np.sin(w * t), np.cos(2 * w * t), np.sin(2 * w * t)
+        c1, s1, c2, s2 = _cos(w * t), _sin(w * t), _cos(2 * w * t), _sin(2 * w * t)
         return [(a * c1, b * s1, h * c2), (-a * w * s1, b * w * c1, -2 * h * w * s2),
                 (-a * w * w * c1, -b * w * w * s1, -4 * h * w * w * c2),
                 (a * w**3 * s1, -b * w**3 * c1, 8 * h * w**3 * s2)]
@@ -276,8 +297,8 @@ class Butterfly(PlanarLoop):
 
     def columns(self, u) -> list:
         k, (cx, cy) = self.scale, self._center
-        s, c, e = np.sin(u), np.cos(u), np.exp(np.cos(u))
-        s4, c4 = np.sin(4 * u), np.cos(4 * u)
+        s, c, e = _sin(u), _cos(u), _exp(_cos(u))
+        s4, c4 = _sin(4 * u), _cos(4 * u)
         r = e - 2 * c4
         r1 = -s * e + 8 * s4
         r2 = (s * s - c) * e + 32 * c4
@@ -547,7 +568,7 @@ class ToolPath(Curve):
                     tuple(-k2 * (c * e1[k] + si * e2[k]) for k in range(n)),
                     tuple(k3 * (si * e1[k] - c * e2[k]) for k in range(n))]
         a = a0 + turn * u / radius
-        c, si = np.cos(a), np.sin(a)
+        c, si = _cos(a), _sin(a)
         return [(origin[0] + radius * c, origin[1] + radius * si), (-turn * si, turn * c),
                 (-c / radius, -si / radius), (turn * si / radius**2, -turn * c / radius**2)]
 
@@ -581,12 +602,12 @@ class ToolPath(Curve):
         if kind == "helix":
             e1, e2, w, rho = direction
             a = a0 + turn * u / rho
-            c, si = np.cos(a), np.sin(a)
+            c, si = _cos(a), _sin(a)
             k1, k2, k3 = radius * turn / rho, radius / rho**2, radius * turn / rho**3
             return [origin + radius * (c * e1 + si * e2) + w * u, k1 * (c * e2 - si * e1) + w,
                     -k2 * (c * e1 + si * e2), k3 * (si * e1 - c * e2)]
         a = a0 + turn * u[:, 0] / radius
-        c, si = np.cos(a), np.sin(a)
+        c, si = _cos(a), _sin(a)
         return [np.column_stack([origin[0] + radius * c, origin[1] + radius * si]),
                 np.column_stack([-turn * si, turn * c]), np.column_stack([-c / radius, -si / radius]),
                 np.column_stack([turn * si / radius**2, -turn * c / radius**2])]

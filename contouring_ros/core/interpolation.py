@@ -5,6 +5,9 @@ R'' theta_dot^2 + R' theta_ddot (chain rule on paper 000 eq. 3).
 """
 from __future__ import annotations
 
+import bisect
+import math
+
 from dataclasses import dataclass
 
 import numpy as np
@@ -109,6 +112,8 @@ class FeedrateSchedule:
 
     def __call__(self, t):
         """theta, theta_dot, theta_ddot at time(s) t."""
+        if t.__class__ is float:
+            return self._at(t)
         t = np.asarray(t, dtype=float)
         i = np.clip(np.searchsorted(self._t, t, side="right") - 1, 0, self._t.size - 2)
         tau = np.clip(t, 0.0, self.duration) - self._t[i]
@@ -128,6 +133,30 @@ class FeedrateSchedule:
         if np.ndim(theta) == 0:
             return float(theta), float(theta_dot), float(theta_ddot)
         return theta, theta_dot, theta_ddot
+
+    def _at(self, t: float) -> tuple:
+        """:meth:`__call__` at one time: the same operations on Python floats (one step's reference; numpy
+        scalars cost more than the arithmetic), the same numbers."""
+        if t >= self.duration:
+            return self.theta_end, 0.0, 0.0
+        times = self._t
+        i = min(max(bisect.bisect_right(times, t) - 1, 0), times.size - 2)
+        tau = max(t, 0.0) - float(times[i])
+        a, v0, arc0 = float(self._a[i]), float(self._v[i]), float(self._arc[i])
+        v = v0 + a * tau
+        s = arc0 + v0 * tau + 0.5 * a * tau * tau
+        fraction = (s - arc0) / (float(self._arc[i + 1]) - arc0)
+        theta0 = float(self._theta[i])
+        theta = theta0 + fraction * (float(self._theta[i + 1]) - theta0)
+        _, d1, d2 = self.curve.columns(theta)[:3]
+        d1, d2 = [float(x) for x in d1], [float(x) for x in d2]
+        squares, products = d1[0] * d1[0], d1[0] * d2[0]
+        for x, y in zip(d1[1:], d2[1:]):
+            squares += x * x
+            products += x * y
+        speed = math.sqrt(squares)
+        theta_dot = v / speed
+        return theta, theta_dot, (a - theta_dot**2 * products / speed) / speed     # pow(), as numpy scalars take it
 
 
 #: [s] an axis is in position when within its window and too slow to leave it in less than this (not passing
