@@ -83,6 +83,9 @@ def stack(objects: list):
     Numbers that differ become arrays of shape (B, 1); nested objects are stacked the same way; equal
     attributes are kept as they are (so a limit of 0 that no experiment sets stays a plain 0).
 
+    A class whose step cannot run on stacked numbers (an optimisation per member, such as the MPCC's QP)
+    gives a ``batch_of(objects)`` class method instead, which returns the batch's object.
+
     A class can name attributes that its batch path needs equal across the batch (``batch_shared``, e.g. a
     schedule's profile table, a tool path's segments; compared by value all the way down) and attributes
     computed from those alone (``batch_kept``, e.g. a feed plan's trajectories): both are taken from the
@@ -100,6 +103,8 @@ def stack(objects: list):
         raise NotBatchable(f"{cls.__name__} has no batch path")
     if any(type(o) is not cls for o in objects):
         raise NotBatchable(f"the batch mixes {cls.__name__} with other classes")
+    if hasattr(cls, "batch_of"):          # a class whose batch steps each member's own object
+        return cls.batch_of(objects)
     shared = tuple(getattr(cls, "batch_shared", ()))
     for name in shared:
         if not all(_equal(vars(o).get(name), vars(first).get(name)) for o in objects[1:]):

@@ -29,7 +29,7 @@ import numpy as np
 from ..errors import ContouringError
 from .plants import mass_damper_hold_terms
 
-__all__ = ["ModelPredictiveContouring", "sampled_mass_damper", "VELOCITY_ESTIMATES"]
+__all__ = ["ModelPredictiveContouring", "MemberBatch", "sampled_mass_damper", "VELOCITY_ESTIMATES"]
 
 VELOCITY_ESTIMATES = ("measured", "model")
 
@@ -72,6 +72,14 @@ class ModelPredictiveContouring:
     """
 
     needs_state = True
+    #: a batch (:mod:`contouring_ros.core.batch`) steps each member's own object (:meth:`batch_of`)
+    batchable = True
+
+    @classmethod
+    def batch_of(cls, members: list) -> "MemberBatch":
+        """The batch of ``members``: each solves its own QP on its row of the batch's signals, with the same
+        numbers as alone (the rest of the loop runs vectorised around it)."""
+        return MemberBatch(members)
 
     def __init__(self, mass, damping, gain, sample_time, horizon: int = 20, q_contour: float = 1e6,
                  q_lag: float = 1e4, r_rate: float = 1.0, command_limit=(), command_delay: int = 0,
@@ -229,3 +237,39 @@ class ModelPredictiveContouring:
         self._solver = osqp.OSQP()
         self._solver.setup(upper, 2.0 * linear, sparse.eye(size, format="csc"), -self._bounds, self._bounds,
                            verbose=False, eps_abs=1e-10, eps_rel=1e-10, polishing=False, max_iter=4000)
+
+
+class MemberBatch:
+    """B contour controllers of one class stepped one after another, each on its row of a batch's signals
+    ((B, n) arrays, (B, 1) columns): a batch for a controller whose step is an optimisation of its own (the
+    MPCC's QP) and so cannot run on stacked numbers. Each member returns what it would alone. It reads the
+    reference's position and the axes' state, not the contour estimate (the MPCC's ``reads_estimate`` is
+    False)."""
+
+    needs_state = True
+
+    def __init__(self, members: list):
+        self.members = list(members)
+        self.preview = getattr(self.members[0], "preview", 0)
+
+    def look_ahead(self, positions) -> None:
+        """Each member's reference preview: ``positions`` (B, preview, n)."""
+        for member, ahead in zip(self.members, positions):
+            member.look_ahead(ahead)
+
+    def step(self, estimate=None, reference=None, position=None, velocity=None) -> np.ndarray:
+        out = np.empty((len(self.members), self.members[0].n))
+        position, velocity = np.asarray(position, dtype=float), np.asarray(velocity, dtype=float)
+        for j, member in enumerate(self.members):
+            row = _ReferenceRow(np.asarray(reference.position, dtype=float)[j])
+            out[j] = member.step(None, row, position[j], velocity[j])
+        return out
+
+
+class _ReferenceRow:
+    """One member's reference position, all that a :class:`MemberBatch` member reads of the reference."""
+
+    __slots__ = ("position",)
+
+    def __init__(self, position):
+        self.position = position

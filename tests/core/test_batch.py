@@ -1,4 +1,6 @@
 """Batch simulation: many experiments of one structure advanced together equal each experiment run alone."""
+import copy
+
 import numpy as np
 import pytest
 import yaml
@@ -192,24 +194,34 @@ def test_tool_paths_and_feed_plans_batch_only_when_they_are_the_same():
         "FeedPlan._span must be the same across a batch"
 
 
-#: the one built-in class without a batch path, and why (docs/ARCHITECTURE.md, "Layers")
-NO_BATCH_PATH = {"ModelPredictiveContouring": "a quadratic programme per member and step"}
-
-
 def test_every_scenario_file_can_run_as_a_batch():
-    # every class a scenario of config/ is built of has a batch path, NO_BATCH_PATH's aside: sweeps, maps and
-    # the benchmark's tuning run none of them one by one for want of one
+    # every class a scenario of config/ is built of has a batch path (the MPCC's steps each member's own QP):
+    # sweeps, maps and the benchmark's tuning run none of them one by one for want of one
     from contouring_ros.config import load_experiment
-    problems, exempt = {}, set()
+    problems = {}
     for path in sorted(CONFIG.glob("*.yaml")):
         experiment = load_experiment(path)
         problem = batch_problem([build_loop(experiment), build_loop(experiment)])
-        if problem in {f"{name} has no batch path" for name in NO_BATCH_PATH}:
-            exempt.add(problem.split()[0])
-        elif problem:
+        if problem:
             problems[path.name] = problem
     assert problems == {}
-    assert exempt == set(NO_BATCH_PATH)          # each exemption still needed
+
+
+def test_an_mpcc_batch_gives_each_member_its_run_alone_bit_for_bit():
+    """The MPCC's batch (core/mpc.py MemberBatch): each member solves its own QP on its row, so a batch of
+    different weights and limits gives each run alone, to the bit, solve counts included."""
+    text = shortened(CONFIG / "mpcc_ellipse.yaml", 0.3)
+    variants = [text, text.replace("q_contour: 1.0e6", "q_contour: 1.0e5"),
+                text.replace("r_rate: 1.0e-6", "r_rate: 1.0e-4").replace("command_limit: [10.0]", "command_limit: [2.0]")]
+    loops = [build_loop(parse_experiment(variant, "mpcc_ellipse.yaml")) for variant in variants]
+    batch = simulate_batch(loops)
+    for loop, batched in zip(loops, batch):
+        alone = simulate(copy.deepcopy(loop))
+        np.testing.assert_array_equal(batched.command, alone.command)
+        np.testing.assert_array_equal(batched.position, alone.position)
+    assert not np.array_equal(batch[0].command, batch[1].command)      # the members differ
+    assert not np.array_equal(batch[0].command, batch[2].command)
+    assert all(len(loop.controller.solve_times) == 0 for loop in loops)    # the loops themselves untouched
 
 
 def test_foot_point_search_batch_counts_each_members_backsteps_and_caps_as_alone():
