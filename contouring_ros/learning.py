@@ -16,15 +16,15 @@ from pathlib import Path
 import numpy as np
 
 from .core.ilc import learn
-from .core.simulation import simulate
+from .core.simulation import first_divergence, simulate
 from .experiment.build import build_loop
 from .experiment.model import Experiment
 from .experiment.schema import SEED_RANGE
 from .scoring import read_run
-from .sweep import written_settings
+from .sweep import simulate_loops, written_settings
 
-__all__ = ["passes", "next_correction", "pass_settings", "pass_experiment", "simulate_passes", "pass_bag",
-           "run_passes"]
+__all__ = ["passes", "next_correction", "pass_settings", "pass_experiment", "simulate_passes",
+           "simulate_last_passes", "pass_bag", "run_passes"]
 
 PASS_SEED_STRIDE = 104_729      # a prime, far from the seeds the benchmark's draws use (1 + 16 j + axis)
 
@@ -92,6 +92,36 @@ def simulate_passes(experiment: Experiment, progress=None) -> list:
             progress(j, loop, result)
         if j < last:
             table = next_correction(experiment, result, table)
+    return out
+
+
+def simulate_last_passes(experiments: list) -> list:
+    """(loop, result, failure) of each experiment's last pass, in-process: pass j of every experiment still
+    running advances together (:func:`contouring_ros.sweep.simulate_loops`: one vectorised batch where
+    their classes allow, as a sweep's runs), each learning from its own pass as :func:`simulate_passes`
+    does. A pass that diverges ends its experiment: (its loop, None, how it diverged)."""
+    out, tables = [None] * len(experiments), [None] * len(experiments)
+    running = list(range(len(experiments)))
+    j = 0
+    while running:
+        j += 1
+        loops = [build_loop(pass_experiment(experiments[i], j)) for i in running]
+        for i, loop in zip(running, loops):
+            if tables[i] is not None:
+                loop.controller.table = tables[i]
+        results, _, failures = simulate_loops(loops)
+        still = []
+        for i, loop, result, failure in zip(running, loops, results, failures):
+            diverged = first_divergence(result.time, result.position, result.reference_position) \
+                if result is not None else None
+            if result is None or diverged:
+                out[i] = (loop, None, failure or diverged[1])
+            elif j == passes(experiments[i]):
+                out[i] = (loop, result, "")
+            else:
+                tables[i] = next_correction(experiments[i], result, tables[i])
+                still.append(i)
+        running = still
     return out
 
 

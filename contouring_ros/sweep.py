@@ -32,7 +32,8 @@ from .executors import pool as executor
 from .scoring import score_run
 
 __all__ = ["parse_grid", "apply_settings", "settings_file", "written_settings", "experiments_for", "combinations",
-           "SweepRow", "score_one", "score_experiments", "simulate_experiments", "run_sweep", "format_sweep",
+           "SweepRow", "score_one", "score_experiments", "simulate_experiments",
+           "simulate_loops", "run_sweep", "format_sweep",
            "write_sweep_csv"]
 
 
@@ -200,6 +201,12 @@ def simulate_experiments(experiments: list) -> tuple:
     as large as its classes' :func:`~contouring_ros.core.batch.batch_minimum` (smaller groups cost less one
     by one), the others one by one; a result is None where the run diverged (and the failure says how)."""
     loops = [build_loop(e) for e in experiments]
+    return (loops, *simulate_loops(loops))
+
+
+def simulate_loops(loops: list) -> tuple:
+    """(results, why each ran alone, why each has no result) of built ``loops``, as
+    :func:`simulate_experiments` runs them."""
     results, alone, groups = [None] * len(loops), [""] * len(loops), {}
     failures = [""] * len(loops)
     for i, loop in enumerate(loops):
@@ -229,7 +236,7 @@ def simulate_experiments(experiments: list) -> tuple:
             else:
                 results[i], failures[i] = _simulate_alone(loops[i])
                 alone[i] = why
-    return loops, results, alone, failures
+    return results, alone, failures
 
 
 def _shape(section):

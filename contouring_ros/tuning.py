@@ -73,9 +73,9 @@ from .experiment.catalogue import CONTROLLERS, PLANTS, SERVOS
 from .experiment.validate import experiment_from_data
 from .experiment.schema import GLOBAL_SECTION
 from .core.margins import axis_loop, coupled_loop, margins, quick_robustness
-from .errors import ConfigError, Diverged
-from .learning import passes, simulate_passes
-from .sweep import RUN_FAILURES, apply_settings, score_one, simulate_experiments
+from .errors import ConfigError
+from .learning import passes, simulate_last_passes
+from .sweep import apply_settings, score_one, simulate_experiments
 
 __all__ = ["REALISTIC", "SATURATION_MARGIN", "varied_parameters", "Protocol", "Outcome",
            "Evaluation", "Tuned", "gain_keys", "anchors", "machine_settings", "perturbations", "draw_settings",
@@ -176,6 +176,7 @@ class Tuned:
     ideal: Outcome | None = None                       # the tuned gains on the ideal machine
     margins: object = None                             # worst_margins of the tuned loop on the machine, if linear
     status: str = "ok"
+    cpu: float = math.nan                              # CPU seconds the tuning, its checks and draws took
 
     @property
     def ok(self) -> bool:
@@ -326,7 +327,8 @@ def _outcomes(experiments: list, from_time: float, limits: list) -> list:
     one structure run as one vectorised batch where every class has a batch path
     (:func:`contouring_ros.sweep.simulate_experiments`), the others one by one. A learning experiment (more
     than one pass, :mod:`contouring_ros.learning`) runs every pass and is judged by its last: what the part
-    is like once the correction has been learned."""
+    is like once the correction has been learned; the learning experiments' passes run together, pass by
+    pass (:func:`contouring_ros.learning.simulate_last_passes`)."""
     learning = [i for i, e in enumerate(experiments) if passes(e) > 1]
     rest = [i for i, e in enumerate(experiments) if passes(e) <= 1]
     out = [None] * len(experiments)
@@ -334,16 +336,9 @@ def _outcomes(experiments: list, from_time: float, limits: list) -> list:
         loops, results, _, failures = simulate_experiments([experiments[i] for i in rest])
         for i, loop, result, failure in zip(rest, loops, results, failures):
             out[i] = Outcome(failure=failure) if result is None else _figures(loop, result, from_time, limits[i])
-        for i in learning:
-            try:
-                loop, result = simulate_passes(experiments[i])[-1]
-            except Diverged as error:
-                out[i] = Outcome(failure=str(error))
-                continue
-            except RUN_FAILURES as error:
-                out[i] = Outcome(failure=f"diverged: {error}")
-                continue
-            out[i] = _figures(loop, result, from_time, limits[i])
+        last = simulate_last_passes([experiments[i] for i in learning])
+        for i, (loop, result, failure) in zip(learning, last):
+            out[i] = Outcome(failure=failure) if result is None else _figures(loop, result, from_time, limits[i])
     return out
 
 

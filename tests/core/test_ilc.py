@@ -10,7 +10,7 @@ from contouring_ros.core.simulation import simulate
 from contouring_ros.errors import ConfigError
 from contouring_ros.experiment.build import build_loop
 from contouring_ros.experiment.validate import parse_experiment
-from contouring_ros.learning import next_correction, pass_settings, simulate_passes
+from contouring_ros.learning import next_correction, pass_settings, simulate_last_passes, simulate_passes
 from contouring_ros.scoring import score_run
 from conftest import CONFIG, shortened
 
@@ -115,6 +115,27 @@ def test_a_batch_of_different_corrections_gives_each_run_alone_bit_for_bit():
         alone = simulate(loop_with(table))
         np.testing.assert_array_equal(batched.position, alone.position)
         np.testing.assert_array_equal(batched.correction, alone.correction)
+
+
+def test_learning_experiments_run_together_pass_by_pass_as_each_runs_alone():
+    """simulate_last_passes (the benchmark's tuning of ILC gains): the experiments' passes advance as one
+    batch, each learning from its own pass, and each last pass equals its experiment's own passes; a member
+    whose learning diverges ends with the pass it diverged in, the others unharmed."""
+    gains = [1.0, 2.0, 0.5]
+    experiments = [_ellipse(duration=0.2, passes=3, gamma_contour=g) for g in gains]
+    diverging = _ellipse(duration=0.2, passes=3, gamma_contour=1e9)
+    last = simulate_last_passes(experiments[:2] + [diverging] + experiments[2:])
+    assert [len(loop.controller.table) > 0 for loop, _, _ in last] == [True] * 4     # every one played a table
+    for experiment, (loop, result, failure) in zip(experiments, last[:2] + last[3:]):
+        alone_loop, alone = simulate_passes(experiment)[-1]
+        assert failure == "" and result is not None
+        np.testing.assert_array_equal(result.position, alone.position)
+        np.testing.assert_array_equal(loop.controller.table, alone_loop.controller.table)
+    loop, result, failure = last[2]
+    assert result is None and failure.startswith("diverged at t = ")
+    tace = [score_run(loop.curve, result).tace for loop, result, _ in last[:2] + last[3:]]
+    first = [score_run(loop.curve, simulate(build_loop(e))).tace for e in experiments]
+    assert all(after < before for after, before in zip(tace, first)), (tace, first)     # they learned
 
 
 def test_a_learned_file_that_cannot_be_used_is_refused_in_one_line(tmp_path):
