@@ -422,7 +422,10 @@ def reference_job(data: dict, from_time: float, where: str, protocol: Protocol |
 
 
 def _tune_job(data, sections, keys, machine, noise_limit, from_time, protocol, where, robust_floor):
-    return tune(data, sections, keys, machine, noise_limit, from_time, protocol, where, robust_floor=robust_floor)
+    started = time.thread_time()           # this worker thread's CPU: right on processes and Dask threads alike
+    tuned = tune(data, sections, keys, machine, noise_limit, from_time, protocol, where, robust_floor=robust_floor)
+    tuned.cpu = time.thread_time() - started
+    return tuned
 
 
 def matches_methods(label_of, methods) -> bool:
@@ -902,11 +905,34 @@ def benchmark_report(rows: list, families: list, protocol: Protocol, where: str,
         + _reference_table(rows, families) + [""]
     if "reference" in notes:
         lines += [notes["reference"].strip(), ""]
+    lines += _time_table(compatible)
     lines += ["## Per scenario", ""]
     for family in families:
         lines += [f"### {family.name}", ""] + _family_table(rows, family) + [""]
     lines += ["## Pairings that cannot be made", ""] + _excluded_table(rows) + [""]
     return "\n".join(lines)
+
+
+def _time_table(rows: list) -> list:
+    """Where the CPU time went: per contour controller, the rows, their CPU time in all and the longest
+    row's (rows tuned before the time was kept are left out)."""
+    timed = [r for r in rows if r.tuned and math.isfinite(getattr(r.tuned, "cpu", math.nan))]
+    if not timed:
+        return []
+    total = sum(r.tuned.cpu for r in timed)
+    lines = ["## Where the time went", "",
+             f"CPU time of each combination's tuning, robustness checks and draws (one core each), "
+             f"{len(timed)} of {len(rows)} combinations timed: {total / 60:.1f} min in all.", "",
+             "| controller | combinations | CPU [min] | share | longest [min] (scenario) |", "|---|---:|---:|---:|---|"]
+    by = {}
+    for row in timed:
+        by.setdefault(row.combination.controller, []).append(row)
+    for controller, mine in sorted(by.items(), key=lambda kv: -sum(r.tuned.cpu for r in kv[1])):
+        cpu = sum(r.tuned.cpu for r in mine)
+        longest = max(mine, key=lambda r: r.tuned.cpu)
+        lines.append(f"| {controller} | {len(mine)} | {cpu / 60:.1f} | {100 * cpu / total:.0f}% | "
+                     f"{longest.tuned.cpu / 60:.1f} ({longest.family.name}) |")
+    return lines + [""]
 
 
 def read_notes(path) -> dict:
