@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from .core.ilc import learn
-from .core.simulation import first_divergence, simulate
+from .core.simulation import first_divergence, path_bound, simulate
 from .experiment.build import build_loop
 from .experiment.model import Experiment
 from .experiment.schema import SEED_RANGE
@@ -112,8 +112,9 @@ def simulate_last_passes(experiments: list) -> list:
         results, _, failures = simulate_loops(loops)
         still = []
         for i, loop, result, failure in zip(running, loops, results, failures):
-            diverged = first_divergence(result.time, result.position, result.reference_position) \
-                if result is not None else None
+            diverged = None if result is None else first_divergence(     # where and why a run alone would stop
+                result.time, result.position, result.reference_position,
+                path_bound(loop.curve, loop.schedule, loop.divergence_factor))
             if result is None or diverged:
                 out[i] = (loop, None, failure or diverged[1])
             elif j == passes(experiments[i]):

@@ -295,6 +295,9 @@ def test_cli_writes_the_report_the_table_and_the_figures(tmp_path):
     text = (tmp_path / "benchmark.md").read_text()
     assert "## Protocol" in text and "--budget 3" in text and f"### {SMALL}" in text
     assert "[95%]" in text
+    # each combination's CPU time, summed per controller
+    time_table = text.split("## Where the time went")[1].split("\n## ")[0]
+    assert "| task_frame_pd | 2 |" in time_table and "CPU time of each combination's tuning" in time_table
     assert (tmp_path / "benchmark_heatmap.png").stat().st_size > 10_000
     assert (tmp_path / "benchmark_pareto_paper003.png").stat().st_size > 10_000
     assert len((tmp_path / "benchmark.csv").read_text().splitlines()) > 10
