@@ -76,7 +76,7 @@ class Curve(ABC):
         ndarray, shape (order + 1, dimension) for scalar theta, (order + 1, m, dimension) otherwise.
             ``out[j]`` is d^j R / d theta^j.
         """
-        theta = np.asarray(theta, dtype=float) if np.ndim(theta) else theta
+        theta = theta if theta.__class__ is float or not np.ndim(theta) else np.asarray(theta, dtype=float)
         return _stack(self.columns(theta), theta, order)
 
     def point(self, theta) -> np.ndarray:
@@ -101,7 +101,7 @@ class Curve(ABC):
 def _stack(columns, theta, order):
     """Assemble per-axis derivative columns into the (order+1, [m,] dim) layout."""
     rows = columns[: order + 1]
-    if np.ndim(theta) == 0:
+    if theta.__class__ is float or np.ndim(theta) == 0:
         return np.array(rows, dtype=float)
     out = np.empty((order + 1,) + np.shape(theta) + (len(rows[0]),))
     for j, row in enumerate(rows):

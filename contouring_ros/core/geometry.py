@@ -156,7 +156,8 @@ def frenet_axes(curve: Curve, theta: float) -> tuple:
     alpha = d1 / speed
     if curve.dimension == 2:
         kappa = float(d1[0] * d2[1] - d1[1] * d2[0]) / speed**3
-        return np.column_stack([alpha, left_normal(alpha)]), kappa, 0.0, speed
+        a0, a1 = float(alpha[0]), float(alpha[1])
+        return np.array([[a0, -a1], [a1, a0]]), kappa, 0.0, speed      # columns: alpha, its left normal
     if curve.dimension != 3:
         raise ValueError("the Frenet frame is defined for planar and spatial (2-D and 3-D) contours")
     cross = cross3(d1, d2)

@@ -37,7 +37,7 @@ class UniformSchedule:
 
     def __call__(self, t):
         """theta, theta_dot, theta_ddot at time(s) t (floats for a float t: the per-step fast path)."""
-        if np.ndim(t) == 0:
+        if t.__class__ is float or np.ndim(t) == 0:
             t = float(t)
             if t < self.duration:
                 return self.theta_start + self.rate * max(t, 0.0), self.rate, 0.0
@@ -267,7 +267,7 @@ def reference_ahead(curve: Curve, schedule, k: int, t: float, count: int, sample
 def reference(curve: Curve, schedule, t) -> Reference:
     """The reference of ``curve`` driven by ``schedule`` at time(s) ``t``."""
     theta, theta_dot, theta_ddot = schedule(t)
-    if np.ndim(theta) == 0:          # one step: the curve's scalar path, no array stacking
+    if theta.__class__ is float or np.ndim(theta) == 0:          # one step: the curve's scalar path
         point, d1, d2 = curve.columns(float(theta))[:3]
         rate, accel = float(theta_dot), float(theta_ddot)
         return Reference(theta=theta, theta_dot=theta_dot, theta_ddot=theta_ddot, position=np.array(point, dtype=float),

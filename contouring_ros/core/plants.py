@@ -21,8 +21,8 @@ def quantize(value: float, resolution: float) -> float:
     """``value`` rounded to the nearest multiple of ``resolution`` (0: unchanged), as an encoder reads it."""
     if not resolution:
         return value
-    if value.__class__ is float and resolution.__class__ is float:     # one run's step: the common case first
-        return round(value / resolution) * resolution
+    if isinstance(value, float) and resolution.__class__ is float:     # one run's step (numpy's float64 is a
+        return round(value / resolution) * resolution                  # float): the common case first
     if np.ndim(value) or np.ndim(resolution):          # a batch (both round half to even)
         return np.round(value / resolution) * resolution
     return round(value / resolution) * resolution
