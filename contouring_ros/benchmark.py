@@ -916,7 +916,7 @@ def benchmark_report(rows: list, families: list, protocol: Protocol, where: str,
 def _time_table(rows: list) -> list:
     """Where the CPU time went: per contour controller, the rows, their CPU time in all and the longest
     row's (rows tuned before the time was kept are left out)."""
-    timed = [r for r in rows if r.tuned and math.isfinite(getattr(r.tuned, "cpu", math.nan))]
+    timed = [r for r in rows if r.tuned and math.isfinite(r.tuned.cpu)]     # an older part's Tuned: nan
     if not timed:
         return []
     total = sum(r.tuned.cpu for r in timed)

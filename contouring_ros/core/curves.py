@@ -19,8 +19,9 @@ __all__ = ["Curve", "Parabola", "Line", "Circle", "Ellipse", "FigureEight", "Sad
 def _scalar_or_array(scalar, array):
     """``scalar`` (the math module's) for a Python float, ``array`` (numpy's) for anything else: one step's
     curve evaluation is a few dozen float operations, which math does at a fraction of the cost of numpy
-    scalars, with the same correctly rounded results here (numpy's float64 sin, cos and exp are the C
-    library's on this build: tests/core/test_curves_geometry.py checks the two agree). A float the math
+    scalars, with the same results here (numpy's float64 sin, cos and exp agree with the C library's on this
+    build: tests/core/test_curves_geometry.py checks every curve's scalar path against its array path, bit
+    for bit). A float the math
     function refuses (sin of an infinity, an exp that overflows: a diverging run) goes to numpy, which
     gives nan or inf as before."""
     def function(x):

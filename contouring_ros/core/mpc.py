@@ -260,9 +260,9 @@ class MemberBatch:
     def step(self, estimate=None, reference=None, position=None, velocity=None) -> np.ndarray:
         out = np.empty((len(self.members), self.members[0].n))
         position, velocity = np.asarray(position, dtype=float), np.asarray(velocity, dtype=float)
+        reference_position = np.asarray(reference.position, dtype=float)
         for j, member in enumerate(self.members):
-            row = _ReferenceRow(np.asarray(reference.position, dtype=float)[j])
-            out[j] = member.step(None, row, position[j], velocity[j])
+            out[j] = member.step(None, _ReferenceRow(reference_position[j]), position[j], velocity[j])
         return out
 
 

@@ -24,6 +24,24 @@ def test_derivatives_match_finite_differences(curve):
         assert_allclose(d[order], numeric, rtol=1e-5, atol=1e-6 * np.max(np.abs(d[order - 1])) + 1e-9)
 
 
+CURVES = [Circle(0.1, (0.01, -0.02)), Ellipse(0.03, 0.01, (0.03, 0.0)), FigureEight(0.03, 0.03),
+          Helix(0.03, 0.01, 0.1, 2 * np.pi, 4.0), Saddle(0.002, 0.003, 0.0005), Butterfly(0.01),
+          ToolPath([0.0, 0.0], ["G3 X0.06 Y0 I0.03 J0"])]
+
+
+@pytest.mark.parametrize("curve", CURVES, ids=lambda c: type(c).__name__)
+def test_one_steps_scalar_path_gives_the_array_paths_numbers_bit_for_bit(curve):
+    """A float parameter takes math's sin, cos and exp (curves._scalar_or_array), an array numpy's: the
+    simulation's numbers must not depend on which (a single run and a batch give the same run)."""
+    lo, hi = curve.domain
+    for theta in np.linspace(lo, hi, 401):
+        scalar = curve.derivatives(float(theta), order=3)
+        array = curve.derivatives(np.array([theta]), order=3)[:, 0, :]
+        np.testing.assert_array_equal(scalar, array)
+    with np.errstate(invalid="ignore"):       # math refuses an infinite angle: numpy's nan instead, no error
+        assert np.isnan(curve.columns(float("inf"))[0][0])
+
+
 def test_circle_exact_error_is_radial_distance():
     # Reference: the distance from P to a circle of radius r about c is | |P - c| - r |.
     circle = Circle(0.1, (0.02, 0.03))

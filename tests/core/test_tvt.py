@@ -26,6 +26,18 @@ def test_feedrate_profile_on_a_line_is_the_trapezoid():
     assert_allclose(speed, expected, atol=1e-9)
 
 
+def test_one_steps_feedrate_schedule_on_floats_gives_the_array_paths_numbers_bit_for_bit():
+    """FeedrateSchedule._at (a float time, one simulation step) repeats __call__'s array operations on
+    Python floats: the same numbers, before, inside and after the profile, at its table's knots too."""
+    schedule = FeedrateSchedule(Butterfly(0.01), 0.0, 2 * np.pi, 0.1, 1.0, 5.0)
+    times = np.concatenate([np.linspace(-0.01, schedule.duration + 0.01, 3001), schedule._t[:40],
+                            [schedule.duration]])
+    for t in times:
+        scalar = schedule(float(t))
+        array = schedule(np.float64(t))          # not a Python float: the array path
+        assert scalar == array, (t, scalar, array)
+
+
 def test_feedrate_profile_respects_the_centripetal_bound_on_a_circle():
     radius, normal_acceleration = 0.01, 0.5
     circle = Circle(radius)
