@@ -86,6 +86,9 @@ def stack(objects: list):
     A class whose step cannot run on stacked numbers (an optimisation per member, such as the MPCC's QP)
     gives a ``batch_of(objects)`` class method instead, which returns the batch's object.
 
+    The same object given for every member, of a class that no run writes to (``batch_read_only``: curves and
+    schedules, shared by the runs along a path), is the batch's object as it is.
+
     A class can name attributes that its batch path needs equal across the batch (``batch_shared``, e.g. a
     schedule's profile table, a tool path's segments; compared by value all the way down) and attributes
     computed from those alone (``batch_kept``, e.g. a feed plan's trajectories): both are taken from the
@@ -103,6 +106,8 @@ def stack(objects: list):
         raise NotBatchable(f"{cls.__name__} has no batch path")
     if any(type(o) is not cls for o in objects):
         raise NotBatchable(f"the batch mixes {cls.__name__} with other classes")
+    if all(o is first for o in objects[1:]) and getattr(cls, "batch_read_only", False):
+        return first            # one read-only object (a shared path's curve or schedule) serves the batch as it is
     if hasattr(cls, "batch_of"):          # a class whose batch steps each member's own object
         return cls.batch_of(objects)
     shared = tuple(getattr(cls, "batch_shared", ()))
@@ -200,8 +205,12 @@ def _ahead_times(clocks, k, times, count, sample_time) -> np.ndarray:
 def _read_only(loop) -> dict:
     """A deep-copy memo that keeps the tables a loop's classes declare equal across a batch
     (``batch_shared``: profile tables, tool paths, splines) as they are: they are only read, and copying them
-    for every member was a good part of a batch's set-up."""
+    for every member was a good part of a batch's set-up. So are the curve and schedule of a loop on a shared
+    path (one with a ``reference_table``: :func:`~contouring_ros.experiment.build.build_path`), which every
+    run along the path reads and none writes."""
     memo, seen, todo = {}, set(), [loop]
+    if loop.reference_table is not None:
+        memo[id(loop.curve)], memo[id(loop.schedule)] = loop.curve, loop.schedule
     while todo:
         obj = todo.pop()
         if id(obj) in seen:
@@ -210,7 +219,8 @@ def _read_only(loop) -> dict:
         if isinstance(obj, (list, tuple)):
             todo.extend(obj)
             continue
-        if not hasattr(obj, "__dict__") or inspect.isroutine(obj) or isinstance(obj, type):
+        if not hasattr(obj, "__dict__") or inspect.isroutine(obj) or isinstance(obj, type) \
+                or hasattr(type(obj), "__deepcopy__"):        # copies itself as it must (a ReferenceTable: not)
             continue
         shared = getattr(type(obj), "batch_shared", ())
         for name, value in vars(obj).items():
@@ -236,6 +246,11 @@ def simulate_batch(loops: list[ControlLoop]) -> list[SimulationResult]:
     b, m, n, ts = len(loops), loops[0].n_steps, len(plants), loops[0].sample_time
     clocks = [loop.clock for loop in loops]
     clocked = any(clock is not None for clock in clocks)
+    # every member on one path, on the step time: the path's table holds each step's reference as this batch
+    # would compute it for each member (the same for all), computed once for every batch along the path
+    table = loops[0].reference_table
+    if clocked or table is None or any(loop.reference_table is not table for loop in loops):
+        table = None
     time = np.empty(m)
     theta, est_theta, est_signed = np.empty((m, b)), np.empty((m, b)), np.empty((m, b))
     ref_pos, ref_vel, ref_acc, positions, velocities, est_vector, corrections, commands = (
@@ -251,13 +266,20 @@ def simulate_batch(loops: list[ControlLoop]) -> list[SimulationResult]:
         for column, plant, _ in axes:
             positions[k, :, column], velocities[k, :, column] = plant.measure()
         position, velocity = positions[k].copy(), velocities[k].copy()
-        times = _times(clocks, k, t, positions, velocities) if clocked else np.full((b, 1), t)
-        ref = reference(curve, schedule, times)      # (b, 1, n): drop the time axis
-        ref = Reference(ref.theta, ref.theta_dot, ref.theta_ddot, ref.position[:, 0], ref.velocity[:, 0],
-                        ref.acceleration[:, 0])
+        if table is not None:
+            row = table.row(k)
+            ref = Reference(*(np.repeat(v, b, axis=0) for v in (row.theta, row.theta_dot, row.theta_ddot,
+                                                                 row.position, row.velocity, row.acceleration)),
+                            row.memo)
+        else:
+            times = _times(clocks, k, t, positions, velocities) if clocked else np.full((b, 1), t)
+            ref = reference(curve, schedule, times)      # (b, 1, n): drop the time axis
+            ref = Reference(ref.theta, ref.theta_dot, ref.theta_ddot, ref.position[:, 0], ref.velocity[:, 0],
+                            ref.acceleration[:, 0])
         estimate = estimator.step_batch(ref, position)
         if preview:         # as simulate() gives it: before the controller's and the servos' steps
-            ahead = reference(curve, schedule, _ahead_times(clocks, k, times, preview, ts)).position   # (b, P, n)
+            ahead = np.repeat(table.row_ahead(k, preview), b, axis=0) if table is not None else \
+                reference(curve, schedule, _ahead_times(clocks, k, times, preview, ts)).position   # (b, P, n)
             for i, servo in previewing:
                 servo.look_ahead(tuple(ahead[:, j, i:i + 1] for j in range(servo.preview)))
             if controller_preview:

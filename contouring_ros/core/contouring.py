@@ -11,6 +11,7 @@ import numpy as np
 from .curves import Curve
 from .geometry import (frenet_generator, frenet_frame, left_normal, matmul, matmul_rows, matvec, matvec_rows,
                        unit_tangent)
+from .interpolation import at_reference
 from .plants import coulomb_friction
 from .pid import DiscretePID
 
@@ -145,7 +146,7 @@ class TaskFramePD:
     def step(self, estimate, reference=None, position=None, velocity=None) -> np.ndarray:
         if np.ndim(position) == 2:
             return self._step_batch(reference, position, velocity)
-        frame = frenet_frame(self.curve, float(reference.theta), float(reference.theta_dot),
+        frame = at_reference(reference, frenet_frame, self.curve, float(reference.theta), float(reference.theta_dot),
                              float(reference.theta_ddot))
         r, r_dot, r_ddot = frame.rotation, frame.rotation_rate, frame.rotation_acceleration
         n = r.shape[0]
@@ -168,7 +169,8 @@ class TaskFramePD:
 
     def _step_batch(self, reference, position, velocity) -> np.ndarray:
         """:meth:`step` (eq. 19-25) for a batch: the same terms, (B, n) vectors and (B, n, n) matrices."""
-        frame = frenet_frame(self.curve, reference.theta, reference.theta_dot, reference.theta_ddot)
+        frame = at_reference(reference, frenet_frame, self.curve, reference.theta, reference.theta_dot,
+                             reference.theta_ddot)
         r, r_dot, r_ddot = frame.rotation, frame.rotation_rate, frame.rotation_acceleration
         b, n = position.shape
         r_t = np.swapaxes(r, -1, -2)
@@ -229,13 +231,14 @@ class AdaptiveTNBCCC:
         error = reference.position - np.asarray(position, dtype=float)
         error_rate = reference.velocity - np.asarray(velocity, dtype=float)
         if np.ndim(position) == 2:         # a batch: frames (B, n, n)
-            frame = frenet_frame(self.curve, reference.theta, reference.theta_dot, reference.theta_ddot)
+            frame = at_reference(reference, frenet_frame, self.curve, reference.theta, reference.theta_dot,
+                                 reference.theta_ddot)
             r = frame.rotation
             generator = frenet_generator(r.shape[-1], frame.curvature, frame.torsion)
             coupled = frame.speed * matvec_rows(matmul_rows(matmul_rows(r, generator), np.swapaxes(r, -1, -2)), error)
         else:
-            frame = frenet_frame(self.curve, float(reference.theta), float(reference.theta_dot),
-                                 float(reference.theta_ddot))
+            frame = at_reference(reference, frenet_frame, self.curve, float(reference.theta),
+                                 float(reference.theta_dot), float(reference.theta_ddot))
             r = frame.rotation
             coupled = frame.speed * matvec(matmul(matmul(r, frenet_generator(r.shape[0], frame.curvature,
                                                                              frame.torsion)), r.T), error)

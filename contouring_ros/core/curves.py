@@ -53,6 +53,8 @@ class Curve(ABC):
     #: point near a crossing is measured against its own branch, as paper 003 section IV-A measures
     #: "in the neighborhood of the current desired point".
     contour_error_window: float = 0.0
+    #: nothing in a run writes to a curve: one object can serve a batch as it is (core/batch.py, stack)
+    batch_read_only = True
 
     @abstractmethod
     def columns(self, theta) -> list:

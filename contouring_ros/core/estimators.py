@@ -13,6 +13,7 @@ import numpy as np
 from . import kernels
 from .curves import Curve, Parabola
 from .geometry import dot, dot_rows, frenet_axes, left_normal, matvec, matvec_rows, norm, signed_error
+from .interpolation import at_reference
 
 __all__ = ["ContourEstimate", "TangentLineEstimator", "NewtonEstimator", "BranchCheck", "LocalApproximationEstimator",
            "NaturalLocalEstimator", "OsculatingCircleEstimator", "FootPointSearchEstimator", "first_order_terms",
@@ -59,7 +60,7 @@ class TangentLineEstimator:
 
     def step(self, reference, position) -> ContourEstimate:
         if np.ndim(position) == 2:
-            d = _batch_derivatives(self.curve, reference.theta, 1)
+            d = at_reference(reference, _batch_derivatives, self.curve, reference.theta, 1)
             speed = np.linalg.norm(d[1], axis=-1, keepdims=True)
             tangent = d[1] / speed
             tracking = d[0] - position
@@ -67,7 +68,7 @@ class TangentLineEstimator:
             vector = tracking - along * tangent
             return ContourEstimate(theta=reference.theta - along / speed, vector=vector,
                                    signed=signed_error(vector, tangent))
-        d = self.curve.derivatives(reference.theta, order=1)
+        d = at_reference(reference, self.curve.derivatives, reference.theta, 1)
         speed = norm(d[1])
         tangent = d[1] / speed
         tracking = d[0] - position
@@ -432,11 +433,11 @@ class LocalApproximationEstimator:
         """(f, z, R, kappa, tau, |R'|): Frenet coordinates of the position, the estimated errors z and the frame
         (for a batch of positions (B, n): f (B, n), z (B, n - 1), R (B, n, n), the scalars (B, 1))."""
         if np.ndim(position) == 2:
-            rotation, kappa, tau, speed = frenet_axes(self.curve, reference.theta)
+            rotation, kappa, tau, speed = at_reference(reference, frenet_axes, self.curve, reference.theta)
             f = matvec_rows(np.swapaxes(rotation, -1, -2), position - reference.position)
             h, _, _ = self.approximation(kappa, tau, f[:, 0:1], rotation.shape[-1])
             return f, f[:, 1:] - h, rotation, kappa, tau, speed
-        rotation, kappa, tau, speed = frenet_axes(self.curve, reference.theta)
+        rotation, kappa, tau, speed = at_reference(reference, frenet_axes, self.curve, reference.theta)
         f = matvec(rotation.T, np.asarray(position, dtype=float) - reference.position)
         h, _, _ = self.approximation(kappa, tau, f[0], rotation.shape[0])
         return f, f[1:] - h, rotation, kappa, tau, speed
@@ -485,7 +486,7 @@ class OsculatingCircleEstimator:
         self._tangent_line = TangentLineEstimator(curve)
 
     def step(self, reference, position) -> ContourEstimate:
-        rotation, kappa, _, speed = frenet_axes(self.curve, reference.theta)
+        rotation, kappa, _, speed = at_reference(reference, frenet_axes, self.curve, reference.theta)
         if abs(kappa) < self.min_curvature:
             return self._tangent_line.step(reference, position)
         point = np.asarray(position, dtype=float)
@@ -503,7 +504,7 @@ class OsculatingCircleEstimator:
         """:meth:`step` for a batch: reference arrays (B, 2) and theta (B, 1), positions (B, 2); the same
         formulas elementwise (the frame of :func:`~contouring_ros.core.geometry.frenet_axes`), the
         tangent-line estimate where the curvature vanishes."""
-        d = _batch_derivatives(self.curve, reference.theta, 2)
+        d = at_reference(reference, _batch_derivatives, self.curve, reference.theta, 2)
         d1, d2 = d[1], d[2]
         speed = np.sqrt(np.sum(d1 * d1, axis=-1, keepdims=True))
         kappa = (d1[:, 0:1] * d2[:, 1:2] - d1[:, 1:2] * d2[:, 0:1]) / speed**3

@@ -15,7 +15,8 @@ import numpy as np
 from .curves import Curve
 
 __all__ = ["unit_tangent", "left_normal", "curvature", "signed_error", "FrenetFrame", "frenet_axes", "frenet_frame", "frenet_generator",
-           "FootPoints", "ExactContourError", "dot", "norm", "matvec", "matmul", "dot_rows", "matvec_rows", "matmul_rows"]
+           "FootPoints", "ExactContourError", "dot", "sum_of_products", "norm", "matvec", "matmul", "dot_rows",
+           "matvec_rows", "matmul_rows"]
 
 
 # Products of short vectors and small matrices on the published (one-step, scalar) path. ``a @ b``,
@@ -30,7 +31,7 @@ def _floats(a) -> list:
     return np.asarray(a, dtype=float).tolist()
 
 
-def _sum_of_products(a: list, b: list) -> float:
+def sum_of_products(a: list, b: list) -> float:
     """a[0] b[0] + a[1] b[1] + ..., left to right, of two lists of floats."""
     total = a[0] * b[0]
     for x, y in zip(a[1:], b[1:]):
@@ -40,7 +41,7 @@ def _sum_of_products(a: list, b: list) -> float:
 
 def dot(a, b) -> float:
     """a . b of two vectors as a float: a[0] b[0] + a[1] b[1] + ..., left to right."""
-    return _sum_of_products(_floats(a), _floats(b))
+    return sum_of_products(_floats(a), _floats(b))
 
 
 def cross3(a, b) -> np.ndarray:
@@ -58,13 +59,13 @@ def norm(a) -> float:
 def matvec(m, v) -> np.ndarray:
     """m v for a small matrix (rows . v, see :func:`dot`)."""
     v = _floats(v)
-    return np.array([_sum_of_products(row, v) for row in _floats(m)])
+    return np.array([sum_of_products(row, v) for row in _floats(m)])
 
 
 def matmul(a, b) -> np.ndarray:
     """a b for small matrices (rows of a . columns of b, see :func:`dot`)."""
     columns = _floats(np.asarray(b, dtype=float).T)
-    return np.array([[_sum_of_products(row, column) for column in columns] for row in _floats(a)])
+    return np.array([[sum_of_products(row, column) for column in columns] for row in _floats(a)])
 
 
 # Their batch forms (:mod:`contouring_ros.core.batch`): the same products summed in the same order, one per

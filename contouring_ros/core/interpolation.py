@@ -7,15 +7,20 @@ from __future__ import annotations
 
 import bisect
 import math
-
-from dataclasses import dataclass
+import threading
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from .curves import Curve
 
 __all__ = ["UniformSchedule", "FeedrateSchedule", "InPositionClock", "Reference", "reference", "ahead_times",
-           "reference_ahead"]
+           "reference_ahead", "step_time", "ReferenceTable", "at_reference"]
+
+
+def step_time(k: int, sample_time: float) -> float:
+    """t_k = k Ts: the one expression every node and the simulation use for a step's time."""
+    return k * sample_time
 
 
 class UniformSchedule:
@@ -24,8 +29,10 @@ class UniformSchedule:
     Paper 000 section IV: theta = 2 a t / T - a for t in [0, T].
     """
 
-    #: steps elementwise on arrays with a leading batch axis (:mod:`contouring_ros.core.batch`)
+    #: steps elementwise on arrays with a leading batch axis (:mod:`contouring_ros.core.batch`); nothing in a
+    #: run writes to it, so one object can serve a batch as it is
     batchable = True
+    batch_read_only = True
 
     def __init__(self, theta_start: float, theta_end: float, duration: float):
         if duration <= 0.0:
@@ -72,6 +79,7 @@ class FeedrateSchedule:
     #: batch has the same profile table
     batchable = True
     batch_shared = ("_theta", "_arc", "_v", "_t", "_a")
+    batch_read_only = True
 
     def __init__(self, curve: Curve, theta_start: float, theta_end: float, feedrate: float, acceleration: float,
                  normal_acceleration: float = 0.0, samples: int = 20001):
@@ -237,6 +245,9 @@ class Reference:
         Curve parameter and its time derivatives.
     position, velocity, acceleration : ndarray, shape ([m,] n)
         Per-axis reference position [m], velocity [m/s] and acceleration [m/s^2].
+    memo : dict or None
+        Where the reference comes from a :class:`ReferenceTable`: what :func:`at_reference` has computed
+        from it (the same for every run that reads this step); None otherwise.
     """
 
     theta: np.ndarray
@@ -245,6 +256,33 @@ class Reference:
     position: np.ndarray
     velocity: np.ndarray
     acceleration: np.ndarray
+    memo: dict | None = field(default=None, compare=False, repr=False)
+
+
+def at_reference(reference: Reference, function, *arguments):
+    """``function(*arguments)``, where ``function`` is pure and its arguments are the curve, constants and
+    values of ``reference`` (the Frenet frame at the reference point, the curve's derivatives there):
+    computed once per step along a path, for every run that reads the step from a :class:`ReferenceTable`
+    (once per batch size for batches, whose arrays of the reference's values are the same at a step), and
+    kept read-only; computed each time for any other reference (a node's, one computed by its run)."""
+    memo = reference.memo
+    if memo is None:
+        return function(*arguments)
+    key = (function, *(a.shape if a.__class__ is np.ndarray else a for a in arguments))
+    value = memo.get(key)
+    if value is None:
+        value = memo[key] = _frozen_all(function(*arguments))
+    return value
+
+
+def _frozen_all(value):
+    """``value`` with every array in it (in a tuple, or an attribute of an object) read-only."""
+    if isinstance(value, np.ndarray):
+        return _frozen(value)
+    for item in value if isinstance(value, tuple) else getattr(value, "__dict__", {}).values():
+        if isinstance(item, np.ndarray):
+            _frozen(item)
+    return value
 
 
 def ahead_times(k: int, t: float, count: int, sample_time: float, clock=None) -> np.ndarray:
@@ -278,3 +316,90 @@ def reference(curve: Curve, schedule, t) -> Reference:
     accel = np.asarray(theta_ddot)[..., None]
     return Reference(theta=theta, theta_dot=theta_dot, theta_ddot=theta_ddot, position=d[0],
                      velocity=d[1] * rate, acceleration=d[2] * rate * rate + d[1] * accel)
+
+
+def _frozen(array):
+    array = np.asarray(array)
+    array.flags.writeable = False
+    return array
+
+
+class ReferenceTable:
+    """The reference of every step along one path (curve, schedule, sample time), computed once and kept for
+    every run along it: a tuning runs a scenario's path hundreds of times, and each run's reference is the
+    same. Step k's entry is what :func:`reference` gives at :func:`step_time` (k, Ts), by the same code
+    (the scalar path for a run alone, the batch path for a batch), so a run that reads the table has the
+    numbers of one that computes them, bit for bit. Only for a reference on the step time: an in-position
+    clock (exact stops waiting for the axes) makes each run's times its own.
+
+    Entries are computed as runs first reach them and kept read-only (a consumer that wrote into a shared
+    array would fail at once instead of changing later runs). Safe to read from several threads.
+    """
+
+    def __init__(self, curve: Curve, schedule, sample_time: float):
+        self.curve, self.schedule, self.sample_time = curve, schedule, float(sample_time)
+        self._lock = threading.Lock()
+        self._steps = []           # Reference of step k, the scalar path
+        self._ahead = {}           # count -> the positions (count, n) of the preview of step k, the scalar path
+        self._rows = []            # Reference of step k with a leading batch axis of 1, the batch path
+        self._rows_ahead = {}      # count -> positions (1, count, n), the batch path
+
+    def __deepcopy__(self, memo):
+        return self                # shared by every run along the path (a batch copies its loops)
+
+    def __reduce__(self):
+        return ReferenceTable, (self.curve, self.schedule, self.sample_time)     # another process: a fresh table
+
+    def _extend(self, entries: list, k: int, compute) -> object:
+        if k >= len(entries):
+            with self._lock:
+                while len(entries) <= k:
+                    entries.append(compute(len(entries)))
+        return entries[k]
+
+    def at(self, k: int) -> Reference:
+        """The reference of step k: ``reference(curve, schedule, step_time(k, Ts))``."""
+        steps = self._steps
+        if k < len(steps):
+            return steps[k]
+        return self._extend(steps, k, self._one)
+
+    def _one(self, k: int) -> Reference:
+        ref = reference(self.curve, self.schedule, step_time(k, self.sample_time))
+        return Reference(ref.theta, ref.theta_dot, ref.theta_ddot, _frozen(ref.position), _frozen(ref.velocity),
+                         _frozen(ref.acceleration), {})
+
+    def ahead(self, k: int, count: int) -> np.ndarray:
+        """The positions (count, n) of step k's preview: ``reference_ahead(curve, schedule, k, step_time(k,
+        Ts), count, Ts).position``."""
+        entries = self._ahead.setdefault(count, [])
+        if k < len(entries):
+            return entries[k]
+        return self._extend(entries, k, lambda j: _frozen(reference_ahead(
+            self.curve, self.schedule, j, step_time(j, self.sample_time), count, self.sample_time).position))
+
+    def row(self, k: int) -> Reference:
+        """Step k's reference as a batch along the path computes it for each of its members (a batch's curve
+        and schedule are the path's own: ``batch_read_only``; the times a column), with a batch axis of one:
+        theta (1, 1), position (1, n) ..."""
+        rows = self._rows
+        if k < len(rows):
+            return rows[k]
+
+        def compute(j):
+            ref = reference(self.curve, self.schedule, np.full((1, 1), step_time(j, self.sample_time)))
+            return Reference(*(_frozen(v) for v in (ref.theta, ref.theta_dot, ref.theta_ddot)),
+                             _frozen(ref.position[:, 0]), _frozen(ref.velocity[:, 0]), _frozen(ref.acceleration[:, 0]),
+                             {})
+        return self._extend(rows, k, compute)
+
+    def row_ahead(self, k: int, count: int) -> np.ndarray:
+        """The positions (1, count, n) of step k's preview as a batch computes them."""
+        entries = self._rows_ahead.setdefault(count, [])
+        if k < len(entries):
+            return entries[k]
+
+        def compute(j):
+            times = ahead_times(j, step_time(j, self.sample_time), count, self.sample_time)[None, :]
+            return _frozen(reference(self.curve, self.schedule, times).position)
+        return self._extend(entries, k, compute)

@@ -75,6 +75,7 @@ class Axis:
     _held = ()                 # the commands on their way to the drive, oldest first
     _steps = 0                 # steps taken: the index of the current reading's noise sample
     _previous = None           # the position reading one step back ("encoder" velocity), None at step 0
+    _reading = None            # (steps, reading): the current step's reading once measure() has taken it
 
     def _set_measurement(self, encoder_resolution=0.0, measurement_noise=0.0, noise_seed=0, command_delay=0,
                          velocity_measurement="model"):
@@ -99,6 +100,7 @@ class Axis:
         self._held = (0.0,) * self.command_delay
         self._steps = 0
         self._previous = None
+        self._reading = None
 
     def _position_reading(self):
         """The encoder's reading of the current position: noise added, then quantised."""
@@ -111,6 +113,7 @@ class Axis:
     def measure(self) -> tuple[float, float]:
         """The (position, velocity) the drive reports now (pure: the same until the next ``step``)."""
         position = self._position_reading()
+        self._reading = (self._steps, position)          # the step's "encoder" velocity differences it
         if self.velocity_measurement == "model" or self._previous is None:
             return position, self.velocity
         return position, (position - self._previous) / self.sample_time
@@ -125,7 +128,9 @@ class Axis:
         if has_limit(self.saturation):
             command = symmetric_clip(command, self.saturation)
         if self.velocity_measurement == "encoder":
-            self._previous = self._position_reading()
+            reading = self._reading
+            self._previous = reading[1] if reading is not None and reading[0] == self._steps else \
+                self._position_reading()
         self._advance(command, t)
         self._steps += 1
         return self.position, self.velocity

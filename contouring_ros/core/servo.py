@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import expm
 
-from .geometry import matvec
+from .geometry import sum_of_products
 from .pid import DiscretePID
 from .plants import coulomb_friction, first_order_hold_terms, has_limit, symmetric_clip
 
@@ -209,12 +209,18 @@ class ExtendedStateObserver:
         b = np.array([[0.0, l1], [gain / mass, l2], [0.0, l3]])
         self._phi, self._gamma = _zero_order_hold(a, b, float(sample_time))
         self.state = np.array([float(position), float(velocity), 0.0])
+        self._rows = None          # _phi and _gamma as lists of rows of floats, for one run's steps
 
     def update(self, command: float, position: float) -> None:
         """Advance over one sample with the command applied and the position measured at its start (a batch:
         commands and positions (B, 1), states (B, 3))."""
-        if np.ndim(command) == 0:
-            self.state = matvec(self._phi, self.state) + matvec(self._gamma, [command, position])
+        if command.__class__ is float or np.ndim(command) == 0:
+            # Phi x + Gamma [u, q], each row's products summed left to right (geometry.matvec), on floats
+            if self._rows is None:
+                self._rows = (self._phi.tolist(), self._gamma.tolist())
+            state, inputs = self.state.tolist(), [float(command), float(position)]
+            self.state = np.array([sum_of_products(phi, state) + sum_of_products(gamma, inputs)
+                                   for phi, gamma in zip(*self._rows)])
             return
         inputs = np.concatenate(np.broadcast_arrays(command, position), axis=-1)
         self.state = np.einsum("...ij,...j->...i", self._phi, self.state) \

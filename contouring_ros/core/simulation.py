@@ -14,18 +14,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import Diverged
-from .interpolation import reference, reference_ahead
+from .interpolation import reference, reference_ahead, step_time
 
 __all__ = ["ControlLoop", "SimulationResult", "step_time", "simulate", "divergence_bound", "path_bound", "first_divergence",
            "diverged_message",
            "DIVERGENCE_FACTOR"]
 
 DIVERGENCE_FACTOR = 10.0     # a run has diverged once an axis is this many path sizes from its reference
-
-
-def step_time(k: int, sample_time: float) -> float:
-    """t_k = k Ts: the one expression every node and the simulation use for a step's time."""
-    return k * sample_time
 
 
 @dataclass
@@ -50,6 +45,10 @@ class ControlLoop:
         its step, a controller whose ``preview`` is non-zero every axis' (an array (preview, n))
         (:func:`~contouring_ros.core.interpolation.reference_ahead`; the interpolator node publishes them
         with the reference of step k).
+    reference_table :
+        A :class:`~contouring_ros.core.interpolation.ReferenceTable` of the curve, schedule and sample time,
+        which runs along the same path share (the same numbers, computed once), or None. Not read while an
+        in-position ``clock`` sets the reference's times.
     """
 
     curve: object
@@ -63,6 +62,7 @@ class ControlLoop:
     divergence_factor: float = 10.0     # see simulate(); 0: never stop for divergence
     clock: object = None                # InPositionClock (exact stops wait for the axes), or None: t_k
     preview: int = 0                    # steps of reference beyond step k the servos read (reference_ahead)
+    reference_table: object = None      # ReferenceTable of the path, shared by the runs along it, or None
 
 
 @dataclass
@@ -159,6 +159,7 @@ def simulate(loop: ControlLoop, stop_on_divergence: bool = True, progress: bool 
     curve, schedule, estimator, controller = loop.curve, loop.schedule, loop.estimator, loop.controller
     axes = list(zip(range(n), loop.plants, loop.servos))
     clock = loop.clock
+    table = loop.reference_table if clock is None else None
     previewing = [(i, plant, servo) for i, plant, servo in axes if getattr(servo, "preview", 0)]
     controller_preview = getattr(controller, "preview", 0)
     steps = range(m)
@@ -176,7 +177,7 @@ def simulate(loop: ControlLoop, stop_on_divergence: bool = True, progress: bool 
             seen = (positions[k - clock.delay].copy(), velocities[k - clock.delay].copy()) \
                 if k >= clock.delay else (None, None)
             ref_time = clock.time(k, *seen)
-        ref = reference(curve, schedule, ref_time)
+        ref = table.at(k) if table is not None else reference(curve, schedule, ref_time)
         for i in range(n if stop_on_divergence else 0):
             distance = abs(position[i] - ref.position[i])
             if not distance <= bound:        # also when not finite
@@ -188,17 +189,22 @@ def simulate(loop: ControlLoop, stop_on_divergence: bool = True, progress: bool 
                 raise Diverged(diverged_message(t, k, distance, bound), k, t, _cut(partial, k))
         estimate = estimator.step(ref, position)
         if loop.preview:
-            ahead = reference_ahead(curve, schedule, k, ref_time, loop.preview, loop.sample_time, clock).position
+            ahead = table.ahead(k, loop.preview) if table is not None else \
+                reference_ahead(curve, schedule, k, ref_time, loop.preview, loop.sample_time, clock).position
             for i, _, servo in previewing:
                 servo.look_ahead(tuple(ahead[:servo.preview, i]))
             if controller_preview:
                 controller.look_ahead(ahead[:controller_preview])
         correction = controller.step(estimate, ref, position, velocity)
         rp, rv, ra = ref.position, ref.velocity, ref.acceleration
-        for i, plant, servo in axes:
-            command = servo.step(rp[i], rv[i], ra[i], position[i], velocity[i], correction[i])
+        # the servos and plants take Python floats, as the nodes do from their messages (the same values;
+        # numpy's scalars cost more than their arithmetic)
+        floats = zip(rp.tolist(), rv.tolist(), ra.tolist(), position.tolist(), velocity.tolist(),
+                     correction.tolist() if correction.__class__ is np.ndarray else correction)
+        for (i, plant, servo), (r, r_dot, r_ddot, p, v, c) in zip(axes, floats):
+            command = servo.step(r, r_dot, r_ddot, p, v, c)
             commands[k, i] = command
-            plant.step(commands[k, i], t)
+            plant.step(command if command.__class__ is float else commands[k, i], t)
         time[k], theta[k], est_theta[k], est_signed[k] = t, ref.theta, estimate.theta, estimate.signed
         ref_pos[k], ref_vel[k], ref_acc[k] = rp, rv, ra
         est_vector[k], corrections[k] = estimate.vector, correction

@@ -3,21 +3,31 @@ servos, estimator, controller and in-position clock, each through its role's reg
 (:mod:`.catalogue`), and the whole :class:`~contouring_ros.core.simulation.ControlLoop`."""
 from __future__ import annotations
 
+import json
+import threading
+from collections import OrderedDict
+
 import numpy as np
 
 from ..core import curves
-from ..core.interpolation import InPositionClock, reference
+from ..core.interpolation import InPositionClock, ReferenceTable, reference
 from ..core.simulation import ControlLoop
 from ..errors import ConfigError
 from ..graph import LOOKAHEAD
 from ..registry import BuildContext
 from .catalogue import CONTROLLERS, CURVES, ESTIMATORS, PLANTS, SCHEDULES, SERVOS
+from .catalogue.curves import TOOL_PATH_TYPES
 from .catalogue.disturbances import build_disturbance
 from .model import Experiment
 
 __all__ = ["build_curve_from", "build_curve", "build_schedule_from", "build_schedule", "build_disturbance",
            "initial_state", "build_plant", "in_position_windows", "build_clock", "build_servo", "build_estimator",
-           "build_controller", "build_loop", "servo_preview", "controller_preview", "reference_preview"]
+           "build_controller", "build_loop", "build_path", "servo_preview", "controller_preview", "reference_preview"]
+
+#: how many paths (curve, schedule, sample time) :func:`build_path` keeps
+KEPT_PATHS = 8
+_paths = OrderedDict()
+_paths_lock = threading.Lock()
 
 
 def build_curve_from(section: dict, where: str = "curve") -> curves.Curve:
@@ -149,10 +159,43 @@ def build_controller(experiment: Experiment, curve):
     return controller
 
 
-def build_loop(experiment: Experiment) -> ControlLoop:
-    """Every core object of the experiment, in their initial state."""
+def build_path(experiment: Experiment) -> tuple:
+    """(curve, schedule, :class:`~contouring_ros.core.interpolation.ReferenceTable` or None) of the experiment.
+
+    Runs along the same path (the same curve and schedule sections and sample time: a sweep's or a
+    tuning's runs, which vary gains and plants) share one curve, one schedule and one table of the
+    reference at each step, built once: a feedrate schedule's profile and every step's reference are the
+    same for all of them. The last :data:`KEPT_PATHS` paths are kept. Built afresh, with no table: part
+    programs (read from files; exact stops make each run's reference times its own) and curves or
+    schedules of plugins (whose objects may keep state)."""
+    curve_type, schedule_type = experiment.curve["type"], experiment.schedule["type"]
+    if curve_type in TOOL_PATH_TYPES or not _builtin(CURVES, curve_type) or not _builtin(SCHEDULES, schedule_type):
+        curve = build_curve(experiment)
+        return curve, build_schedule(experiment, curve), None
+    key = json.dumps([experiment.curve, experiment.schedule, experiment.sample_time], sort_keys=True, default=repr)
+    with _paths_lock:
+        path = _paths.get(key)
+        if path is not None:
+            _paths.move_to_end(key)
+            return path
     curve = build_curve(experiment)
     schedule = build_schedule(experiment, curve)
+    path = (curve, schedule, ReferenceTable(curve, schedule, experiment.sample_time))
+    with _paths_lock:
+        path = _paths.setdefault(key, path)
+        while len(_paths) > KEPT_PATHS:
+            _paths.popitem(last=False)
+    return path
+
+
+def _builtin(role, name: str) -> bool:
+    return role.entry(name).origin == "contouring_ros"
+
+
+def build_loop(experiment: Experiment) -> ControlLoop:
+    """Every core object of the experiment, in their initial state (the curve, schedule and reference table
+    shared with earlier runs along the same path: :func:`build_path`)."""
+    curve, schedule, table = build_path(experiment)
     positions, velocities, accelerations = initial_state(experiment, curve, schedule)
     axes = experiment.axes
     return ControlLoop(
@@ -162,4 +205,5 @@ def build_loop(experiment: Experiment) -> ControlLoop:
                 for i, a in enumerate(axes)],
         estimator=build_estimator(experiment, curve), controller=build_controller(experiment, curve),
         sample_time=experiment.sample_time, n_steps=experiment.n_steps,
-        divergence_factor=experiment.divergence_factor, preview=reference_preview(experiment))
+        divergence_factor=experiment.divergence_factor, preview=reference_preview(experiment),
+        reference_table=table)
