@@ -65,6 +65,11 @@ class Entry:
     varied: tuple = ()                    # plants: the physical parameters robustness and mismatch draws vary
     origin: str = "contouring_ros"        # the package (or entry point) it comes from
 
+    @property
+    def builtin(self) -> bool:
+        """Whether the type is the package's own (not a plugin's)."""
+        return self.origin == "contouring_ros"
+
 
 class BuildContext:
     """What a factory may need besides its section: the experiment, the curve, the schedule (built when
@@ -234,7 +239,7 @@ class Role(Mapping):
         finite becomes one RunError line naming the plugin, the step or the argument, and what failed."""
         entry = self.entry(section[self.type_key])
         context = context if context is not None else BuildContext()
-        if entry.origin == "contouring_ros":
+        if entry.builtin:
             return entry.build(section, context)
         where = f"plugin {entry.name!r} ({self.group}: {entry.origin})"
         try:

@@ -19,7 +19,7 @@ import numbers
 
 import numpy as np
 
-from .interpolation import Reference, ahead_times, reference
+from .interpolation import Reference, ahead_times, reference, reference_rows
 from .simulation import ControlLoop, SimulationResult, step_time
 
 __all__ = ["NotBatchable", "stack", "batch_problem", "batchable", "batch_minimum", "structure", "simulate_batch"]
@@ -273,9 +273,7 @@ def simulate_batch(loops: list[ControlLoop]) -> list[SimulationResult]:
                             row.memo)
         else:
             times = _times(clocks, k, t, positions, velocities) if clocked else np.full((b, 1), t)
-            ref = reference(curve, schedule, times)      # (b, 1, n): drop the time axis
-            ref = Reference(ref.theta, ref.theta_dot, ref.theta_ddot, ref.position[:, 0], ref.velocity[:, 0],
-                            ref.acceleration[:, 0])
+            ref = reference_rows(curve, schedule, times)
         estimate = estimator.step_batch(ref, position)
         if preview:         # as simulate() gives it: before the controller's and the servos' steps
             ahead = np.repeat(table.row_ahead(k, preview), b, axis=0) if table is not None else \

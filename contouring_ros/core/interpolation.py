@@ -15,7 +15,7 @@ import numpy as np
 from .curves import Curve
 
 __all__ = ["UniformSchedule", "FeedrateSchedule", "InPositionClock", "Reference", "reference", "ahead_times",
-           "reference_ahead", "step_time", "ReferenceTable", "at_reference"]
+           "reference_ahead", "reference_rows", "step_time", "ReferenceTable", "at_reference"]
 
 
 def step_time(k: int, sample_time: float) -> float:
@@ -318,6 +318,14 @@ def reference(curve: Curve, schedule, t) -> Reference:
                      velocity=d[1] * rate, acceleration=d[2] * rate * rate + d[1] * accel)
 
 
+def reference_rows(curve: Curve, schedule, times) -> Reference:
+    """The reference of a batch's members at their times (B, 1): theta and its derivatives (B, 1), positions,
+    velocities and accelerations (B, n) (:func:`reference` with the time axis of one dropped)."""
+    ref = reference(curve, schedule, times)
+    return Reference(ref.theta, ref.theta_dot, ref.theta_ddot, ref.position[:, 0], ref.velocity[:, 0],
+                     ref.acceleration[:, 0])
+
+
 def _frozen(array):
     array = np.asarray(array)
     array.flags.writeable = False
@@ -351,6 +359,7 @@ class ReferenceTable:
         return ReferenceTable, (self.curve, self.schedule, self.sample_time)     # another process: a fresh table
 
     def _extend(self, entries: list, k: int, compute) -> object:
+        """Entry k of ``entries``, computed (``compute(j)``) up to it first where it is not there yet."""
         if k >= len(entries):
             with self._lock:
                 while len(entries) <= k:
@@ -359,47 +368,34 @@ class ReferenceTable:
 
     def at(self, k: int) -> Reference:
         """The reference of step k: ``reference(curve, schedule, step_time(k, Ts))``."""
-        steps = self._steps
-        if k < len(steps):
-            return steps[k]
-        return self._extend(steps, k, self._one)
-
-    def _one(self, k: int) -> Reference:
-        ref = reference(self.curve, self.schedule, step_time(k, self.sample_time))
-        return Reference(ref.theta, ref.theta_dot, ref.theta_ddot, _frozen(ref.position), _frozen(ref.velocity),
-                         _frozen(ref.acceleration), {})
+        return self._extend(self._steps, k, self._one)
 
     def ahead(self, k: int, count: int) -> np.ndarray:
         """The positions (count, n) of step k's preview: ``reference_ahead(curve, schedule, k, step_time(k,
         Ts), count, Ts).position``."""
-        entries = self._ahead.setdefault(count, [])
-        if k < len(entries):
-            return entries[k]
-        return self._extend(entries, k, lambda j: _frozen(reference_ahead(
+        return self._extend(self._ahead.setdefault(count, []), k, lambda j: _frozen(reference_ahead(
             self.curve, self.schedule, j, step_time(j, self.sample_time), count, self.sample_time).position))
 
     def row(self, k: int) -> Reference:
         """Step k's reference as a batch along the path computes it for each of its members (a batch's curve
         and schedule are the path's own: ``batch_read_only``; the times a column), with a batch axis of one:
         theta (1, 1), position (1, n) ..."""
-        rows = self._rows
-        if k < len(rows):
-            return rows[k]
-
-        def compute(j):
-            ref = reference(self.curve, self.schedule, np.full((1, 1), step_time(j, self.sample_time)))
-            return Reference(*(_frozen(v) for v in (ref.theta, ref.theta_dot, ref.theta_ddot)),
-                             _frozen(ref.position[:, 0]), _frozen(ref.velocity[:, 0]), _frozen(ref.acceleration[:, 0]),
-                             {})
-        return self._extend(rows, k, compute)
+        return self._extend(self._rows, k, self._row)
 
     def row_ahead(self, k: int, count: int) -> np.ndarray:
         """The positions (1, count, n) of step k's preview as a batch computes them."""
-        entries = self._rows_ahead.setdefault(count, [])
-        if k < len(entries):
-            return entries[k]
+        return self._extend(self._rows_ahead.setdefault(count, []), k, lambda j: _frozen(reference(
+            self.curve, self.schedule,
+            ahead_times(j, step_time(j, self.sample_time), count, self.sample_time)[None, :]).position))
 
-        def compute(j):
-            times = ahead_times(j, step_time(j, self.sample_time), count, self.sample_time)[None, :]
-            return _frozen(reference(self.curve, self.schedule, times).position)
-        return self._extend(entries, k, compute)
+    def _one(self, k: int) -> Reference:
+        return _frozen_reference(reference(self.curve, self.schedule, step_time(k, self.sample_time)))
+
+    def _row(self, k: int) -> Reference:
+        return _frozen_reference(reference_rows(self.curve, self.schedule, np.full((1, 1), step_time(k, self.sample_time))))
+
+
+def _frozen_reference(ref: Reference) -> Reference:
+    """``ref`` with its arrays read-only and a memo of its own (:func:`at_reference`)."""
+    return Reference(*(_frozen(v) if isinstance(v, np.ndarray) else v for v in (
+        ref.theta, ref.theta_dot, ref.theta_ddot, ref.position, ref.velocity, ref.acceleration)), {})

@@ -169,7 +169,7 @@ def build_path(experiment: Experiment) -> tuple:
     programs (read from files; exact stops make each run's reference times its own) and curves or
     schedules of plugins (whose objects may keep state)."""
     curve_type, schedule_type = experiment.curve["type"], experiment.schedule["type"]
-    if curve_type in TOOL_PATH_TYPES or not _builtin(CURVES, curve_type) or not _builtin(SCHEDULES, schedule_type):
+    if curve_type in TOOL_PATH_TYPES or not CURVES.entry(curve_type).builtin or not SCHEDULES.entry(schedule_type).builtin:
         curve = build_curve(experiment)
         return curve, build_schedule(experiment, curve), None
     key = json.dumps([experiment.curve, experiment.schedule, experiment.sample_time], sort_keys=True, default=repr)
@@ -186,10 +186,6 @@ def build_path(experiment: Experiment) -> tuple:
         while len(_paths) > KEPT_PATHS:
             _paths.popitem(last=False)
     return path
-
-
-def _builtin(role, name: str) -> bool:
-    return role.entry(name).origin == "contouring_ros"
 
 
 def build_loop(experiment: Experiment) -> ControlLoop:

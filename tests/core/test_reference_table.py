@@ -98,9 +98,11 @@ def test_a_table_is_shared_by_copies_and_starts_afresh_in_another_process():
 
 
 def test_a_plugin_curve_gets_no_table(monkeypatch):
-    from contouring_ros.experiment import build
+    import dataclasses
+    from contouring_ros.config import CURVES
     experiment = parse_experiment(shortened(DEFAULT, 0.1))
-    monkeypatch.setattr(build, "_builtin", lambda role, name: False)
+    parabola = CURVES.entry("parabola")
+    monkeypatch.setitem(CURVES._entries, "parabola", dataclasses.replace(parabola, origin="a_plugin_package"))
     assert build_path(experiment)[2] is None
 
 
