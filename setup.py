@@ -25,7 +25,7 @@ setup(
     ],
     install_requires=["setuptools", "numpy", "scipy", "PyYAML", "mcap", "mcap-ros2-support", "tqdm", "ruckig", "matplotlib",
                       "cma", "control", "osqp"],
-    extras_require={"test": ["pytest"], "cluster": ["distributed"]},
+    extras_require={"test": ["pytest"], "cluster": ["distributed"], "fast": ["numba"]},
     zip_safe=True,
     maintainer="contouring_ros maintainers",
     maintainer_email="maintainers@contouring-ros.org",

@@ -41,6 +41,7 @@ sys.path.insert(0, str(ROOT))
 from contouring_ros.experiment.build import build_loop  # noqa: E402
 from contouring_ros.core import kernels  # noqa: E402
 from contouring_ros.core.batch import batch_problem, simulate_batch  # noqa: E402
+from contouring_ros.core.curves import Parabola  # noqa: E402
 from contouring_ros.core.simulation import simulate  # noqa: E402
 from contouring_ros.sweep import combinations, run_sweep  # noqa: E402
 
@@ -170,10 +171,11 @@ def main() -> None:
     parser.add_argument("--sweep-size", type=int, default=64, help="combinations of that sweep")
     args = parser.parse_args()
     modes = ["compiled", "pure"] if COMPILED and not args.pure else ["pure"]
-    if COMPILED:                    # compile (or load from numba's cache) before anything is timed
-        kernels.newton_parabola(50.0, -0.02, 0.02, 0.0, 0.0, 0.0, 0.0, 0.9, 0.1, 0.5, 1e-18, 200)
-        kernels.newton_parabola_batch(50.0, -0.02, 0.02, np.zeros((2, 2)), 0.0, 0.0, 0.9, 0.1, 0.5, 1e-18, 200,
-                                      np.ones((2, 1), dtype=bool))
+    if COMPILED:                    # compile the kernels of the Newton cases' curve before anything is timed
+        parabola = Parabola(0.02, 50.0)
+        kernels.newton_flow(parabola)(np.zeros(2), 0.0, 0.0, 0.9, 0.1, 0.5, 1e-18, 200)
+        kernels.newton_flow_batch(parabola, np.zeros((2, 2)), 0.0, 0.0, 0.9, 0.1, 0.5, 1e-18, 200,
+                                  np.ones((2, 1), dtype=bool))
     print(f"configuration-steps/s, {args.seconds:g} s of each experiment; vectorised: one batch of {args.batch}; "
           f"one by one: {args.alone} runs; wall (CPU), medians of {args.repeat}; "
           + ("compiled kernels (numba) and the pure numpy path alternated" if len(modes) == 2 else

@@ -102,8 +102,12 @@ def private_environment(domain_id: int, network: bool = False) -> dict:
     range instead (discovery on this machine, as far as rmw_fastrtps restricts it). An experiment with
     ``network: true`` gets ``fastdds_profile_network.xml`` (Fast DDS' built-in transports on every
     interface) and the SUBNET range: its nodes can then be reached from the network, protected only by
-    the domain id (see the README)."""
+    the domain id (see the README). The nodes run the pure Python path of the Newton estimate
+    (CONTOURING_ROS_NUMBA=0 unless the user's environment sets it, :mod:`contouring_ros.core.kernels`):
+    the same numbers, without seconds of numba's import and compilation as a node starts, for a step that
+    message passing dominates anyway."""
     env = dict(os.environ)
+    env.setdefault("CONTOURING_ROS_NUMBA", "0")
     env["ROS_DOMAIN_ID"] = str(domain_id)
     own_profile = bool(env.get("FASTRTPS_DEFAULT_PROFILES_FILE"))
     env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "SUBNET" if network else "LOCALHOST" if own_profile else "SYSTEM_DEFAULT"

@@ -38,6 +38,73 @@ def _scalar_or_array(scalar, array):
 _sin, _cos, _exp = (_scalar_or_array(getattr(math, name), getattr(np, name)) for name in ("sin", "cos", "exp"))
 
 
+# Each analytic curve's columns, (R, R', R'', R''') as a tuple of tuples, as a plain function of theta and the curve's
+# numbers (``Curve.formula``): the curve's own columns() for a float or an array theta (with the sin, cos
+# and exp above), and, compiled by numba with the math module's, the Newton estimate's kernel
+# (:mod:`contouring_ros.core.kernels`): one home for each formula.
+
+def _parabola(t, p):
+    """:meth:`Parabola.columns` at t for the parameters (h)."""
+    h = p[0]
+    return ((t, h * t * t), (1.0, 2.0 * h * t), (0.0, 2.0 * h), (0.0, 0.0))
+
+
+def _circle(t, p):
+    """:meth:`Circle.columns` at t for the parameters (radius, cx, cy)."""
+    r, cx, cy = p[0], p[1], p[2]
+    c, s = r * _cos(t), r * _sin(t)
+    return ((cx + c, cy + s), (-s, c), (-c, -s), (s, -c))
+
+
+def _ellipse(t, p):
+    """:meth:`Ellipse.columns` at t for the parameters (a, b, cx, cy)."""
+    a, b, cx, cy = p[0], p[1], p[2], p[3]
+    ca, sb = a * _cos(t), b * _sin(t)
+    sa, cb = a * _sin(t), b * _cos(t)
+    return ((cx + ca, cy + sb), (-sa, cb), (-ca, -sb), (sa, -cb))
+
+
+def _figure_eight(t, p):
+    """:meth:`FigureEight.columns` at t for the parameters (a, b, cx, cy)."""
+    a, b, cx, cy = p[0], p[1], p[2], p[3]
+    c1, s1, c2, s2 = _cos(t), _sin(t), _cos(2.0 * t), _sin(2.0 * t)
+    return ((cx + a * (1.0 - c1), cy + b * s2), (a * s1, 2.0 * b * c2), (a * c1, -4.0 * b * s2),
+            (-a * s1, -8.0 * b * c2))
+
+
+def _helix(t, p):
+    """:meth:`Helix.columns` at t for the parameters (a, b, c, omega)."""
+    a, b, c, w = p[0], p[1], p[2], p[3]
+    cw, sw = _cos(w * t), _sin(w * t)
+    zero = 0.0 * t
+    return ((a * cw, b * sw, c * t), (-a * w * sw, b * w * cw, c + zero),
+            (-a * w * w * cw, -b * w * w * sw, zero), (a * w**3 * sw, -b * w**3 * cw, zero))
+
+
+def _saddle(t, p):
+    """:meth:`Saddle.columns` at t for the parameters (a, b, h, omega)."""
+    a, b, h, w = p[0], p[1], p[2], p[3]
+    c1, s1, c2, s2 = _cos(w * t), _sin(w * t), _cos(2 * w * t), _sin(2 * w * t)
+    return ((a * c1, b * s1, h * c2), (-a * w * s1, b * w * c1, -2 * h * w * s2),
+            (-a * w * w * c1, -b * w * w * s1, -4 * h * w * w * c2),
+            (a * w**3 * s1, -b * w**3 * c1, 8 * h * w**3 * s2))
+
+
+def _butterfly(u, p):
+    """:meth:`Butterfly.columns` at u for the parameters (scale, cx, cy)."""
+    k, cx, cy = p[0], p[1], p[2]
+    s, c, e = _sin(u), _cos(u), _exp(_cos(u))
+    s4, c4 = _sin(4 * u), _cos(4 * u)
+    r = e - 2 * c4
+    r1 = -s * e + 8 * s4
+    r2 = (s * s - c) * e + 32 * c4
+    r3 = s * e * (1 + 3 * c - s * s) - 128 * s4
+    return ((cx + k * r * s, cy + k * r * c),
+            (k * (r1 * s + r * c), k * (r1 * c - r * s)),
+            (k * (r2 * s + 2 * r1 * c - r * s), k * (r2 * c - 2 * r1 * s - r * c)),
+            (k * (r3 * s + 3 * r2 * c - 3 * r1 * s - r * c), k * (r3 * c - 3 * r2 * s - 3 * r1 * c + r * s)))
+
+
 class Curve(ABC):
     """A smooth parametric contour R(theta) in R^dimension.
 
@@ -55,6 +122,12 @@ class Curve(ABC):
     contour_error_window: float = 0.0
     #: nothing in a run writes to a curve: one object can serve a batch as it is (core/batch.py, stack)
     batch_read_only = True
+    #: the curve's :meth:`columns` as a plain function ``formula(theta, parameters)`` of the numbers in
+    #: :attr:`parameters`, whose scalar path numba can compile (the Newton estimate's kernel,
+    #: :mod:`contouring_ros.core.kernels`, runs this same code); None for a curve without one
+    formula = None
+    #: the numbers :attr:`formula` reads, a tuple (floats; arrays (B, 1) for a batch's stacked curve)
+    parameters = ()
 
     @abstractmethod
     def columns(self, theta) -> list:
@@ -140,15 +213,16 @@ class Parabola(Curve):
     dimension = 2
     #: columns() works elementwise on a batch of parameters and of curve sizes (:mod:`contouring_ros.core.batch`)
     batchable = True
+    formula = staticmethod(_parabola)
 
     def __init__(self, a: float, h: float):
         self.a = float(a)
         self.h = float(h)
         self.domain = (-self.a, self.a)
+        self.parameters = (self.h,)
 
     def columns(self, t) -> list:
-        h = self.h
-        return [(t, h * t * t), (1.0, 2.0 * h * t), (0.0, 2.0 * h), (0.0, 0.0)]
+        return list(_parabola(t, self.parameters))
 
 
 class Line(Curve):
@@ -181,17 +255,17 @@ class Circle(PlanarLoop):
 
     #: columns() works elementwise on a batch of parameters and of curve sizes (:mod:`contouring_ros.core.batch`)
     batchable = True
+    formula = staticmethod(_circle)
 
     def __init__(self, radius: float, center=(0.0, 0.0)):
         self.radius = float(radius)
         if self.radius <= 0.0:
             raise ValueError("circle radius must be positive")
         super().__init__(center)
+        self.parameters = (self.radius, *self._center)
 
     def columns(self, t) -> list:
-        r, (cx, cy) = self.radius, self._center
-        c, s = r * _cos(t), r * _sin(t)
-        return [(cx + c, cy + s), (-s, c), (-c, -s), (s, -c)]
+        return list(_circle(t, self.parameters))
 
 
 class Ellipse(PlanarLoop):
@@ -203,17 +277,17 @@ class Ellipse(PlanarLoop):
 
     #: columns() works elementwise on a batch of parameters and of curve sizes (:mod:`contouring_ros.core.batch`)
     batchable = True
+    formula = staticmethod(_ellipse)
 
     def __init__(self, a: float, b: float, center=(0.0, 0.0)):
         self.a, self.b = float(a), float(b)
         if self.a <= 0.0 or self.b <= 0.0:
             raise ValueError("ellipse semi-axes a and b must be positive")
         super().__init__(center)
+        self.parameters = (self.a, self.b, *self._center)
 
     def columns(self, t) -> list:
-        (cx, cy), ca, sb = self._center, self.a * _cos(t), self.b * _sin(t)
-        sa, cb = self.a * _sin(t), self.b * _cos(t)
-        return [(cx + ca, cy + sb), (-sa, cb), (-ca, -sb), (sa, -cb)]
+        return list(_ellipse(t, self.parameters))
 
 
 class FigureEight(PlanarLoop):
@@ -221,18 +295,17 @@ class FigureEight(PlanarLoop):
 
     #: columns() works elementwise on a batch of parameters and of curve sizes (:mod:`contouring_ros.core.batch`)
     batchable = True
+    formula = staticmethod(_figure_eight)
 
     def __init__(self, a: float, b: float, center=(0.0, 0.0)):
         self.a, self.b = float(a), float(b)
         if self.a <= 0.0 or self.b <= 0.0:
             raise ValueError("figure-8 sizes a and b must be positive")
         super().__init__(center)
+        self.parameters = (self.a, self.b, *self._center)
 
     def columns(self, t) -> list:
-        (cx, cy), a, b = self._center, self.a, self.b
-        c1, s1, c2, s2 = _cos(t), _sin(t), _cos(2.0 * t), _sin(2.0 * t)
-        return [(cx + a * (1.0 - c1), cy + b * s2), (a * s1, 2.0 * b * c2), (a * c1, -4.0 * b * s2),
-                (-a * s1, -8.0 * b * c2)]
+        return list(_figure_eight(t, self.parameters))
 
 
 class Helix(Curve):
@@ -243,6 +316,7 @@ class Helix(Curve):
 
     #: columns() works elementwise on a batch of parameters and of curve sizes (:mod:`contouring_ros.core.batch`)
     batchable = True
+    formula = staticmethod(_helix)
 
     dimension = 3
 
@@ -251,13 +325,10 @@ class Helix(Curve):
         if self.a <= 0.0 or self.b <= 0.0 or self.omega == 0.0 or length <= 0.0:
             raise ValueError("helix a, b and length must be positive and omega non-zero")
         self.domain = (0.0, float(length))
+        self.parameters = (self.a, self.b, self.c, self.omega)
 
     def columns(self, t) -> list:
-        a, b, c, w = self.a, self.b, self.c, self.omega
-        cw, sw = _cos(w * t), _sin(w * t)
-        zero = 0.0 * t
-        return [(a * cw, b * sw, c * t), (-a * w * sw, b * w * cw, c + zero),
-                (-a * w * w * cw, -b * w * w * sw, zero), (a * w**3 * sw, -b * w**3 * cw, zero)]
+        return list(_helix(t, self.parameters))
 
 
 class Saddle(Curve):
@@ -266,6 +337,7 @@ class Saddle(Curve):
 
     #: columns() works elementwise on a batch of parameters and of curve sizes (:mod:`contouring_ros.core.batch`)
     batchable = True
+    formula = staticmethod(_saddle)
 
     dimension = 3
     closed = True
@@ -275,13 +347,10 @@ class Saddle(Curve):
         if self.a <= 0.0 or self.b <= 0.0 or self.omega <= 0.0:
             raise ValueError("saddle a, b and omega must be positive")
         self.domain = (0.0, 2.0 * np.pi / self.omega)
+        self.parameters = (self.a, self.b, self.h, self.omega)
 
     def columns(self, t) -> list:
-        a, b, h, w = self.a, self.b, self.h, self.omega
-        c1, s1, c2, s2 = _cos(w * t), _sin(w * t), _cos(2 * w * t), _sin(2 * w * t)
-        return [(a * c1, b * s1, h * c2), (-a * w * s1, b * w * c1, -2 * h * w * s2),
-                (-a * w * w * c1, -b * w * w * s1, -4 * h * w * w * c2),
-                (a * w**3 * s1, -b * w**3 * c1, 8 * h * w**3 * s2)]
+        return list(_saddle(t, self.parameters))
 
 
 class Butterfly(PlanarLoop):
@@ -291,25 +360,17 @@ class Butterfly(PlanarLoop):
 
     #: columns() works elementwise on a batch of parameters and of curve sizes (:mod:`contouring_ros.core.batch`)
     batchable = True
+    formula = staticmethod(_butterfly)
 
     def __init__(self, scale: float, center=(0.0, 0.0)):
         self.scale = float(scale)
         if self.scale <= 0.0:
             raise ValueError("butterfly scale must be positive")
         super().__init__(center)
+        self.parameters = (self.scale, *self._center)
 
     def columns(self, u) -> list:
-        k, (cx, cy) = self.scale, self._center
-        s, c, e = _sin(u), _cos(u), _exp(_cos(u))
-        s4, c4 = _sin(4 * u), _cos(4 * u)
-        r = e - 2 * c4
-        r1 = -s * e + 8 * s4
-        r2 = (s * s - c) * e + 32 * c4
-        r3 = s * e * (1 + 3 * c - s * s) - 128 * s4
-        return [(cx + k * r * s, cy + k * r * c),
-                (k * (r1 * s + r * c), k * (r1 * c - r * s)),
-                (k * (r2 * s + 2 * r1 * c - r * s), k * (r2 * c - 2 * r1 * s - r * c)),
-                (k * (r3 * s + 3 * r2 * c - 3 * r1 * s - r * c), k * (r3 * c - 3 * r2 * s - 3 * r1 * c + r * s))]
+        return list(_butterfly(u, self.parameters))
 
 
 class SplineCurve(Curve):

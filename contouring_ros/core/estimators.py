@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import kernels
-from .curves import Curve, Parabola
+from .curves import Curve
 from .geometry import dot, dot_rows, frenet_axes, left_normal, matvec, matvec_rows, norm, signed_error
 from .interpolation import at_reference
 
@@ -218,9 +218,9 @@ class NewtonEstimator:
 
     @property
     def batch_minimum(self) -> int:
-        """:data:`PURE_BATCH_MINIMUM`, or 2 where the compiled kernel runs the batch (one member after another)."""
-        compiled = kernels.ENABLED and type(self.curve) is Parabola and self.curve.dimension == 2
-        return 2 if compiled else self.PURE_BATCH_MINIMUM
+        """:data:`PURE_BATCH_MINIMUM`, whether or not the kernel is compiled (core/kernels.py): the groups that
+        run as batches, and so every figure, are the same with numba and without."""
+        return self.PURE_BATCH_MINIMUM
 
     def step(self, reference, position) -> ContourEstimate:
         capped = self._iterate(position)
@@ -271,9 +271,10 @@ class NewtonEstimator:
         coordinates, blend = [float(p) for p in position], 1.0 - decay
         columns, closed, (lo, hi) = curve.columns, curve.closed, curve.domain
         converged = False
-        if kernels.ENABLED and type(curve) is Parabola and len(coordinates) == 2:     # compiled, the same steps
-            self.theta, self.filtered, self.iterations, converged = kernels.newton_parabola(
-                curve.h, lo, hi, *coordinates, float(theta), float(filtered), decay, blend, gain, tolerance2, cap)
+        compiled = kernels.newton_flow(curve)
+        if compiled is not None:                       # the same steps, compiled (core/kernels.py)
+            self.theta, self.filtered, self.iterations, converged = compiled(
+                position, float(theta), float(filtered), decay, blend, gain, tolerance2, cap)
             return not converged
         if len(coordinates) == 2 and not closed:       # the common planar case, unrolled
             px, py = coordinates
@@ -323,11 +324,11 @@ class NewtonEstimator:
         little more than the update itself.)"""
         curve = self.curve
         b = position.shape[0]
-        if kernels.ENABLED and type(curve) is Parabola and position.shape[1] == 2:    # compiled, the same steps
-            active = np.ones((b, 1), dtype=bool) if active is None else active
-            self.theta, self.filtered, self.iterations, capped = kernels.newton_parabola_batch(
-                curve.h, *curve.domain, position, self.theta, self.filtered, self._filter_decay,
-                1.0 - self._filter_decay, self._gain, self._tolerance_squared, self.max_iterations, active)
+        compiled = kernels.newton_flow_batch(
+            curve, position, self.theta, self.filtered, self._filter_decay, 1.0 - self._filter_decay, self._gain,
+            self._tolerance_squared, self.max_iterations, np.ones((b, 1), dtype=bool) if active is None else active)
+        if compiled is not None:                       # the same steps, compiled (core/kernels.py)
+            self.theta, self.filtered, self.iterations, capped = compiled
             return capped
         theta = np.broadcast_to(self.theta, (b, 1)).astype(float)
         filtered = np.broadcast_to(self.filtered, (b, 1)).astype(float)

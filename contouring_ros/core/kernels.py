@@ -1,44 +1,52 @@
-"""Optional compiled kernels (numba) for the in-process simulation's innermost loops.
+"""Optional compiled kernels (numba) for the in-process simulation's innermost loop: the Newton estimate.
 
 The filtered Newton flow of :class:`~contouring_ros.core.estimators.NewtonEstimator` iterates tens of times
-per control step; on a parabola (paper 000's contour, the default experiment) each iteration is a handful of
-multiplications and additions, and the Python or numpy overhead of an iteration is most of a run's time.
-Where numba is installed (``pip install numba``; optional) the iteration on a :class:`~contouring_ros.core.
-curves.Parabola` runs compiled, one member after another for a batch. Every operation is the pure path's,
-in its order, on IEEE doubles (additions, multiplications, divisions, comparisons: no function whose last
-bit could differ between implementations, and no contraction into fused multiply-adds), so the results are
-the pure path's bit for bit (tests/core/test_kernels.py). Without numba, or with the environment variable
-``CONTOURING_ROS_NUMBA=0``, the pure Python and numpy path runs.
+per control step (39-57 on the papers' files), each iteration one evaluation of the curve and a handful of
+float operations; alone, that is most of a Newton run's time in Python. Where numba is installed
+(``pip install numba``) the flow runs compiled for every curve with a :attr:`~contouring_ros.core.curves.
+Curve.formula` (the analytic curves; not the spline, the tool path or a plugin's curve), one member after
+another for a batch.
+
+The kernel is the pure path's code: the flow below is :meth:`NewtonEstimator._iterate`'s, statement for
+statement, and the curve is the curve's own formula function compiled with the math module's sin, cos and
+exp (the functions CPython's math module calls, from the same C library). Every operation is an IEEE
+double one in the pure path's order, with no contraction into fused multiply-adds (numba's default), so the
+results are the pure path's bit for bit (tests/core/test_kernels.py, on every analytic curve, alone and in
+batches). Without numba, or with the environment variable ``CONTOURING_ROS_NUMBA=0``, the pure Python and
+numpy path runs. numba is imported, and a curve's kernel compiled (about 2 s), the first time a Newton
+estimate on that kind of curve is built in a process (:func:`newton_flow`).
 """
 from __future__ import annotations
 
+import importlib.util
+import math
 import os
+import types
+import weakref
 
 import numpy as np
 
-__all__ = ["ENABLED", "newton_parabola", "newton_parabola_batch"]
+__all__ = ["ENABLED", "formula_of", "newton_flow", "newton_flow_batch"]
 
-try:                                            # pragma: no cover - depends on the environment
-    if os.environ.get("CONTOURING_ROS_NUMBA", "1") == "0":
-        raise ImportError("disabled by CONTOURING_ROS_NUMBA=0")
-    import numba
-except ImportError:                             # the pure path
-    numba = None
+#: whether the compiled kernels are used: numba installed and not turned off
+ENABLED = os.environ.get("CONTOURING_ROS_NUMBA", "1") != "0" and importlib.util.find_spec("numba") is not None
 
-#: whether the compiled kernels are used
-ENABLED = numba is not None
+# the flows below call these; each compiled copy (:func:`_kernels`) has its own: the curve's formula, the
+# flow of one position
+_formula = _flow = None
 
 
-def _newton_parabola(h, lo, hi, px, py, theta, filtered, decay, blend, gain, tolerance2, cap):
-    """The filtered Newton flow of NewtonEstimator._iterate on R = [t, h t^2] over [lo, hi] from (theta,
-    filtered) for the position (px, py): (theta, filtered, updates made, converged)."""
+def _flow_planar(parameters, px, py, theta, filtered, decay, blend, gain, tolerance2, cap, lo, hi):
+    """NewtonEstimator._iterate's unrolled planar flow on an open curve from (theta, filtered) for the
+    position (px, py): (theta, filtered, updates made, converged)."""
     n = 0
     converged = False
     while True:
-        tx = 1.0
-        ty = 2.0 * h * theta
-        gradient = (theta - px) * tx + (h * theta * theta - py) * ty        # g = E^T R', eq. 9
-        hessian = tx * tx + ty * ty                                       # h ~= |R'|^2, eq. 11
+        columns = _formula(theta, parameters)
+        rx, ry = columns[0]
+        tx, ty = columns[1]
+        gradient = (rx - px) * tx + (ry - py) * ty         # g = E^T R', eq. 9
+        hessian = tx * tx + ty * ty                         # h ~= |R'|^2, eq. 11
         following = decay * filtered + blend * (gradient / hessian)
         new = theta - gain * following
         if lo > new:                      # min(max(new, lo), hi) as Python's builtins take it (a nan stays)
@@ -57,48 +65,144 @@ def _newton_parabola(h, lo, hi, px, py, theta, filtered, decay, blend, gain, tol
     return theta, filtered, n, converged
 
 
-def _newton_parabola_batch(h, lo, hi, px, py, theta, filtered, decay, blend, gain, tolerance2, cap, active,
-                           iterations, capped):
-    """:func:`_newton_parabola` for each active member j of a batch (every argument an array (B,), ``theta``,
-    ``filtered`` updated in place, ``iterations`` and ``capped`` written); inactive members are left as they
-    are with 0 updates."""
+def _flow_general(parameters, position, theta, filtered, decay, blend, gain, tolerance2, cap, lo, hi, closed):
+    """NewtonEstimator._iterate's flow in any dimension, on an open or a closed curve, for the position
+    (an array (n,)): (theta, filtered, updates made, converged)."""
+    n = 0
+    converged = False
+    while True:
+        columns = _formula(theta, parameters)
+        point, tangent = columns[0], columns[1]
+        gradient = 0.0
+        hessian = 0.0
+        for i in range(len(point)):
+            gradient += (point[i] - position[i]) * tangent[i]      # g = E^T R', eq. 9
+            hessian += tangent[i] * tangent[i]                     # h ~= |R'|^2, eq. 11
+        following = decay * filtered + blend * (gradient / hessian)
+        if closed:
+            moved = -gain * following
+            new = lo + (theta + moved - lo) % (hi - lo)
+            at_end = False
+        else:
+            new = theta - gain * following
+            if lo > new:
+                new = lo
+            if hi < new:
+                new = hi
+            moved = new - theta
+            at_end = (theta == lo and gradient > 0.0) or (theta == hi and gradient < 0.0)
+        if (gradient * gradient <= tolerance2 * hessian or at_end) and moved * moved * hessian <= tolerance2:
+            converged = True
+            break
+        if n == cap:
+            break
+        theta, filtered = new, following
+        n += 1
+    return theta, filtered, n, converged
+
+
+def _flow_batch(parameters, position, theta, filtered, decay, blend, gain, tolerance2, cap, lo, hi, closed, active,
+                iterations, capped):
+    """The flow of each active member j of a batch (every per-member value an array (B,), ``parameters``
+    (B, P), ``position`` (B, n); ``theta``, ``filtered`` updated in place, ``iterations`` and ``capped``
+    written); inactive members are left as they are with 0 updates. ``_flow`` is the flow of one position,
+    compiled for the curve, with (parameters, position, ...)'s arguments."""
     for j in range(theta.shape[0]):
         if not active[j]:
             iterations[j] = 0
             capped[j] = False
             continue
-        t, f, n, done = _newton_parabola(h[j], lo[j], hi[j], px[j], py[j], theta[j], filtered[j], decay[j], blend[j],
-                                         gain[j], tolerance2[j], cap[j])
+        t, f, n, done = _flow(parameters[j], position[j], theta[j], filtered[j], decay[j], blend[j], gain[j],
+                              tolerance2[j], cap[j], lo[j], hi[j], closed)
         theta[j], filtered[j], iterations[j], capped[j] = t, f, n, not done
 
 
-if numba is not None:                            # pragma: no cover - depends on the environment
-    # error_model="numpy": a division by zero gives inf or nan as numpy's does, not an exception; no fastmath
-    _newton_parabola = numba.njit(cache=True, error_model="numpy")(_newton_parabola)
-    _newton_parabola_batch = numba.njit(cache=True, error_model="numpy")(_newton_parabola_batch)
+def _planar(parameters, position, theta, filtered, decay, blend, gain, tolerance2, cap, lo, hi, closed):
+    """:func:`_flow_planar` with :func:`_flow_general`'s arguments (``closed`` is False)."""
+    return _flow_planar(parameters, position[0], position[1], theta, filtered, decay, blend, gain, tolerance2, cap,
+                        lo, hi)
 
 
-def newton_parabola(h, lo, hi, px, py, theta, filtered, decay, blend, gain, tolerance2, cap):
-    """The compiled flow of one position (floats; ``cap`` int): (theta, filtered, updates, converged), or None
-    without numba."""
-    if numba is None:
+_KERNELS = {}          # (formula, planar) -> (flow of one position, flow of a batch), compiled for it
+
+
+def _kernels(formula, planar: bool):
+    """The flows compiled for one curve formula, the unrolled planar one (an open planar curve, as the pure
+    path takes it) or the general one: copies of the functions above whose ``_formula`` is the formula
+    compiled with the math module's sin, cos and exp in place of curves.py's scalar-or-array ones
+    (error_model "numpy": a division by zero gives inf or nan as numpy's does, not an exception; no
+    fastmath)."""
+    key = formula, planar
+    if key not in _KERNELS:
+        import numba
+
+        def compiled(function, **names):
+            scope = dict(function.__globals__, **names)
+            copy = types.FunctionType(function.__code__, scope, function.__name__, function.__defaults__)
+            return numba.njit(error_model="numpy")(copy)
+        curve = compiled(formula, _sin=math.sin, _cos=math.cos, _exp=math.exp)
+        if planar:
+            flow = compiled(_planar, _flow_planar=compiled(_flow_planar, _formula=curve))
+        else:
+            flow = compiled(_flow_general, _formula=curve)
+        _KERNELS[key] = flow, compiled(_flow_batch, _flow=flow)
+    return _KERNELS[key]
+
+
+def _is_planar(curve) -> bool:
+    return curve.dimension == 2 and not curve.closed
+
+
+def formula_of(curve):
+    """The curve's :attr:`~contouring_ros.core.curves.Curve.formula` where the curve's own class gives it,
+    else None (a subclass, a plugin's say, may compute its columns otherwise: it runs the pure path)."""
+    return curve.formula if "formula" in vars(type(curve)) else None
+
+
+_FLOWS = weakref.WeakKeyDictionary()      # curve -> its flow of one position (newton_flow)
+
+
+def newton_flow(curve):
+    """The compiled flow of one position for ``curve``: a function (position (n,), theta, filtered, decay,
+    blend, gain, tolerance2, cap) -> (theta, filtered, updates, converged) taking floats (``cap`` an int),
+    or None where it does not run compiled (numba not installed or turned off, a curve without a formula).
+    Kept for the curve's lifetime, so that asking at every step costs a look-up."""
+    if not ENABLED or formula_of(curve) is None:
         return None
-    return _newton_parabola(h, lo, hi, px, py, theta, filtered, decay, blend, gain, tolerance2, cap)
+    flow = _FLOWS.get(curve)
+    if flow is None:
+        flow = _FLOWS[curve] = _flow_for(curve)
+    return flow
 
 
-def newton_parabola_batch(h, lo, hi, position, theta, filtered, decay, blend, gain, tolerance2, cap, active):
-    """The compiled flow of a batch: positions (B, 2), every other per-member value a float or an array of
-    shape (B, 1). Returns (theta, filtered, iterations, capped), each (B, 1), as
-    ``NewtonEstimator._iterate_batch`` leaves them, or None without numba."""
-    if numba is None:
+def _flow_for(curve):
+    compiled, _ = _kernels(curve.formula, _is_planar(curve))
+    parameters = tuple(float(v) for v in curve.parameters)
+    (lo, hi), closed = (float(v) for v in curve.domain), bool(curve.closed)
+
+    def flow(position, theta, filtered, decay, blend, gain, tolerance2, cap):
+        return compiled(parameters, np.asarray(position, dtype=float), theta, filtered, decay, blend, gain,
+                        tolerance2, cap, lo, hi, closed)
+    return flow
+
+
+def newton_flow_batch(curve, position, theta, filtered, decay, blend, gain, tolerance2, cap, active):
+    """The compiled flow of a batch on ``curve`` (possibly a batch's stacked curve): positions (B, n), every
+    other per-member value a float or an array of shape (B, 1). Returns (theta, filtered, iterations,
+    capped), each (B, 1), as ``NewtonEstimator._iterate_batch`` leaves them, or None where it does not run
+    compiled."""
+    if not ENABLED or formula_of(curve) is None:
         return None
+    _, batch = _kernels(curve.formula, _is_planar(curve))
     b = position.shape[0]
 
     def column(value, dtype=float):
         return np.ascontiguousarray(np.broadcast_to(value, (b, 1))[:, 0], dtype=dtype)
+    parameters = np.ascontiguousarray(np.stack([column(v) for v in curve.parameters], axis=1))
+    lo, hi = (column(v) for v in curve.domain)
     theta, filtered = column(theta).copy(), column(filtered).copy()
     iterations, capped = np.zeros(b, dtype=np.int64), np.zeros(b, dtype=np.bool_)
-    _newton_parabola_batch(column(h), column(lo), column(hi), column(position[:, 0:1]), column(position[:, 1:2]), theta,
-                           filtered, column(decay), column(blend), column(gain), column(tolerance2),
-                           column(cap, np.int64), column(active, np.bool_), iterations, capped)
+    batch(parameters, np.ascontiguousarray(position, dtype=float), theta, filtered, column(decay), column(blend),
+          column(gain), column(tolerance2), column(cap, np.int64), lo, hi, bool(curve.closed),
+          column(active, np.bool_), iterations, capped)
     return theta[:, None], filtered[:, None], iterations[:, None].astype(int), capped[:, None]
