@@ -126,7 +126,8 @@ class Curve(ABC):
     #: :attr:`parameters`, whose scalar path numba can compile (the Newton estimate's kernel,
     #: :mod:`contouring_ros.core.kernels`, runs this same code); None for a curve without one
     formula = None
-    #: the numbers :attr:`formula` reads, a tuple (floats; arrays (B, 1) for a batch's stacked curve)
+    #: the numbers :attr:`formula` reads, a tuple of the curve's own attributes (floats; arrays (B, 1) for a
+    #: batch's stacked curve)
     parameters = ()
 
     @abstractmethod
@@ -219,7 +220,10 @@ class Parabola(Curve):
         self.a = float(a)
         self.h = float(h)
         self.domain = (-self.a, self.a)
-        self.parameters = (self.h,)
+
+    @property
+    def parameters(self) -> tuple:
+        return (self.h,)
 
     def columns(self, t) -> list:
         return list(_parabola(t, self.parameters))
@@ -262,7 +266,10 @@ class Circle(PlanarLoop):
         if self.radius <= 0.0:
             raise ValueError("circle radius must be positive")
         super().__init__(center)
-        self.parameters = (self.radius, *self._center)
+
+    @property
+    def parameters(self) -> tuple:
+        return (self.radius, *self._center)
 
     def columns(self, t) -> list:
         return list(_circle(t, self.parameters))
@@ -284,7 +291,10 @@ class Ellipse(PlanarLoop):
         if self.a <= 0.0 or self.b <= 0.0:
             raise ValueError("ellipse semi-axes a and b must be positive")
         super().__init__(center)
-        self.parameters = (self.a, self.b, *self._center)
+
+    @property
+    def parameters(self) -> tuple:
+        return (self.a, self.b, *self._center)
 
     def columns(self, t) -> list:
         return list(_ellipse(t, self.parameters))
@@ -302,7 +312,10 @@ class FigureEight(PlanarLoop):
         if self.a <= 0.0 or self.b <= 0.0:
             raise ValueError("figure-8 sizes a and b must be positive")
         super().__init__(center)
-        self.parameters = (self.a, self.b, *self._center)
+
+    @property
+    def parameters(self) -> tuple:
+        return (self.a, self.b, *self._center)
 
     def columns(self, t) -> list:
         return list(_figure_eight(t, self.parameters))
@@ -325,7 +338,10 @@ class Helix(Curve):
         if self.a <= 0.0 or self.b <= 0.0 or self.omega == 0.0 or length <= 0.0:
             raise ValueError("helix a, b and length must be positive and omega non-zero")
         self.domain = (0.0, float(length))
-        self.parameters = (self.a, self.b, self.c, self.omega)
+
+    @property
+    def parameters(self) -> tuple:
+        return (self.a, self.b, self.c, self.omega)
 
     def columns(self, t) -> list:
         return list(_helix(t, self.parameters))
@@ -347,7 +363,10 @@ class Saddle(Curve):
         if self.a <= 0.0 or self.b <= 0.0 or self.omega <= 0.0:
             raise ValueError("saddle a, b and omega must be positive")
         self.domain = (0.0, 2.0 * np.pi / self.omega)
-        self.parameters = (self.a, self.b, self.h, self.omega)
+
+    @property
+    def parameters(self) -> tuple:
+        return (self.a, self.b, self.h, self.omega)
 
     def columns(self, t) -> list:
         return list(_saddle(t, self.parameters))
@@ -367,7 +386,10 @@ class Butterfly(PlanarLoop):
         if self.scale <= 0.0:
             raise ValueError("butterfly scale must be positive")
         super().__init__(center)
-        self.parameters = (self.scale, *self._center)
+
+    @property
+    def parameters(self) -> tuple:
+        return (self.scale, *self._center)
 
     def columns(self, u) -> list:
         return list(_butterfly(u, self.parameters))

@@ -271,7 +271,7 @@ class NewtonEstimator:
         coordinates, blend = [float(p) for p in position], 1.0 - decay
         columns, closed, (lo, hi) = curve.columns, curve.closed, curve.domain
         converged = False
-        compiled = kernels.newton_flow(curve)
+        compiled = kernels.newton_flow(curve) if len(coordinates) == curve.dimension else None
         if compiled is not None:                       # the same steps, compiled (core/kernels.py)
             self.theta, self.filtered, self.iterations, converged = compiled(
                 position, float(theta), float(filtered), decay, blend, gain, tolerance2, cap)

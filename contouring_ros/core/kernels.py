@@ -22,11 +22,12 @@ import importlib.util
 import math
 import os
 import types
+import warnings
 import weakref
 
 import numpy as np
 
-__all__ = ["ENABLED", "formula_of", "newton_flow", "newton_flow_batch"]
+__all__ = ["ENABLED", "compiled_formula", "formula_of", "newton_flow", "newton_flow_batch"]
 
 #: whether the compiled kernels are used: numba installed and not turned off
 ENABLED = os.environ.get("CONTOURING_ROS_NUMBA", "1") != "0" and importlib.util.find_spec("numba") is not None
@@ -123,30 +124,62 @@ def _planar(parameters, position, theta, filtered, decay, blend, gain, tolerance
                         lo, hi)
 
 
-_KERNELS = {}          # (formula, planar) -> (flow of one position, flow of a batch), compiled for it
+_KERNELS = {}          # (formula, planar) -> (flow of one position, flow of a batch) compiled for it, or None
+
+
+def _numba():
+    """numba, imported on first use; None where it cannot be (installed but broken, e.g. built for another
+    numpy): the pure path runs, with a warning."""
+    try:
+        import numba
+    except Exception as error:          # noqa: BLE001 - any failure of the import means: no kernels
+        _unavailable(f"numba cannot be imported ({type(error).__name__}: {error})")
+        return None
+    return numba
+
+
+def _unavailable(why: str) -> None:
+    warnings.warn(f"contouring_ros: {why}; the Newton estimate runs its pure Python path (the same numbers, "
+                  "slower)", RuntimeWarning, stacklevel=3)
 
 
 def _kernels(formula, planar: bool):
     """The flows compiled for one curve formula, the unrolled planar one (an open planar curve, as the pure
     path takes it) or the general one: copies of the functions above whose ``_formula`` is the formula
-    compiled with the math module's sin, cos and exp in place of curves.py's scalar-or-array ones
-    (error_model "numpy": a division by zero gives inf or nan as numpy's does, not an exception; no
-    fastmath)."""
+    compiled with the math module's sin, cos and exp in place of curves.py's scalar-or-array ones; no
+    fastmath. The flow of one position raises ZeroDivisionError where the pure path's floats do (error_model
+    "python"); the batch's gives inf or nan as the pure path's numpy does (error_model "numpy"). None where
+    numba cannot be imported. numba compiles each at its first call."""
     key = formula, planar
     if key not in _KERNELS:
-        import numba
+        if _numba() is None:
+            _KERNELS[key] = None
+            return None
 
-        def compiled(function, **names):
-            scope = dict(function.__globals__, **names)
-            copy = types.FunctionType(function.__code__, scope, function.__name__, function.__defaults__)
-            return numba.njit(error_model="numpy")(copy)
-        curve = compiled(formula, _sin=math.sin, _cos=math.cos, _exp=math.exp)
-        if planar:
-            flow = compiled(_planar, _flow_planar=compiled(_flow_planar, _formula=curve))
-        else:
-            flow = compiled(_flow_general, _formula=curve)
-        _KERNELS[key] = flow, compiled(_flow_batch, _flow=flow)
+        def flow(error_model):
+            curve = compiled_formula(formula, error_model)
+            if planar:
+                return _compiled(_planar, error_model, _flow_planar=_compiled(_flow_planar, error_model, _formula=curve))
+            return _compiled(_flow_general, error_model, _formula=curve)
+        _KERNELS[key] = flow("python"), _compiled(_flow_batch, "numpy", _flow=flow("numpy"))
     return _KERNELS[key]
+
+
+def _compiled(function, error_model: str, **names):
+    """``function`` compiled by numba (lazily, at its first call) as a copy whose globals ``names`` replace."""
+    import numba
+    scope = dict(function.__globals__, **names)
+    copy = types.FunctionType(function.__code__, scope, function.__name__, function.__defaults__)
+    return numba.njit(error_model=error_model)(copy)
+
+
+def compiled_formula(formula, error_model: str = "python"):
+    """A curve formula (:attr:`~contouring_ros.core.curves.Curve.formula`) compiled with the math module's
+    sin, cos and exp in place of curves.py's scalar-or-array ones, as the kernels call it; None without
+    numba."""
+    if not ENABLED or _numba() is None:
+        return None
+    return _compiled(formula, error_model, _sin=math.sin, _cos=math.cos, _exp=math.exp)
 
 
 def _is_planar(curve) -> bool:
@@ -159,30 +192,38 @@ def formula_of(curve):
     return curve.formula if "formula" in vars(type(curve)) else None
 
 
-_FLOWS = weakref.WeakKeyDictionary()      # curve -> its flow of one position (newton_flow)
+_FLOWS = weakref.WeakKeyDictionary()      # curve -> its flow of one position (newton_flow), or None
 
 
 def newton_flow(curve):
     """The compiled flow of one position for ``curve``: a function (position (n,), theta, filtered, decay,
     blend, gain, tolerance2, cap) -> (theta, filtered, updates, converged) taking floats (``cap`` an int),
-    or None where it does not run compiled (numba not installed or turned off, a curve without a formula).
-    Kept for the curve's lifetime, so that asking at every step costs a look-up."""
+    or None where it does not run compiled (numba not installed, broken or turned off; a curve without a
+    formula). Made once for the curve (its parameters read then: a run writes to no curve) and kept for its
+    lifetime, so that asking at every step costs a look-up."""
     if not ENABLED or formula_of(curve) is None:
         return None
-    flow = _FLOWS.get(curve)
-    if flow is None:
-        flow = _FLOWS[curve] = _flow_for(curve)
-    return flow
+    if curve not in _FLOWS:
+        _FLOWS[curve] = _flow_for(curve)
+    return _FLOWS[curve]
 
 
 def _flow_for(curve):
-    compiled, _ = _kernels(curve.formula, _is_planar(curve))
+    kernels = _kernels(curve.formula, _is_planar(curve))
+    if kernels is None:
+        return None
+    compiled = kernels[0]
     parameters = tuple(float(v) for v in curve.parameters)
     (lo, hi), closed = (float(v) for v in curve.domain), bool(curve.closed)
 
     def flow(position, theta, filtered, decay, blend, gain, tolerance2, cap):
         return compiled(parameters, np.asarray(position, dtype=float), theta, filtered, decay, blend, gain,
                         tolerance2, cap, lo, hi, closed)
+    try:                        # compile now: a failure leaves the curve to the pure path
+        flow(curve.point(lo), lo, 0.0, 0.5, 0.5, 0.0, 1.0, 0)
+    except Exception as error:          # noqa: BLE001 - whatever numba raises, the pure path still runs
+        _unavailable(f"the Newton kernel for {type(curve).__name__} failed ({type(error).__name__}: {error})")
+        return None
     return flow
 
 
@@ -190,10 +231,13 @@ def newton_flow_batch(curve, position, theta, filtered, decay, blend, gain, tole
     """The compiled flow of a batch on ``curve`` (possibly a batch's stacked curve): positions (B, n), every
     other per-member value a float or an array of shape (B, 1). Returns (theta, filtered, iterations,
     capped), each (B, 1), as ``NewtonEstimator._iterate_batch`` leaves them, or None where it does not run
-    compiled."""
-    if not ENABLED or formula_of(curve) is None:
+    compiled (then nothing has changed)."""
+    if not ENABLED or formula_of(curve) is None or position.shape[1] != curve.dimension:
         return None
-    _, batch = _kernels(curve.formula, _is_planar(curve))
+    key = curve.formula, _is_planar(curve)
+    kernels = _kernels(*key)
+    if kernels is None:
+        return None
     b = position.shape[0]
 
     def column(value, dtype=float):
@@ -202,7 +246,12 @@ def newton_flow_batch(curve, position, theta, filtered, decay, blend, gain, tole
     lo, hi = (column(v) for v in curve.domain)
     theta, filtered = column(theta).copy(), column(filtered).copy()
     iterations, capped = np.zeros(b, dtype=np.int64), np.zeros(b, dtype=np.bool_)
-    batch(parameters, np.ascontiguousarray(position, dtype=float), theta, filtered, column(decay), column(blend),
-          column(gain), column(tolerance2), column(cap, np.int64), lo, hi, bool(curve.closed),
-          column(active, np.bool_), iterations, capped)
+    try:
+        kernels[1](parameters, np.ascontiguousarray(position, dtype=float), theta, filtered, column(decay),
+                   column(blend), column(gain), column(tolerance2), column(cap, np.int64), lo, hi, bool(curve.closed),
+                   column(active, np.bool_), iterations, capped)
+    except Exception as error:          # noqa: BLE001 - a failure to compile: the pure path runs from the same state
+        _KERNELS[key] = None
+        _unavailable(f"the Newton batch kernel for {type(curve).__name__} failed ({type(error).__name__}: {error})")
+        return None
     return theta[:, None], filtered[:, None], iterations[:, None].astype(int), capped[:, None]

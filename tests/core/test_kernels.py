@@ -1,4 +1,5 @@
 """The compiled kernels (contouring_ros/core/kernels.py, numba where installed) give the pure path's runs bit for bit."""
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -51,11 +52,30 @@ def _positions(curve, count: int, seed: int = 3):
     return curve.point(theta) + np.random.default_rng(seed).normal(0.0, 3e-4, (count, curve.dimension))
 
 
+def _members(curve, count: int) -> list:
+    """``count`` curves like ``curve``, each with its first parameter a little larger: a batch's stacked
+    curve then has parameters (and for some, a domain) of its own per member."""
+    if isinstance(curve, curves.Parabola):
+        return [curves.Parabola(curve.a, curve.h * (1.0 + 0.05 * j)) for j in range(count)]
+    if isinstance(curve, curves.Butterfly):
+        return [curves.Butterfly(curve.scale * (1.0 + 0.05 * j), curve.center) for j in range(count)]
+    if isinstance(curve, curves.Circle):
+        return [curves.Circle(curve.radius * (1.0 + 0.05 * j), curve.center) for j in range(count)]
+    if isinstance(curve, (curves.Ellipse, curves.FigureEight)):
+        return [type(curve)(curve.a * (1.0 + 0.05 * j), curve.b, curve.center) for j in range(count)]
+    if isinstance(curve, curves.Helix):
+        return [curves.Helix(curve.a * (1.0 + 0.05 * j), curve.b, curve.c, curve.omega, curve.domain[1])
+                for j in range(count)]
+    return [curves.Saddle(curve.a, curve.b, curve.h, curve.omega * (1.0 + 0.05 * j)) for j in range(count)]
+
+
 def _flows(curve, positions, batch: int) -> list:
     """(theta, filtered, iterations, capped) after each position: one estimate alone, and a batch of
-    ``batch`` estimates with their own k' (a stacked number), each member its own offset of the position."""
+    ``batch`` estimates, each with its own k' and its own curve (stacked numbers), each member its own
+    offset of the position."""
     alone = NewtonEstimator(curve, 500.0, 500.0, curve.domain[0], 1e-3)
-    members = batch_stack([NewtonEstimator(curve, 500.0 + 20.0 * j, 500.0, curve.domain[0], 1e-3) for j in range(batch)])
+    members = batch_stack([NewtonEstimator(c, 500.0 + 20.0 * j, 500.0, curve.domain[0], 1e-3)
+                           for j, c in enumerate(_members(curve, batch))])
     offsets = np.linspace(-1e-4, 1e-4, batch)[:, None]
     out = []
     for p in positions:
@@ -70,8 +90,13 @@ def _flows(curve, positions, batch: int) -> list:
 @pytest.mark.parametrize("curve", CURVES, ids=lambda c: type(c).__name__)
 def test_the_compiled_flow_is_the_pure_flow_bit_for_bit_on_every_curve_alone_and_batched(monkeypatch, curve):
     positions = _positions(curve, 150)
-    compiled = _flows(curve, positions, 5)
+    stacked = batch_stack(_members(curve, 5))
+    assert any(isinstance(v, np.ndarray) for v in stacked.parameters)      # the members' curves differ
+    # the compiled paths run (neither falls back to the pure one)
     assert kernels.newton_flow(curve) is not None
+    assert kernels.newton_flow_batch(stacked, np.zeros((5, curve.dimension)), curve.domain[0], 0.0, 0.9, 0.1, 0.5,
+                                     1e-18, 200, np.ones((5, 1), dtype=bool)) is not None
+    compiled = _flows(curve, positions, 5)
     monkeypatch.setattr(kernels, "ENABLED", False)
     assert kernels.newton_flow(curve) is None
     pure = _flows(curve, positions, 5)
@@ -130,12 +155,47 @@ def test_without_numba_or_a_formula_there_is_no_compiled_flow(monkeypatch):
                                      np.ones((2, 1), dtype=bool)) is None
 
 
-def test_every_formula_is_its_curve_s_columns():
-    """The formula the kernel compiles is the curve's own code: columns() is formula(theta, parameters)."""
+@compiled_only
+def test_every_compiled_formula_is_its_curve_s_columns_bit_for_bit():
+    """The formula numba compiles (the math module's sin, cos, exp) gives the point and tangent the curve's
+    columns() give, to the last bit, on every curve, at its ends and inside, on and off its domain."""
     for curve in CURVES:
-        for theta in (curve.domain[0], 0.3 * curve.domain[1], np.linspace(*curve.domain, 7)):
-            assert np.array_equal(curve.derivatives(theta, order=3),
-                                  curves._stack(curve.formula(theta, curve.parameters), theta, 3))
+        formula = kernels.compiled_formula(curve.formula)
+        lo, hi = curve.domain
+        for theta in np.concatenate([[lo, hi, -0.0, 0.0], np.linspace(lo - 1.0, hi + 1.0, 400)]).tolist():
+            point, tangent = formula(theta, curve.parameters)[:2]
+            assert (point, tangent) == tuple(curve.columns(theta)[:2]), (type(curve).__name__, theta)
+
+
+def test_a_broken_numba_leaves_the_pure_path_with_a_warning(monkeypatch):
+    """numba installed but failing to import (built for another numpy, say): the estimate runs its pure path,
+    with the same numbers, and says so once."""
+    monkeypatch.setattr(kernels, "ENABLED", True)
+    monkeypatch.setattr(kernels, "_KERNELS", {})
+    monkeypatch.setattr(kernels, "_FLOWS", __import__("weakref").WeakKeyDictionary())
+    monkeypatch.setattr(kernels, "_numba", lambda: kernels._unavailable("numba cannot be imported (test)"))
+    curve = CURVES[-1]
+    with pytest.warns(RuntimeWarning, match="pure Python path"):
+        assert kernels.newton_flow(curve) is None
+    estimate = NewtonEstimator(curve, 500.0, 500.0, 0.0, 1e-3)
+    estimate._iterate(_positions(curve, 3)[1])
+    assert estimate.iterations > 10
+
+
+def test_a_zero_tangent_raises_as_the_pure_path_does(monkeypatch):
+    """A degenerate curve (|R'| = 0 in floats) raises ZeroDivisionError with numba or without: the kernel's
+    first call finds it (its flow divides as Python's floats do) and leaves the curve to the pure path."""
+    curve, compiled = curves.Circle(1e-170), kernels.ENABLED
+    for enabled in (compiled, False):
+        monkeypatch.setattr(kernels, "ENABLED", enabled)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            with pytest.raises(ZeroDivisionError):
+                NewtonEstimator(curve, 500.0, 500.0, 0.0, 1e-3)._iterate(np.array([0.001, 0.0]))
+    if compiled:
+        flow = kernels._kernels(curve.formula, False)[0]
+        with pytest.raises(ZeroDivisionError):
+            flow(curve.parameters, np.array([0.001, 0.0]), 0.0, 0.0, 0.5, 0.5, 0.5, 1e-18, 10, 0.0, 2 * np.pi, True)
 
 
 def test_the_graph_s_nodes_run_the_pure_path():
