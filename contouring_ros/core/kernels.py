@@ -13,8 +13,8 @@ exp (the functions CPython's math module calls, from the same C library). Every 
 double one in the pure path's order, with no contraction into fused multiply-adds (numba's default), so the
 results are the pure path's bit for bit (tests/core/test_kernels.py, on every analytic curve, alone and in
 batches). Without numba, or with the environment variable ``CONTOURING_ROS_NUMBA=0``, the pure Python and
-numpy path runs. numba is imported, and a curve's kernel compiled (about 2 s), the first time a Newton
-estimate on that kind of curve is built in a process (:func:`newton_flow`).
+numpy path runs. numba is imported, and a curve's kernel compiled (2-3 s), once a process has taken
+:data:`COMPILE_AFTER` steps of the pure flow (a sweep's or a tuning's first runs; never a short run alone).
 """
 from __future__ import annotations
 
@@ -31,6 +31,11 @@ __all__ = ["ENABLED", "compiled_formula", "formula_of", "newton_flow", "newton_f
 
 #: whether the compiled kernels are used: numba installed and not turned off
 ENABLED = os.environ.get("CONTOURING_ROS_NUMBA", "1") != "0" and importlib.util.find_spec("numba") is not None
+#: steps of the pure flow a process takes before it compiles (numba's import and a curve's compilation cost
+#: 2-3 s, about what 50,000 pure steps cost): a short run alone never waits for it, a sweep or a tuning
+#: compiles within its first runs; the numbers are the same either way, even within a run
+COMPILE_AFTER = 50_000
+_pure_steps = 0
 
 # the flows below call these; each compiled copy (:func:`_kernels`) has its own: the curve's formula, the
 # flow of one position
@@ -201,11 +206,21 @@ def newton_flow(curve):
     or None where it does not run compiled (numba not installed, broken or turned off; a curve without a
     formula). Made once for the curve (its parameters read then: a run writes to no curve) and kept for its
     lifetime, so that asking at every step costs a look-up."""
-    if not ENABLED or formula_of(curve) is None:
+    if not ENABLED or formula_of(curve) is None or not _worth_compiling(1):
         return None
     if curve not in _FLOWS:
         _FLOWS[curve] = _flow_for(curve)
     return _FLOWS[curve]
+
+
+def _worth_compiling(steps: int) -> bool:
+    """Whether this process has taken :data:`COMPILE_AFTER` steps of the pure flow (counting ``steps`` more
+    until it has)."""
+    global _pure_steps
+    if _pure_steps >= COMPILE_AFTER:
+        return True
+    _pure_steps += steps
+    return False
 
 
 def _flow_for(curve):
@@ -232,7 +247,8 @@ def newton_flow_batch(curve, position, theta, filtered, decay, blend, gain, tole
     other per-member value a float or an array of shape (B, 1). Returns (theta, filtered, iterations,
     capped), each (B, 1), as ``NewtonEstimator._iterate_batch`` leaves them, or None where it does not run
     compiled (then nothing has changed)."""
-    if not ENABLED or formula_of(curve) is None or position.shape[1] != curve.dimension:
+    if not ENABLED or formula_of(curve) is None or position.shape[1] != curve.dimension \
+            or not _worth_compiling(position.shape[0]):
         return None
     key = curve.formula, _is_planar(curve)
     kernels = _kernels(*key)

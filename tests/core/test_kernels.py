@@ -40,6 +40,22 @@ def _same(a, b):
 
 compiled_only = pytest.mark.skipif(not kernels.ENABLED, reason="numba is not installed (the pure path is the only one)")
 
+
+@pytest.fixture(autouse=True)
+def compile_at_once(monkeypatch):
+    """The kernels compile at the first step (a process compiles after COMPILE_AFTER pure steps)."""
+    monkeypatch.setattr(kernels, "COMPILE_AFTER", 0)
+
+
+def test_a_process_compiles_only_after_its_pure_steps(monkeypatch):
+    """A short run alone never waits for numba: the flow runs pure for COMPILE_AFTER steps of the process."""
+    monkeypatch.setattr(kernels, "COMPILE_AFTER", 3)
+    monkeypatch.setattr(kernels, "_pure_steps", 0)
+    monkeypatch.setattr(kernels, "ENABLED", True)
+    monkeypatch.setattr(kernels, "_flow_for", lambda curve: "compiled")
+    monkeypatch.setattr(kernels, "_FLOWS", __import__("weakref").WeakKeyDictionary())
+    assert [kernels.newton_flow(CURVES[0]) for _ in range(5)] == [None, None, None, "compiled", "compiled"]
+
 #: every curve with a formula, open and closed, planar and in space
 CURVES = [curves.Parabola(0.02, 50.0), curves.Circle(0.05, (0.01, -0.02)), curves.Ellipse(0.03, 0.01, (0.03, 0.0)),
           curves.FigureEight(0.03, 0.02, (0.0, 0.01)), curves.Helix(0.02, 0.03, 0.005, 2.0 * np.pi, 1.0),
