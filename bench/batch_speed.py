@@ -172,6 +172,7 @@ def main() -> None:
     args = parser.parse_args()
     modes = ["compiled", "pure"] if COMPILED and not args.pure else ["pure"]
     if COMPILED:                    # compile the kernels of the Newton cases' curve before anything is timed
+        kernels.COMPILE_AFTER = 0   # (a process compiles after its first pure steps; here, from the first)
         parabola = Parabola(0.02, 50.0)
         kernels.newton_flow(parabola)(np.zeros(2), 0.0, 0.0, 0.9, 0.1, 0.5, 1e-18, 200)
         kernels.newton_flow_batch(parabola, np.zeros((2, 2)), 0.0, 0.0, 0.9, 0.1, 0.5, 1e-18, 200,
