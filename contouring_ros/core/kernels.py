@@ -7,9 +7,10 @@ float operations; alone, that is most of a Newton run's time in Python. Where nu
 Curve.formula` (the analytic curves; not the spline, the tool path or a plugin's curve), one member after
 another for a batch.
 
-The kernel is the pure path's code: the flow below is :meth:`NewtonEstimator._iterate`'s, statement for
-statement, and the curve is the curve's own formula function compiled with the math module's sin, cos and
-exp (the functions CPython's math module calls, from the same C library). Every operation is an IEEE
+The kernel is the pure path's code: a copy of the flow the pure path runs (:func:`~contouring_ros.core.
+estimators.foot_point_flow` and its planar form), compiled with the curve's own formula function in place of
+the curve's columns, itself compiled with the math module's sin, cos and exp (the functions CPython's math
+module calls, from the same C library). Every operation is an IEEE
 double one in the pure path's order, with no contraction into fused multiply-adds (numba's default), so the
 results are the pure path's bit for bit (tests/core/test_kernels.py, on every analytic curve, alone and in
 batches). Without numba, or with the environment variable ``CONTOURING_ROS_NUMBA=0``, the pure Python and
@@ -37,74 +38,9 @@ ENABLED = os.environ.get("CONTOURING_ROS_NUMBA", "1") != "0" and importlib.util.
 COMPILE_AFTER = 50_000
 _pure_steps = 0
 
-# the flows below call these; each compiled copy (:func:`_kernels`) has its own: the curve's formula, the
-# flow of one position
-_formula = _flow = None
-
-
-def _flow_planar(parameters, px, py, theta, filtered, decay, blend, gain, tolerance2, cap, lo, hi):
-    """NewtonEstimator._iterate's unrolled planar flow on an open curve from (theta, filtered) for the
-    position (px, py): (theta, filtered, updates made, converged)."""
-    n = 0
-    converged = False
-    while True:
-        columns = _formula(theta, parameters)
-        rx, ry = columns[0]
-        tx, ty = columns[1]
-        gradient = (rx - px) * tx + (ry - py) * ty         # g = E^T R', eq. 9
-        hessian = tx * tx + ty * ty                         # h ~= |R'|^2, eq. 11
-        following = decay * filtered + blend * (gradient / hessian)
-        new = theta - gain * following
-        if lo > new:                      # min(max(new, lo), hi) as Python's builtins take it (a nan stays)
-            new = lo
-        if hi < new:
-            new = hi
-        moved = new - theta
-        if ((gradient * gradient <= tolerance2 * hessian or (theta == lo and gradient > 0.0)
-             or (theta == hi and gradient < 0.0)) and moved * moved * hessian <= tolerance2):
-            converged = True
-            break
-        if n == cap:
-            break
-        theta, filtered = new, following
-        n += 1
-    return theta, filtered, n, converged
-
-
-def _flow_general(parameters, position, theta, filtered, decay, blend, gain, tolerance2, cap, lo, hi, closed):
-    """NewtonEstimator._iterate's flow in any dimension, on an open or a closed curve, for the position
-    (an array (n,)): (theta, filtered, updates made, converged)."""
-    n = 0
-    converged = False
-    while True:
-        columns = _formula(theta, parameters)
-        point, tangent = columns[0], columns[1]
-        gradient = 0.0
-        hessian = 0.0
-        for i in range(len(point)):
-            gradient += (point[i] - position[i]) * tangent[i]      # g = E^T R', eq. 9
-            hessian += tangent[i] * tangent[i]                     # h ~= |R'|^2, eq. 11
-        following = decay * filtered + blend * (gradient / hessian)
-        if closed:
-            moved = -gain * following
-            new = lo + (theta + moved - lo) % (hi - lo)
-            at_end = False
-        else:
-            new = theta - gain * following
-            if lo > new:
-                new = lo
-            if hi < new:
-                new = hi
-            moved = new - theta
-            at_end = (theta == lo and gradient > 0.0) or (theta == hi and gradient < 0.0)
-        if (gradient * gradient <= tolerance2 * hessian or at_end) and moved * moved * hessian <= tolerance2:
-            converged = True
-            break
-        if n == cap:
-            break
-        theta, filtered = new, following
-        n += 1
-    return theta, filtered, n, converged
+# the batch flow below calls the flow of one position, the planar wrapper the planar flow; each compiled copy
+# (:func:`_kernels`) has its own
+_flow = _flow_planar = None
 
 
 def _flow_batch(parameters, position, theta, filtered, decay, blend, gain, tolerance2, cap, lo, hi, closed, active,
@@ -124,7 +60,8 @@ def _flow_batch(parameters, position, theta, filtered, decay, blend, gain, toler
 
 
 def _planar(parameters, position, theta, filtered, decay, blend, gain, tolerance2, cap, lo, hi, closed):
-    """:func:`_flow_planar` with :func:`_flow_general`'s arguments (``closed`` is False)."""
+    """The planar flow (:func:`~contouring_ros.core.estimators.foot_point_flow_planar`) with the general one's
+    arguments (:func:`~contouring_ros.core.estimators.foot_point_flow`; ``closed`` is False)."""
     return _flow_planar(parameters, position[0], position[1], theta, filtered, decay, blend, gain, tolerance2, cap,
                         lo, hi)
 
@@ -150,22 +87,26 @@ def _unavailable(why: str) -> None:
 
 def _kernels(formula, planar: bool):
     """The flows compiled for one curve formula, the unrolled planar one (an open planar curve, as the pure
-    path takes it) or the general one: copies of the functions above whose ``_formula`` is the formula
-    compiled with the math module's sin, cos and exp in place of curves.py's scalar-or-array ones; no
-    fastmath. The flow of one position raises ZeroDivisionError where the pure path's floats do (error_model
-    "python"); the batch's gives inf or nan as the pure path's numpy does (error_model "numpy"). None where
-    numba cannot be imported. numba compiles each at its first call."""
+    path takes it) or the general one: copies of the pure path's flow functions (core/estimators.py) whose
+    ``_formula`` is the formula compiled with the math module's sin, cos and exp in place of curves.py's
+    scalar-or-array ones, and the batch flow above around them; no fastmath. The flow of one position raises
+    ZeroDivisionError where the pure path's floats do (error_model "python"); the batch's gives inf or nan as
+    the pure path's numpy does (error_model "numpy"). None where numba cannot be imported. numba compiles each
+    at its first call."""
     key = formula, planar
     if key not in _KERNELS:
         if _numba() is None:
             _KERNELS[key] = None
             return None
 
+        from .estimators import foot_point_flow, foot_point_flow_planar
+
         def flow(error_model):
             curve = compiled_formula(formula, error_model)
             if planar:
-                return _compiled(_planar, error_model, _flow_planar=_compiled(_flow_planar, error_model, _formula=curve))
-            return _compiled(_flow_general, error_model, _formula=curve)
+                return _compiled(_planar, error_model,
+                                 _flow_planar=_compiled(foot_point_flow_planar, error_model, _formula=curve))
+            return _compiled(foot_point_flow, error_model, _formula=curve)
         _KERNELS[key] = flow("python"), _compiled(_flow_batch, "numpy", _flow=flow("numpy"))
     return _KERNELS[key]
 
