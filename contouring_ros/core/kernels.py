@@ -8,7 +8,7 @@ Curve.formula` (the analytic curves; not the spline, the tool path or a plugin's
 another for a batch.
 
 The kernel is the pure path's code: a copy of the flow the pure path runs (:func:`~contouring_ros.core.
-estimators.foot_point_flow` and its planar form), compiled with the curve's own formula function in place of
+foot_point.foot_point_flow` and its planar form), compiled with the curve's own formula function in place of
 the curve's columns, itself compiled with the math module's sin, cos and exp (the functions CPython's math
 module calls, from the same C library). Every operation is an IEEE
 double one in the pure path's order, with no contraction into fused multiply-adds (numba's default), so the
@@ -27,6 +27,8 @@ import warnings
 import weakref
 
 import numpy as np
+
+from .foot_point import foot_point_flow, foot_point_flow_planar
 
 __all__ = ["ENABLED", "compiled_formula", "formula_of", "newton_flow", "newton_flow_batch"]
 
@@ -60,8 +62,8 @@ def _flow_batch(parameters, position, theta, filtered, decay, blend, gain, toler
 
 
 def _planar(parameters, position, theta, filtered, decay, blend, gain, tolerance2, cap, lo, hi, closed):
-    """The planar flow (:func:`~contouring_ros.core.estimators.foot_point_flow_planar`) with the general one's
-    arguments (:func:`~contouring_ros.core.estimators.foot_point_flow`; ``closed`` is False)."""
+    """The planar flow (:func:`~contouring_ros.core.foot_point.foot_point_flow_planar`) with the general one's
+    arguments (:func:`~contouring_ros.core.foot_point.foot_point_flow`; ``closed`` is False)."""
     return _flow_planar(parameters, position[0], position[1], theta, filtered, decay, blend, gain, tolerance2, cap,
                         lo, hi)
 
@@ -87,7 +89,7 @@ def _unavailable(why: str) -> None:
 
 def _kernels(formula, planar: bool):
     """The flows compiled for one curve formula, the unrolled planar one (an open planar curve, as the pure
-    path takes it) or the general one: copies of the pure path's flow functions (core/estimators.py) whose
+    path takes it) or the general one: copies of the pure path's flow functions (core/foot_point.py) whose
     ``_formula`` is the formula compiled with the math module's sin, cos and exp in place of curves.py's
     scalar-or-array ones, and the batch flow above around them; no fastmath. The flow of one position raises
     ZeroDivisionError where the pure path's floats do (error_model "python"); the batch's gives inf or nan as
@@ -98,8 +100,6 @@ def _kernels(formula, planar: bool):
         if _numba() is None:
             _KERNELS[key] = None
             return None
-
-        from .estimators import foot_point_flow, foot_point_flow_planar
 
         def flow(error_model):
             curve = compiled_formula(formula, error_model)
