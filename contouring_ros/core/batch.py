@@ -251,6 +251,11 @@ def simulate_batch(loops: list[ControlLoop]) -> list[SimulationResult]:
     table = loops[0].reference_table
     if clocked or table is None or any(loop.reference_table is not table for loop in loops):
         table = None
+    if table is not None:       # every step's reference for every member, (m, b, ...): a step takes views
+        rows = [table.row(k) for k in range(m)]
+        memos = [row.memo for row in rows]
+        path = [np.repeat(np.stack([getattr(row, name) for row in rows]), b, axis=1)
+                for name in ("theta", "theta_dot", "theta_ddot", "position", "velocity", "acceleration")]
     time = np.empty(m)
     theta, est_theta, est_signed = np.empty((m, b)), np.empty((m, b)), np.empty((m, b))
     ref_pos, ref_vel, ref_acc, positions, velocities, est_vector, corrections, commands = (
@@ -267,10 +272,7 @@ def simulate_batch(loops: list[ControlLoop]) -> list[SimulationResult]:
             positions[k, :, column], velocities[k, :, column] = plant.measure()
         position, velocity = positions[k].copy(), velocities[k].copy()
         if table is not None:
-            row = table.row(k)
-            ref = Reference(*(np.repeat(v, b, axis=0) for v in (row.theta, row.theta_dot, row.theta_ddot,
-                                                                 row.position, row.velocity, row.acceleration)),
-                            row.memo)
+            ref = Reference(*(values[k] for values in path), memos[k])
         else:
             times = _times(clocks, k, t, positions, velocities) if clocked else np.full((b, 1), t)
             ref = reference_rows(curve, schedule, times)

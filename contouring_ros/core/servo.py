@@ -23,7 +23,7 @@ __all__ = ["PIDFeedforwardServo", "IntegralSlidingModeServo", "DisturbanceObserv
 
 def saturation(u: float) -> float:
     """sat(u) = u for |u| <= 1, sign(u) otherwise (paper 000, after eq. 20); elementwise on arrays."""
-    return np.clip(u, -1.0, 1.0) if isinstance(u, np.ndarray) else max(-1.0, min(1.0, u))
+    return np.minimum(np.maximum(u, -1.0), 1.0) if isinstance(u, np.ndarray) else max(-1.0, min(1.0, u))
 
 
 def _inverse_first_order(ref_vel: float, ref_acc: float, gain: float, time_constant: float) -> float:

@@ -371,3 +371,42 @@ def test_the_robustness_floor_and_the_checks_after_the_search():
     checked = [e for e in tuned.evaluations if math.isfinite(e.worst)]
     best = min(checked, key=lambda e: e.worst)
     assert tuned.gains == best.gains and tuned.robust_worst == pytest.approx(best.worst / best.outcome.tace)
+
+
+def test_two_runs_compared_row_by_row_name_what_a_protocol_change_moved(tmp_path):
+    """tools/compare_benchmarks.py: a row whose error doubled, a verdict that flipped, a status that changed
+    and a new best combination are each counted and named; a run against itself changes nothing."""
+    import importlib.util
+    from pathlib import Path
+    root = Path(__file__).resolve().parents[2]
+    spec = importlib.util.spec_from_file_location("compare_benchmarks", root / "tools" / "compare_benchmarks.py")
+    tool = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(tool)
+    reference = root / "reports" / "benchmark.csv"
+    a = tool.read_rows(reference)
+    same = tool.compare(a, tool.read_rows(reference), say=lambda line: None)
+    assert same["status_changed"] == same["verdicts_changed"] == 0 and same["best_same"] == same["scenarios"]
+    assert same["within10"] == same["compared"] > 100 and same["median"] == 1.0
+    with open(reference, newline="") as stream:
+        rows = list(csv.DictReader(stream))
+    tuned = [r for r in rows if r["status"] == "ok" and r["tace_verdict"] == "higher" and r["proposed"] != "yes"]
+    tuned[0]["tace_median_um"] = str(2.5 * float(tuned[0]["tace_median_um"]))
+    tuned[1]["tace_verdict"] = "lower"
+    tuned[2]["status"] = "not robust: the test's"
+    scenario = tuned[3]["scenario"]
+    for r in rows:
+        if r["scenario"] == scenario and r["status"] == "ok" and r["proposed"] != "yes":
+            r["tace_ratio"] = r["mce_ratio"] = "5"
+    tuned[3]["tace_ratio"] = tuned[3]["mce_ratio"] = "0.01"
+    changed = tmp_path / "changed.csv"
+    with open(changed, "w", newline="") as stream:
+        writer = csv.DictWriter(stream, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    lines = []
+    figures = tool.compare(a, tool.read_rows(changed), say=lines.append)
+    assert figures["worse2"] == 1 and figures["verdicts_changed"] == 1 and figures["status_changed"] == 1
+    assert figures["best_same"] == figures["scenarios"] - 1
+    text = "\n".join(lines)
+    assert f"{tuned[1]['estimator']} + {tuned[1]['controller']} / {tuned[1]['servo']}: higher" in text
+    assert "ok -> not robust" in text and "(changed)" in text
