@@ -21,11 +21,13 @@ from __future__ import annotations
 import argparse
 import csv
 import math
+import os
 import sys
 
 import numpy as np
 
 KEY = ("scenario", "estimator", "controller", "servo")
+NEEDED = ("status", "proposed", "tace_median_um", "tace_verdict", "tace_ratio", "tace_ratio_lo", "tace_ratio_hi", "mce_ratio")
 
 
 def _float(text: str) -> float:
@@ -39,8 +41,11 @@ def read_rows(path) -> dict:
     """{(scenario, estimator, controller, servo): row} of a benchmark CSV, the rows that cannot be paired
     left out."""
     with open(path, newline="") as stream:
-        return {tuple(r[k] for k in KEY): r for r in csv.DictReader(stream)
-                if not r["status"].startswith("cannot be paired")}
+        reader = csv.DictReader(stream)
+        missing = [c for c in KEY + NEEDED if c not in (reader.fieldnames or ())]
+        if missing:
+            raise ValueError(f"{path} is not a benchmark CSV: no column {', '.join(missing)}")
+        return {tuple(r[k] for k in KEY): r for r in reader if not r["status"].startswith("cannot be paired")}
 
 
 def _kind(status: str) -> str:
@@ -127,10 +132,13 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     try:
         a, b = read_rows(args.a), read_rows(args.b)
-    except (OSError, KeyError, csv.Error) as error:
+    except (OSError, ValueError, csv.Error) as error:
         print(f"compare_benchmarks: cannot read the CSVs: {error}", file=sys.stderr)
         return 2
-    compare(a, b, args.list)
+    try:
+        compare(a, b, args.list)
+    except BrokenPipeError:             # the reader stopped early (| head): no traceback
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
     return 0
 
 
