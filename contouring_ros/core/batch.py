@@ -252,10 +252,8 @@ def simulate_batch(loops: list[ControlLoop]) -> list[SimulationResult]:
     if clocked or table is None or any(loop.reference_table is not table for loop in loops):
         table = None
     if table is not None:       # every step's reference for every member, (m, b, ...): a step takes views
-        rows = [table.row(k) for k in range(m)]
-        memos = [row.memo for row in rows]
-        path = [np.repeat(np.stack([getattr(row, name) for row in rows]), b, axis=1)
-                for name in ("theta", "theta_dot", "theta_ddot", "position", "velocity", "acceleration")]
+        stacked, memos = table.stacked_rows(m)
+        path = [np.repeat(values, b, axis=1) for values in stacked]
     time = np.empty(m)
     theta, est_theta, est_signed = np.empty((m, b)), np.empty((m, b)), np.empty((m, b))
     ref_pos, ref_vel, ref_acc, positions, velocities, est_vector, corrections, commands = (

@@ -351,6 +351,7 @@ class ReferenceTable:
         self._ahead = {}           # count -> the positions (count, n) of the preview of step k, the scalar path
         self._rows = []            # Reference of step k with a leading batch axis of 1, the batch path
         self._rows_ahead = {}      # count -> positions (1, count, n), the batch path
+        self._stacked = {}         # steps -> the batch path's rows 0 .. steps - 1 stacked (stacked_rows)
 
     def __deepcopy__(self, memo):
         return self                # shared by every run along the path (a batch copies its loops)
@@ -381,6 +382,18 @@ class ReferenceTable:
         and schedule are the path's own: ``batch_read_only``; the times a column), with a batch axis of one:
         theta (1, 1), position (1, n) ..."""
         return self._extend(self._rows, k, self._row)
+
+    def stacked_rows(self, steps: int) -> tuple:
+        """((theta, theta_dot, theta_ddot, position, velocity, acceleration), memos) of :meth:`row` 0 .. steps
+        - 1: each field stacked over the steps, (steps, 1, ...), read-only, and each row's memo; computed once
+        for every batch along the path (a batch repeats them for its members)."""
+        stacked = self._stacked.get(steps)
+        if stacked is None:
+            rows = [self.row(k) for k in range(steps)]
+            stacked = (tuple(_frozen(np.stack([getattr(row, name) for row in rows])) for name in (
+                "theta", "theta_dot", "theta_ddot", "position", "velocity", "acceleration")), [row.memo for row in rows])
+            self._stacked[steps] = stacked         # two threads at once compute the same arrays
+        return stacked
 
     def row_ahead(self, k: int, count: int) -> np.ndarray:
         """The positions (1, count, n) of step k's preview as a batch computes them."""
