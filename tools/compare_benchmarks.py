@@ -26,6 +26,8 @@ import sys
 
 import numpy as np
 
+from contouring_ros.benchmark import best_other_rank
+
 KEY = ("scenario", "estimator", "controller", "servo")
 NEEDED = ("status", "proposed", "tace_median_um", "tace_verdict", "tace_ratio", "tace_ratio_lo", "tace_ratio_hi", "mce_ratio")
 
@@ -54,14 +56,15 @@ def _kind(status: str) -> str:
 
 def best_other(rows: dict, scenario: str):
     """The label of the row the report puts against the proposed method in ``scenario``
-    (:func:`contouring_ros.benchmark.paper_best`: lowest larger median ratio of MCE and TACE), or None."""
+    (:func:`contouring_ros.benchmark.best_other_rank`, as :func:`~contouring_ros.benchmark.paper_best` ranks
+    its rows), or None."""
     others = []
     for key, row in rows.items():
         if key[0] != scenario or row["proposed"] == "yes" or row["status"] != "ok":
             continue
         tace, mce = _float(row["tace_ratio"]), _float(row["mce_ratio"])
         if math.isfinite(tace) and math.isfinite(mce):
-            others.append(((max(tace, mce), tace), key))
+            others.append((best_other_rank(tace, mce), key))
     return _combination(min(others)[1]) if others else None
 
 
