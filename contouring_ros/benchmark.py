@@ -842,6 +842,26 @@ def _excluded_table(rows: list) -> list:
     return lines
 
 
+def _searches_text(tuned: list, protocol: Protocol) -> str:
+    """With several searches per combination (:attr:`Protocol.searches`): which one each tuned row kept, and
+    how far its searches' chosen nominal TACEs lie apart (the larger / the smaller, robust searches only)."""
+    if protocol.searches < 2 or not tuned:
+        return ""
+    kept = [getattr(r.tuned, "search", 0) for r in tuned]
+    counts = ", ".join(f"search {i + 1} in {kept.count(i)}" for i in range(protocol.searches))
+    spreads = []
+    for r in tuned:
+        values = [v for v in getattr(r.tuned, "search_tace", []) if math.isfinite(v) and v > 0]
+        if len(values) > 1:
+            spreads.append(max(values) / min(values))
+    text = f" **Searches**: each combination's best of {protocol.searches}, kept: {counts} of {len(tuned)} rows"
+    if spreads:
+        text += (f"; the largest of a row's searches' nominal TACEs over its smallest: median "
+                 f"{float(np.median(spreads)):.3g}x, at least 2x in {sum(v >= 2.0 for v in spreads)} of "
+                 f"{len(spreads)} rows (a single search would have given any of them)")
+    return text + "."
+
+
 def benchmark_report(rows: list, families: list, protocol: Protocol, where: str,
                      heatmap: str = "benchmark_heatmap.png", notes: dict | None = None,
                      pareto: dict | None = None) -> str:
@@ -895,7 +915,7 @@ def benchmark_report(rows: list, families: list, protocol: Protocol, where: str,
         f"- **Where the search ended**: {len(at_bound)} of {len(tuned)} tuned combinations have a gain at an "
         f"end of its span ({len(upper)} at an upper bound, where a larger gain might do better; the others "
         f"with a gain switched off, an optimum). {len(not_robust)} not robust; {len(none)} without an admissible "
-        "point.", "",
+        "point." + _searches_text(tuned, protocol), "",
         f"![TACE relative to the proposed method]({heatmap})", "",
         "## Per paper: the best combination against the proposed method", ""]
     for paper in sorted({f.paper for f in families}):

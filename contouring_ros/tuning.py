@@ -81,7 +81,7 @@ __all__ = ["REALISTIC", "SATURATION_MARGIN", "varied_parameters", "Protocol", "O
            "Evaluation", "Tuned", "gain_keys", "anchors", "machine_settings", "perturbations", "draw_settings",
            "experiment_for", "fit_to_machine", "section_with_gains",
            "experiment_margins", "worst_margins", "loop_robustness", "MS_LIMIT", "run_outcomes", "worst_case", "minimise",
-           "nelder_mead_restarts", "tune", "interval", "pareto_front"]
+           "nelder_mead_restarts", "Search", "best_search", "tune", "interval", "pareto_front"]
 
 #: plant keys of the realistic machine (a key the scenario file sets is kept)
 REALISTIC = {"encoder_resolution": 1e-7, "measurement_noise": 5e-8, "command_delay": 1,
@@ -114,7 +114,8 @@ class Protocol:
     ms_limit: bool = True          # refuse points whose linear loop has Ms over MS_LIMIT (see loop_robustness)
     draws: int = 8                 # noise seeds x model-mismatch draws of the interval
     mismatch: float = 0.1          # model mismatch of a draw: each plant parameter x U(1 - this, 1 + this)
-    seed: int = 1                  # CMA-ES seed
+    seed: int = 1                  # CMA-ES seed (and the Sobol points'); search i of searches uses seed + i
+    searches: int = 1              # independent searches per combination; the best of them is kept (:func:`best_search`)
     global_share: float = 0.5      # share of the evaluations for CMA-ES; the rest polish with Nelder-Mead
     polish_step: float = 0.3       # Nelder-Mead's first simplex [decades]
     global_step: float = 2.0       # CMA-ES's first step [decades]
@@ -129,7 +130,9 @@ class Protocol:
                 f"{f'linear loops stable with Ms <= {MS_LIMIT:g}; ' if self.ms_limit else ''}robust: stable at "
                 f"+-{100 * self.perturbation:g}% of each plant parameter with TACE <= {self.robust_factor:g} x "
                 f"nominal, or no worse than the proposed method's worst there with the paper's gains; "
-                f"{self.draws} draws (noise seed, +-{100 * self.mismatch:g}% model mismatch)")
+                f"{self.draws} draws (noise seed, +-{100 * self.mismatch:g}% model mismatch)"
+                + (f"; the best of {self.searches} such searches (seeds {self.seed} to {self.seed + self.searches - 1}: "
+                   f"the robust chosen point with the lowest nominal TACE)" if self.searches > 1 else ""))
 
 
 @dataclass(frozen=True)
@@ -177,6 +180,8 @@ class Tuned:
     margins: object = None                             # worst_margins of the tuned loop on the machine, if linear
     status: str = "ok"
     cpu: float = math.nan                              # CPU seconds the tuning, its checks and draws took
+    search: int = 0                                    # which of the Protocol.searches searches was kept
+    search_tace: list = field(default_factory=list)    # each search's chosen nominal TACE [m] (nan: none)
 
     @property
     def ok(self) -> bool:
@@ -580,6 +585,35 @@ def loop_robustness(experiment) -> tuple | None:
     return worst
 
 
+@dataclass
+class Search:
+    """What one search of :func:`tune` ends with: the chosen Evaluation (None: no admissible point), the
+    status it gives the combination and the chosen point's worst TACE over the perturbations / its nominal."""
+
+    chosen: Evaluation | None
+    status: str
+    robust_worst: float = math.nan
+
+    @property
+    def tace(self) -> float:
+        """The chosen point's nominal TACE (nan where there is none or it diverged)."""
+        return self.chosen.outcome.tace if self.chosen is not None else math.nan
+
+
+def best_search(searches: list) -> Search:
+    """The search a combination keeps from its independent searches (:attr:`Protocol.searches`), judged by
+    what each search itself measured, never by the draws: a robust chosen point with the lowest nominal
+    TACE; where no search found one, a not-robust point with the lowest worst case over the perturbations;
+    where none found an admissible point, the first search's status. Ties go to the earlier search."""
+    robust = [s for s in searches if s.status == "ok" and math.isfinite(s.tace)]
+    if robust:
+        return min(robust, key=lambda s: s.tace)
+    fallback = [s for s in searches if s.chosen is not None]
+    if fallback:
+        return min(fallback, key=lambda s: s.chosen.worst if math.isfinite(s.chosen.worst) else math.inf)
+    return searches[0]
+
+
 def tune(data: dict, sections: dict, keys: tuple, machine: dict, noise_limit: float, from_time: float,
          protocol: Protocol, where: str = "tuning", optimiser=None, robust_floor: float = 0.0) -> Tuned:
     """Tune the gains ``keys`` of ``sections['/ccc']`` (see the module docstring) on ``data`` with the
@@ -626,7 +660,7 @@ def tune(data: dict, sections: dict, keys: tuple, machine: dict, noise_limit: fl
         return measure_many([gains])[0]
 
     checks = perturbations(data, protocol.perturbation)
-    incumbent = []             # the robust point with the lowest TACE so far (at most one)
+    incumbent = []             # the robust point with the lowest TACE so far in this search (at most one)
 
     def check(candidate: Evaluation) -> bool:
         """Robustness: every +-perturbation run stable, with its TACE at most robust_factor x the candidate's
@@ -667,80 +701,92 @@ def tune(data: dict, sections: dict, keys: tuple, machine: dict, noise_limit: fl
         return evaluate_many([gains])[0]
 
     anchor = anchors(ccc, keys)
-    evaluate({k: _magnitude(ccc[k]) for k in keys})             # the file's gains
-    if keys:
-        low = [math.log10(anchor[k]) - protocol.decades for k in keys]
-        high = [math.log10(anchor[k]) + protocol.decades for k in keys]
-        x0 = [math.log10(_magnitude(ccc[k])) if _magnitude(ccc[k]) > 0 else math.log10(anchor[k]) - 1.0
-              for k in keys]
 
-        def objective(x):
-            return evaluate(_gains_from(x, keys, anchor, protocol.decades)).objective
+    def search(search_protocol: Protocol) -> Search:
+        """One search from the file's gains (its seed: ``search_protocol.seed``) and the choice it ends with."""
+        incumbent.clear()
+        first = len(tuned.evaluations)
+        evaluate({k: _magnitude(ccc[k]) for k in keys})             # the file's gains
+        if keys:
+            low = [math.log10(anchor[k]) - protocol.decades for k in keys]
+            high = [math.log10(anchor[k]) + protocol.decades for k in keys]
+            x0 = [math.log10(_magnitude(ccc[k])) if _magnitude(ccc[k]) > 0 else math.log10(anchor[k]) - 1.0
+                  for k in keys]
 
-        def objectives(xs):
-            return [e.objective for e in evaluate_many([_gains_from(x, keys, anchor, protocol.decades) for x in xs])]
-        objective.many = objectives
-        # a coarse scan first: every gain scaled together by each of Protocol.scan (a file's gains may sit
-        # decades from where the loop acts), then quasi-random points over the whole box (a basin where one
-        # gain is off or decades from the others); the search starts from the best of all of them
-        values = {tuple(x0): tuned.evaluations[0].objective}
-        starts = [[min(max(v + shift, lo), hi) for v, lo, hi in zip(x0, low, high)] for shift in protocol.scan]
-        if protocol.design:
-            from scipy.stats import qmc
-            unit = qmc.Sobol(len(keys), scramble=True, seed=protocol.seed).random(protocol.design)
-            starts += qmc.scale(unit, low, high).tolist()
-        fresh = []
-        for x in starts:
-            if tuple(x) not in values and tuple(x) not in map(tuple, fresh):
-                fresh.append(x)
-        fresh = fresh[:max(protocol.evaluations - 1 - len(tuned.evaluations), 0)]
-        values.update(zip(map(tuple, fresh), objectives(fresh)))
-        start = list(min(values, key=values.get))
-        (optimiser or minimise)(objective, start, low, high, protocol.evaluations - len(tuned.evaluations), protocol)
-    # the admissible points not checked yet that beat the incumbent, best first
-    waiting = sorted((e for e in tuned.evaluations if e.admissible and math.isnan(e.worst)
-                      and (not incumbent or e.outcome.tace < incumbent[0].outcome.tace)), key=lambda e: e.outcome.tace)
-    for evaluation in waiting[:protocol.final_checks]:
-        judge(evaluation)
-        if incumbent and incumbent[0] is evaluation:
-            break
-    if incumbent:
-        chosen = incumbent[0]
-        tuned.robust_worst = chosen.worst / chosen.outcome.tace
-    else:
+            def objective(x):
+                return evaluate(_gains_from(x, keys, anchor, protocol.decades)).objective
+
+            def objectives(xs):
+                return [e.objective for e in evaluate_many([_gains_from(x, keys, anchor, protocol.decades) for x in xs])]
+            objective.many = objectives
+            # a coarse scan first: every gain scaled together by each of Protocol.scan (a file's gains may sit
+            # decades from where the loop acts), then quasi-random points over the whole box (a basin where one
+            # gain is off or decades from the others); the search starts from the best of all of them
+            values = {tuple(x0): tuned.evaluations[first].objective}
+            starts = [[min(max(v + shift, lo), hi) for v, lo, hi in zip(x0, low, high)] for shift in protocol.scan]
+            if protocol.design:
+                from scipy.stats import qmc
+                unit = qmc.Sobol(len(keys), scramble=True, seed=search_protocol.seed).random(protocol.design)
+                starts += qmc.scale(unit, low, high).tolist()
+            fresh = []
+            for x in starts:
+                if tuple(x) not in values and tuple(x) not in map(tuple, fresh):
+                    fresh.append(x)
+            fresh = fresh[:max(protocol.evaluations - 1 - (len(tuned.evaluations) - first), 0)]
+            values.update(zip(map(tuple, fresh), objectives(fresh)))
+            start = list(min(values, key=values.get))
+            (optimiser or minimise)(objective, start, low, high,
+                                    protocol.evaluations - (len(tuned.evaluations) - first), search_protocol)
+        mine = tuned.evaluations[first:]
+        # the admissible points not checked yet that beat the incumbent, best first
+        waiting = sorted((e for e in mine if e.admissible and math.isnan(e.worst)
+                          and (not incumbent or e.outcome.tace < incumbent[0].outcome.tace)), key=lambda e: e.outcome.tace)
+        for evaluation in waiting[:protocol.final_checks]:
+            judge(evaluation)
+            if incumbent and incumbent[0] is evaluation:
+                break
+        if incumbent:
+            chosen = incumbent[0]
+            return Search(chosen, "ok", chosen.worst / chosen.outcome.tace)
         # no robust point in the search: the best stable point that met the other constraints, backed off
         # a quarter decade at a time (every gain together, toward more margin)
-        near = sorted((e for e in tuned.evaluations if e.outcome.ok or e.outcome.failure.startswith("not robust")),
+        near = sorted((e for e in mine if e.outcome.ok or e.outcome.failure.startswith("not robust")),
                       key=lambda e: e.objective)
         if not near or near[0].objective >= 50.0:
-            failures = sorted({e.outcome.failure.split(":")[0] for e in tuned.evaluations if e.outcome.failure})
-            noisy = [e.outcome.noise / noise_limit for e in tuned.evaluations if e.outcome.ok and noise_limit > 0]
-            tuned.status = ("no admissible gain: every point diverged or broke a constraint"
-                            + (f" (least noise {min(noisy):.3g} x the bound)" if noisy else "")
-                            + (f" ({'; '.join(failures)})" if failures else ""))
-            return tuned
+            failures = sorted({e.outcome.failure.split(":")[0] for e in mine if e.outcome.failure})
+            noisy = [e.outcome.noise / noise_limit for e in mine if e.outcome.ok and noise_limit > 0]
+            return Search(None, "no admissible gain: every point diverged or broke a constraint"
+                          + (f" (least noise {min(noisy):.3g} x the bound)" if noisy else "")
+                          + (f" ({'; '.join(failures)})" if failures else ""))
         best = near[0]
-        chosen, tried = None, []
+        tried = []
         for step in range(1, protocol.backoff + 1):
             candidate = measure({k: v * 10.0 ** (-0.25 * step) for k, v in best.gains.items()})
             tuned.robustness_runs += 1
             if candidate.admissible:
                 tried.append(candidate)
                 if check(candidate):
-                    chosen, tuned.robust_worst = candidate, candidate.worst / candidate.outcome.tace
-                    break
-        if chosen is None:
-            # the checked point whose worst case over the perturbations is the lowest
-            checked = [e for e in tuned.evaluations + tried if math.isfinite(e.worst)]
-            chosen = min(checked, key=lambda e: e.worst) if checked else best
-            tuned.status = (f"not robust: no point of the search, nor the best backed off {protocol.backoff} times, "
-                            f"stays within {protocol.robust_factor:g}x at +-{100 * protocol.perturbation:g}% of a "
-                            f"plant parameter while meeting the other constraints (given: the point with the "
-                            f"lowest worst case)")
-            if math.isfinite(chosen.worst) and chosen.outcome.tace > 0:
-                tuned.robust_worst = chosen.worst / chosen.outcome.tace
-            if not chosen.outcome.ok:
-                chosen = Evaluation(chosen.gains, measure(chosen.gains).outcome, chosen.objective, False, chosen.worst)
+                    return Search(candidate, "ok", candidate.worst / candidate.outcome.tace)
+        # the checked point whose worst case over the perturbations is the lowest
+        checked = [e for e in mine + tried if math.isfinite(e.worst)]
+        chosen = min(checked, key=lambda e: e.worst) if checked else best
+        status = (f"not robust: no point of the search, nor the best backed off {protocol.backoff} times, "
+                  f"stays within {protocol.robust_factor:g}x at +-{100 * protocol.perturbation:g}% of a "
+                  f"plant parameter while meeting the other constraints (given: the point with the "
+                  f"lowest worst case)")
+        robust_worst = chosen.worst / chosen.outcome.tace if math.isfinite(chosen.worst) and chosen.outcome.tace > 0 \
+            else math.nan
+        if not chosen.outcome.ok:
+            chosen = Evaluation(chosen.gains, measure(chosen.gains).outcome, chosen.objective, False, chosen.worst)
+        return Search(chosen, status, robust_worst)
+
+    searches = [search(dataclasses.replace(protocol, seed=protocol.seed + i)) for i in range(protocol.searches)]
+    kept = best_search(searches)
+    tuned.search, tuned.search_tace = searches.index(kept), [s.tace for s in searches]
+    tuned.status, tuned.robust_worst = kept.status, kept.robust_worst
+    if kept.chosen is None:
+        return tuned
+    chosen = kept.chosen
     tuned.gains, tuned.nominal = chosen.gains, chosen.outcome
     for key in keys:
         value = chosen.gains[key]
