@@ -25,7 +25,9 @@ from where its loop acts is not tuned short, then :attr:`Protocol.design` quasi-
 Sobol, scipy.stats.qmc) over the whole box, which reach basins where one gain is off or decades from its
 siblings. From the best of these :func:`minimise` spends the rest: CMA-ES (Hansen, "The CMA evolution
 strategy: a tutorial", 2016; the ``cma`` package) for a global search, each population run as one batch,
-then Nelder-Mead (scipy) to converge from its best point.
+then Nelder-Mead (scipy) to converge from its best point. With :attr:`Protocol.searches` K > 1 the search
+runs K times (seeds ``seed`` to ``seed + K - 1``: other Sobol points and CMA-ES samples) and the one that
+ended best by its own measure is kept (:func:`best_search`); the draws run once, for its gains.
 
 Constraints (the same for every method of a scenario, measured in simulation):
 
