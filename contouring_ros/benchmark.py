@@ -868,6 +868,9 @@ def benchmark_report(rows: list, families: list, protocol: Protocol, where: str,
     """reports/benchmark.md: header, the protocol, per paper the best combination against the proposed
     method with intervals and the findings, per scenario every combination, the pairs that cannot be made."""
     notes, pareto = notes or {}, pareto or {}
+    left_out = bool(notes) and protocol != Protocol()
+    if left_out:            # the findings describe the default run's figures, not this protocol's
+        notes = {}
     compatible = [r for r in rows if r.combination]
     runs = sum(len(r.tuned.evaluations) + r.tuned.robustness_runs + len(r.tuned.draws) + 1
                for r in compatible if r.tuned)
@@ -915,7 +918,9 @@ def benchmark_report(rows: list, families: list, protocol: Protocol, where: str,
         f"- **Where the search ended**: {len(at_bound)} of {len(tuned)} tuned combinations have a gain at an "
         f"end of its span ({len(upper)} at an upper bound, where a larger gain might do better; the others "
         f"with a gain switched off, an optimum). {len(not_robust)} not robust; {len(none)} without an admissible "
-        "point." + _searches_text(tuned, protocol), "",
+        "point." + _searches_text(tuned, protocol), ""] + (
+        ["The findings written for the default protocol's run (config/benchmark/notes.yaml) are left out: "
+         "this run's protocol differs, and its figures may not say the same.", ""] if left_out else []) + [
         f"![TACE relative to the proposed method]({heatmap})", "",
         "## Per paper: the best combination against the proposed method", ""]
     for paper in sorted({f.paper for f in families}):

@@ -256,6 +256,15 @@ def small_run():
     return families, run_benchmark(families, FAST, workers=2)
 
 
+def test_the_findings_written_for_the_default_run_are_shown_only_under_its_protocol(small_run):
+    families, rows = small_run
+    notes = {families[0].paper: "FINDINGS OF THE DEFAULT RUN"}
+    default = benchmark.benchmark_report(rows, families, Protocol(), "here", notes=notes)
+    other = benchmark.benchmark_report(rows, families, Protocol(searches=3), "here", notes=notes)
+    assert "FINDINGS OF THE DEFAULT RUN" in default and "are left out" not in default
+    assert "FINDINGS OF THE DEFAULT RUN" not in other and "notes.yaml) are left out" in other
+
+
 def test_one_row_per_scenario_and_combination(small_run, tmp_path):
     families, rows = small_run
     combos, excluded = plan(families[0])
