@@ -844,7 +844,8 @@ def _excluded_table(rows: list) -> list:
 
 def _searches_text(tuned: list, protocol: Protocol) -> str:
     """With several searches per combination (:attr:`Protocol.searches`): which one each tuned row kept, and
-    how far its searches' chosen nominal TACEs lie apart (the larger / the smaller, robust searches only)."""
+    how far its searches' chosen nominal TACEs lie apart (the largest / the smallest, over every search that
+    chose a point, robust or not)."""
     if protocol.searches < 2 or not tuned:
         return ""
     kept = [getattr(r.tuned, "search", 0) for r in tuned]

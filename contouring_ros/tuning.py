@@ -703,6 +703,17 @@ def tune(data: dict, sections: dict, keys: tuple, machine: dict, noise_limit: fl
         return evaluate_many([gains])[0]
 
     anchor = anchors(ccc, keys)
+    # the box of the log-scaled gains and the file's point in it, the same for every search
+    low = [math.log10(anchor[k]) - protocol.decades for k in keys]
+    high = [math.log10(anchor[k]) + protocol.decades for k in keys]
+    x0 = [math.log10(_magnitude(ccc[k])) if _magnitude(ccc[k]) > 0 else math.log10(anchor[k]) - 1.0 for k in keys]
+
+    def objective(x):
+        return evaluate(_gains_from(x, keys, anchor, protocol.decades)).objective
+
+    def objectives(xs):
+        return [e.objective for e in evaluate_many([_gains_from(x, keys, anchor, protocol.decades) for x in xs])]
+    objective.many = objectives
 
     def search(search_protocol: Protocol) -> Search:
         """One search from the file's gains (its seed: ``search_protocol.seed``) and the choice it ends with."""
@@ -710,17 +721,6 @@ def tune(data: dict, sections: dict, keys: tuple, machine: dict, noise_limit: fl
         first = len(tuned.evaluations)
         evaluate({k: _magnitude(ccc[k]) for k in keys})             # the file's gains
         if keys:
-            low = [math.log10(anchor[k]) - protocol.decades for k in keys]
-            high = [math.log10(anchor[k]) + protocol.decades for k in keys]
-            x0 = [math.log10(_magnitude(ccc[k])) if _magnitude(ccc[k]) > 0 else math.log10(anchor[k]) - 1.0
-                  for k in keys]
-
-            def objective(x):
-                return evaluate(_gains_from(x, keys, anchor, protocol.decades)).objective
-
-            def objectives(xs):
-                return [e.objective for e in evaluate_many([_gains_from(x, keys, anchor, protocol.decades) for x in xs])]
-            objective.many = objectives
             # a coarse scan first: every gain scaled together by each of Protocol.scan (a file's gains may sit
             # decades from where the loop acts), then quasi-random points over the whole box (a basin where one
             # gain is off or decades from the others); the search starts from the best of all of them
