@@ -44,7 +44,7 @@ WRITTEN_FOR = "rclpy 7.1 (ROS 2 Jazzy)"
 #: metapackage (``ros-jazzy-rclpy``) and package (``ros-rclpy``), then a ROS install's own ``rclpy``
 RCLPY_DISTRIBUTIONS = ("ros-jazzy-rclpy", "ros-rclpy", "rclpy")
 #: (class of the C extension, its attributes) this module uses
-REQUIRED = (("WaitSet", ("clear_entities", "add_subscription", "wait")),
+REQUIRED = (("WaitSet", ("clear_entities", "add_subscription", "wait", "is_ready")),
             ("Subscription", ("take_message",)),
             ("Service", ("service_take_request",)))
 
@@ -117,3 +117,8 @@ class SubscriptionWaitSet:
         for handle in self._handles:
             wait_set.add_subscription(handle)
         wait_set.wait(timeout_ns)
+
+    def holding(self) -> list:
+        """Whether each subscription holds a message not taken yet, in order (waits for nothing; takes nothing)."""
+        self.wait(0)
+        return [self._wait_set.is_ready("subscription", index) for index in range(len(self._handles))]

@@ -555,6 +555,8 @@ def _watch(nodes, timeout, started, say):
                     "was complete")
                 return
         if time.monotonic() - started > timeout:
-            running = [name for name, code in codes.items() if code is None]
-            raise RunError(f"the run did not finish within {timeout:.0f} s (still running: {', '.join(running)})")
+            running = [node for node in nodes if codes[node.name] is None]
+            raise RunError(f"the run did not finish within {timeout:.0f} s (still running: "
+                           + ", ".join(f"{node.name}, its last line: {node.last_error_line() or 'none'}"
+                                       for node in running) + ")")
         time.sleep(0.05)

@@ -233,9 +233,20 @@ class LockstepNode:
 
     # -- the loop ---------------------------------------------------------------------------------
     def wait_for_graph(self):
-        """Block until every expected subscriber of our outputs and a publisher of every input matched."""
+        """Block until every expected subscriber of our outputs and a publisher of every input matched.
+
+        A publisher counts once it has shown itself: matched now or at an earlier look, or a message of it
+        waits here. A node nobody waits for (the recorder) may look only after the publishers ran their
+        steps, had them acknowledged by this process's middleware and left: their messages are here, the
+        publishers are not.
+        """
         timeout = self.experiment.graph_timeout
         deadline = time.monotonic() + timeout
+        next_log = time.monotonic() + PROGRESS_PERIOD
+        lockstep_inputs = [(index, topic, sub) for index, (topic, sub, _, _) in enumerate(self._inputs)
+                           if self._topics[topic].every_step]
+        inputs = self.wait_set() if lockstep_inputs else None
+        shown = set()          # inputs whose publisher has shown itself
         # realtime: a node that comes up after the run's last tick waits no longer (a node that already
         # finished and left will never match)
         run_end = self.experiment.start_time + self.n_steps * self.experiment.sample_time \
@@ -247,14 +258,19 @@ class LockstepNode:
             missing = [f"subscribers of {topic} ({', '.join(self._topics[topic].subscribers)})"
                        for topic, pub in self._outputs.items()
                        if pub.get_subscription_count() < len(self._topics[topic].subscribers)]
-            missing += [f"the publisher of {topic}" for topic, sub, _, _ in self._inputs
-                        if sub.get_publisher_count() < 1 and self._topics[topic].every_step]
+            holding = inputs.holding() if inputs is not None and len(shown) < len(lockstep_inputs) else []
+            shown.update(topic for index, topic, sub in lockstep_inputs
+                         if topic not in shown and (sub.get_publisher_count() >= 1 or holding[index]))
+            missing += [f"the publisher of {topic}" for _, topic, _ in lockstep_inputs if topic not in shown]
             if not missing:
                 self.node.get_logger().info(f"graph up: running {self.n_steps} steps ({self.experiment.timing})")
                 return
             if time.monotonic() > deadline:
                 raise RunError(f"{self.name}: the graph did not come up within {timeout:g} s (graph_timeout; "
                                f"still waiting for {missing[0]})")
+            if time.monotonic() > next_log:
+                next_log = time.monotonic() + PROGRESS_PERIOD
+                self.node.get_logger().info(f"still waiting for {', '.join(missing)}")
             if run_end is not None and time.time() > run_end:
                 raise RunError(f"{self.name}: the graph was not up by the realtime run's last tick (still waiting "
                                f"for {missing[0]}): the machine was too busy to start the graph in time")

@@ -196,3 +196,64 @@ def test_take_wait_and_take_request_on_a_real_node(monkeypatch):
             node.destroy_node()
         finally:
             rclpy.try_shutdown(context=context)
+
+
+@pytest.mark.graph
+def test_a_node_that_looks_late_counts_a_publisher_that_left_by_the_messages_it_left(monkeypatch):
+    """wait_for_graph, on a real node: the publisher of an input published, had its message acknowledged and
+    left before the node first looked (a recorder slow to start on a short run); its message is waiting, so
+    the graph is up. An input nobody ever published on is still waited for, until graph_timeout."""
+    import types
+
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.duration import Duration
+    from rclpy.signals import SignalHandlerOptions
+    from sensor_msgs.msg import JointState
+
+    from contouring_ros import cdr, graph
+    from contouring_ros.errors import RunError
+    from contouring_ros.nodes.lockstep import GRAPH_QOS, LockstepNode
+    from contouring_ros.runner import DomainLease, private_environment
+
+    x_state, y_state = graph.state_topic("x"), graph.state_topic("y")
+    with DomainLease() as lease:
+        for key, value in private_environment(lease.domain_id).items():
+            monkeypatch.setenv(key, value)
+        context = Context()
+        rclpy.init(context=context, domain_id=lease.domain_id, signal_handler_options=SignalHandlerOptions.NO)
+        try:
+            ros_node = rclpy.create_node("late_looker", context=context)
+            node = LockstepNode.__new__(LockstepNode)
+            node.node, node.name, node.callbacks, node._realtime, node.n_steps = ros_node, "/late_looker", True, False, 1
+            node.experiment = types.SimpleNamespace(graph_timeout=3.0, start_time=0.0, sample_time=0.001,
+                                                    timing="lockstep")
+            node._topics = {t.name: t for t in graph.recorded_topics(["x", "y"])}
+            node._outputs = {}
+            node._inputs = [(topic, ros_node.create_subscription(JointState, topic, lambda _: None, GRAPH_QOS,
+                                                                 raw=True), JointState, None)
+                            for topic in (x_state, y_state)]
+            x_subscription = node._inputs[0][1]
+
+            publisher_node = rclpy.create_node("early_leaver", context=context)
+            publisher = publisher_node.create_publisher(JointState, x_state, GRAPH_QOS)
+            deadline = time.monotonic() + 10.0
+            while publisher.get_subscription_count() < 1 and time.monotonic() < deadline:
+                time.sleep(0.01)
+            publisher.publish(cdr.encode_joint_state(0, 0, ["x"], [0.5], [0.25]))
+            assert publisher.wait_for_all_acked(Duration(seconds=10))
+            publisher_node.destroy_node()
+            while x_subscription.get_publisher_count() > 0 and time.monotonic() < deadline:
+                time.sleep(0.01)
+            assert x_subscription.get_publisher_count() == 0
+
+            with pytest.raises(RunError, match=rf"still waiting for the publisher of {y_state}\)"):
+                node.wait_for_graph()        # /x/state's publisher has shown itself by its message; /y/state's never
+            node._inputs = node._inputs[:1]
+            started = time.monotonic()
+            node.wait_for_graph()
+            assert time.monotonic() - started < 1.0
+            assert rclpy_adapter.SubscriptionWaitSet([x_subscription], context).holding() == [True]
+            ros_node.destroy_node()
+        finally:
+            rclpy.try_shutdown(context=context)
