@@ -96,6 +96,19 @@ def test_frozen_node_gives_a_stall_error_naming_node_and_topic(tmp_path, write_e
 
 
 @graph
+def test_a_run_past_its_timeout_names_each_node_still_running_with_its_last_line(tmp_path, write_experiment):
+    from contouring_ros import graph as graph_names
+    path = write_experiment(shortened(DEFAULT, 5.0))
+    with pytest.raises(RunError) as raised:
+        run_graph(path, tmp_path / "late.mcap", timeout=1.0)
+    message = str(raised.value)
+    assert message.startswith("the run did not finish within 1 s (still running: ") and "\n" not in message, message
+    running = re.findall(r"(/[\w/]+), its last line: ", message)
+    assert running and set(running) <= set(graph_names.node_names(["x", "y"])), message
+    assert raised.value.bag == tmp_path / "late.mcap"
+
+
+@graph
 @pytest.mark.parametrize("sig,name", [(signal.SIGTERM, "SIGTERM"), (signal.SIGINT, "SIGINT")])
 def test_signal_to_the_runner_stops_every_node_and_closes_the_bag(tmp_path, write_experiment, sig, name):
     from mcap.reader import make_reader
