@@ -137,19 +137,13 @@ def test_the_installed_version_comes_from_the_package_metadata(monkeypatch):
     assert rclpy_adapter.installed_version() == "rclpy of unknown version"
 
 
-@pytest.mark.graph
-def test_take_wait_and_take_request_on_a_real_node(monkeypatch):
-    """In this process, on a domain of its own: one message published, waited for and taken serialised; one
-    request at the node's parameter service taken and answered."""
+@pytest.fixture
+def ros_context(monkeypatch):
+    """An rclpy context of this process on a ROS domain of its own (the runner's environment), shut down after."""
     import rclpy
     from rclpy.context import Context
-    from rclpy.executors import SingleThreadedExecutor
     from rclpy.signals import SignalHandlerOptions
-    from rcl_interfaces.srv import ListParameters
-    from sensor_msgs.msg import JointState
 
-    from contouring_ros import cdr
-    from contouring_ros.nodes.lockstep import GRAPH_QOS
     from contouring_ros.runner import DomainLease, private_environment
 
     with DomainLease() as lease:
@@ -158,102 +152,106 @@ def test_take_wait_and_take_request_on_a_real_node(monkeypatch):
         context = Context()
         rclpy.init(context=context, domain_id=lease.domain_id, signal_handler_options=SignalHandlerOptions.NO)
         try:
-            node = rclpy.create_node("adapter_probe", context=context)
-            publisher = node.create_publisher(JointState, "/probe", GRAPH_QOS)
-            subscription = node.create_subscription(JointState, "/probe", lambda _: None, GRAPH_QOS, raw=True)
-            wait_set, take = rclpy_adapter.SubscriptionWaitSet([subscription], context), \
-                rclpy_adapter.taker(subscription, JointState)
-            assert len(wait_set) == 1 and take() is None
-            deadline = time.monotonic() + 10.0
-            while subscription.get_publisher_count() < 1 and time.monotonic() < deadline:
-                time.sleep(0.01)
-            data = cdr.encode_joint_state(1, 2, ["x"], [0.5], [0.25])
-            publisher.publish(data)
-            taken = None
-            while taken is None and time.monotonic() < deadline:
-                wait_set.wait(100_000_000)
-                taken = take()
-            assert taken is not None, "the message published was not taken"
-            assert bytes(taken[0]) == data and taken[1]["publication_sequence_number"] == 1
-            assert take() is None
-
-            service = next(s for s in node.services if s.srv_name.endswith("/list_parameters"))
-            assert rclpy_adapter.take_request(service) == (None, None)
-            client = node.create_client(ListParameters, service.srv_name)
-            assert client.wait_for_service(timeout_sec=10.0)
-            future = client.call_async(ListParameters.Request())
-            request = header = None
-            while header is None and time.monotonic() < deadline:
-                request, header = rclpy_adapter.take_request(service)
-                time.sleep(0.01)
-            assert isinstance(request, ListParameters.Request)
-            service.send_response(service.callback(request, ListParameters.Response()), header)
-            executor = SingleThreadedExecutor(context=context)
-            executor.add_node(node)
-            executor.spin_until_future_complete(future, timeout_sec=10.0)
-            assert future.done() and "use_sim_time" in future.result().result.names
-            executor.shutdown()
-            node.destroy_node()
+            yield context
         finally:
             rclpy.try_shutdown(context=context)
 
 
 @pytest.mark.graph
-def test_a_node_that_looks_late_counts_a_publisher_that_left_by_the_messages_it_left(monkeypatch):
+def test_take_wait_and_take_request_on_a_real_node(ros_context):
+    """In this process, on a domain of its own: one message published, waited for and taken serialised; one
+    request at the node's parameter service taken and answered."""
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from rcl_interfaces.srv import ListParameters
+    from sensor_msgs.msg import JointState
+
+    from contouring_ros import cdr
+    from contouring_ros.nodes.lockstep import GRAPH_QOS
+
+    node = rclpy.create_node("adapter_probe", context=ros_context)
+    publisher = node.create_publisher(JointState, "/probe", GRAPH_QOS)
+    subscription = node.create_subscription(JointState, "/probe", lambda _: None, GRAPH_QOS, raw=True)
+    wait_set, take = rclpy_adapter.SubscriptionWaitSet([subscription], ros_context), \
+        rclpy_adapter.taker(subscription, JointState)
+    assert len(wait_set) == 1 and take() is None
+    deadline = time.monotonic() + 10.0
+    while subscription.get_publisher_count() < 1 and time.monotonic() < deadline:
+        time.sleep(0.01)
+    data = cdr.encode_joint_state(1, 2, ["x"], [0.5], [0.25])
+    publisher.publish(data)
+    taken = None
+    while taken is None and time.monotonic() < deadline:
+        wait_set.wait(100_000_000)
+        taken = take()
+    assert taken is not None, "the message published was not taken"
+    assert bytes(taken[0]) == data and taken[1]["publication_sequence_number"] == 1
+    assert take() is None
+
+    service = next(s for s in node.services if s.srv_name.endswith("/list_parameters"))
+    assert rclpy_adapter.take_request(service) == (None, None)
+    client = node.create_client(ListParameters, service.srv_name)
+    assert client.wait_for_service(timeout_sec=10.0)
+    future = client.call_async(ListParameters.Request())
+    request = header = None
+    while header is None and time.monotonic() < deadline:
+        request, header = rclpy_adapter.take_request(service)
+        time.sleep(0.01)
+    assert isinstance(request, ListParameters.Request)
+    service.send_response(service.callback(request, ListParameters.Response()), header)
+    executor = SingleThreadedExecutor(context=ros_context)
+    executor.add_node(node)
+    executor.spin_until_future_complete(future, timeout_sec=10.0)
+    assert future.done() and "use_sim_time" in future.result().result.names
+    executor.shutdown()
+    node.destroy_node()
+
+
+@pytest.mark.graph
+def test_a_node_that_looks_late_counts_a_publisher_that_left_by_the_messages_it_left(ros_context):
     """wait_for_graph, on a real node: the publisher of an input published, had its message acknowledged and
     left before the node first looked (a recorder slow to start on a short run); its message is waiting, so
     the graph is up. An input nobody ever published on is still waited for, until graph_timeout."""
     import types
 
     import rclpy
-    from rclpy.context import Context
     from rclpy.duration import Duration
-    from rclpy.signals import SignalHandlerOptions
     from sensor_msgs.msg import JointState
 
     from contouring_ros import cdr, graph
     from contouring_ros.errors import RunError
     from contouring_ros.nodes.lockstep import GRAPH_QOS, LockstepNode
-    from contouring_ros.runner import DomainLease, private_environment
 
     x_state, y_state = graph.state_topic("x"), graph.state_topic("y")
-    with DomainLease() as lease:
-        for key, value in private_environment(lease.domain_id).items():
-            monkeypatch.setenv(key, value)
-        context = Context()
-        rclpy.init(context=context, domain_id=lease.domain_id, signal_handler_options=SignalHandlerOptions.NO)
-        try:
-            ros_node = rclpy.create_node("late_looker", context=context)
-            node = LockstepNode.__new__(LockstepNode)
-            node.node, node.name, node.callbacks, node._realtime, node.n_steps = ros_node, "/late_looker", True, False, 1
-            node.experiment = types.SimpleNamespace(graph_timeout=3.0, start_time=0.0, sample_time=0.001,
-                                                    timing="lockstep")
-            node._topics = {t.name: t for t in graph.recorded_topics(["x", "y"])}
-            node._outputs = {}
-            node._inputs = [(topic, ros_node.create_subscription(JointState, topic, lambda _: None, GRAPH_QOS,
-                                                                 raw=True), JointState, None)
-                            for topic in (x_state, y_state)]
-            x_subscription = node._inputs[0][1]
+    ros_node = rclpy.create_node("late_looker", context=ros_context)
+    node = LockstepNode.__new__(LockstepNode)
+    node.node, node.name, node.callbacks, node._realtime, node.n_steps = ros_node, "/late_looker", True, False, 1
+    node.experiment = types.SimpleNamespace(graph_timeout=3.0, start_time=0.0, sample_time=0.001,
+                                            timing="lockstep")
+    node._topics = {t.name: t for t in graph.recorded_topics(["x", "y"])}
+    node._outputs = {}
+    node._inputs = [(topic, ros_node.create_subscription(JointState, topic, lambda _: None, GRAPH_QOS,
+                                                         raw=True), JointState, None)
+                    for topic in (x_state, y_state)]
+    x_subscription = node._inputs[0][1]
 
-            publisher_node = rclpy.create_node("early_leaver", context=context)
-            publisher = publisher_node.create_publisher(JointState, x_state, GRAPH_QOS)
-            deadline = time.monotonic() + 10.0
-            while publisher.get_subscription_count() < 1 and time.monotonic() < deadline:
-                time.sleep(0.01)
-            publisher.publish(cdr.encode_joint_state(0, 0, ["x"], [0.5], [0.25]))
-            assert publisher.wait_for_all_acked(Duration(seconds=10))
-            publisher_node.destroy_node()
-            while x_subscription.get_publisher_count() > 0 and time.monotonic() < deadline:
-                time.sleep(0.01)
-            assert x_subscription.get_publisher_count() == 0
+    publisher_node = rclpy.create_node("early_leaver", context=ros_context)
+    publisher = publisher_node.create_publisher(JointState, x_state, GRAPH_QOS)
+    deadline = time.monotonic() + 10.0
+    while publisher.get_subscription_count() < 1 and time.monotonic() < deadline:
+        time.sleep(0.01)
+    publisher.publish(cdr.encode_joint_state(0, 0, ["x"], [0.5], [0.25]))
+    assert publisher.wait_for_all_acked(Duration(seconds=10))
+    publisher_node.destroy_node()
+    while x_subscription.get_publisher_count() > 0 and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert x_subscription.get_publisher_count() == 0
 
-            with pytest.raises(RunError, match=rf"still waiting for the publisher of {y_state}\)"):
-                node.wait_for_graph()        # /x/state's publisher has shown itself by its message; /y/state's never
-            node._inputs = node._inputs[:1]
-            started = time.monotonic()
-            node.wait_for_graph()
-            assert time.monotonic() - started < 1.0
-            assert rclpy_adapter.SubscriptionWaitSet([x_subscription], context).holding() == [True]
-            ros_node.destroy_node()
-        finally:
-            rclpy.try_shutdown(context=context)
+    with pytest.raises(RunError, match=rf"still waiting for the publisher of {y_state}\)"):
+        node.wait_for_graph()        # /x/state's publisher has shown itself by its message; /y/state's never
+    node._inputs = node._inputs[:1]
+    started = time.monotonic()
+    node.wait_for_graph()
+    assert time.monotonic() - started < 1.0
+    assert rclpy_adapter.SubscriptionWaitSet([x_subscription], ros_context).holding() == [True]
+    ros_node.destroy_node()
