@@ -63,6 +63,7 @@ __all__ = ["GOAL", "Family", "Combination", "Excluded", "Row", "Reference",
            "draw_pareto", "benchmark_report", "paper_best", "verdict"]
 
 GOAL = 0.5              # a combination beats the proposed method 2x when both ratios' intervals are below this
+NOT_CONVERGED = "not converged"     # the verdict where a row's (or the proposed row's) searches did not agree
 MECHANISM = "_mech_"    # scenarios of the claims' mechanism files: run on request (--scenarios)
 _META = ("experiment", "paper")
 
@@ -381,6 +382,22 @@ class Row:
         return _infinite_aware(values, 50.0), _infinite_aware(values, 2.5), _infinite_aware(values, 97.5)
 
     @property
+    def converged(self) -> bool:
+        """Whether the row's searches agreed (tuning.Tuned.converged); a row with nothing to tune is."""
+        return self.tuned is not None and self.tuned.converged
+
+    def tace_verdict(self) -> str:
+        """The TACE verdict against the proposed combination (:func:`verdict` of the ratio's interval), or
+        'not converged' where this row's or the proposed row's searches did not agree: no ratio between two
+        tunings is a result unless both are."""
+        if not self.ok or self.reference is None:
+            return ""
+        if not (self.converged and self.reference.converged):
+            return NOT_CONVERGED
+        low, high = self.ratio("tace")[1:]
+        return verdict(low, high)
+
+    @property
     def noise_ratio(self) -> float:
         """Noise sensitivity (tuned, nominal) over the proposed method's with the paper's gains."""
         if not self.ok or self.bound is None or not self.bound.published.ok or self.bound.published.noise <= 0:
@@ -524,7 +541,8 @@ def write_csv(rows: list, path) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     head = ["paper", "scenario", "proposed_file", "estimator", "controller", "servo", "proposed", "status",
-            "from_s", "gains", "file_gains", "at_bound", "evaluations", "robustness_runs", "robust_worst",
+            "from_s", "gains", "file_gains", "tuned_point", "at_bound", "evaluations", "searches", "searches_agreed",
+            "searches_spread", "converged", "robustness_runs", "robust_worst",
             "tace_um", "mce_um", "noise", "noise_ratio", "saturated_share", "effort_rms",
             "tace_median_um", "tace_lo_um", "tace_hi_um", "mce_median_um", "mce_lo_um", "mce_hi_um",
             "tace_ratio", "tace_ratio_lo", "tace_ratio_hi", "mce_ratio", "mce_ratio_lo", "mce_ratio_hi",
@@ -543,12 +561,15 @@ def write_csv(rows: list, path) -> Path:
                     row.family.paper, row.family.name, row.family.proposed, c.estimator, c.controller, c.servo,
                     "yes" if row.is_proposed else "", row.status, f"{row.family.from_time:g}",
                     json.dumps(t.gains) if row.ok else "", json.dumps(t.file_gains) if t else "",
+                    json.dumps(t.point) if row.ok else "",
                     "; ".join(t.at_bound) if t else "", len(t.evaluations) if t else "",
+                    *((a.searches, a.agreed, _num(a.spread), "yes" if a.converged else "no")
+                      if (a := t and t.agreement) else ("",) * 4),
                     t.robustness_runs if t else "", _num(t.robust_worst) if t else "",
                     _um(n.tace if n else None), _um(n.mce if n else None), _num(n.noise if n else None),
                     _num(row.noise_ratio), _num(n.saturated if n else None), _num(n.effort if n else None),
                     *(_um(v) for v in tace), *(_um(v) for v in mce), *(_num(v) for v in tr), *(_num(v) for v in mr),
-                    "" if row.is_proposed or not row.ok else verdict(tr[1], tr[2]),
+                    "" if row.is_proposed else row.tace_verdict(),
                     _um(t.ideal.tace if t and t.ideal else None), _um(t.ideal.mce if t and t.ideal else None),
                     *((_num(m.ms), _num(m.gain_margin), _num(m.phase_margin_deg)) if (m := t and t.margins) else ("",) * 3)])
     write_atomically(path, write)
@@ -698,12 +719,12 @@ def best_other_rank(tace_ratio: float, mce_ratio: float) -> tuple:
 def paper_best(rows: list, family: Family) -> tuple:
     """(the proposed row, the best other row): the row with the lowest larger median ratio of MCE and TACE
     to the tuned proposed combination; every row met the same noise, saturation and robustness
-    constraints."""
+    constraints, and whose searches agreed (:attr:`Row.converged`)."""
     mine = [r for r in rows if r.family is family and r.ok]
     proposed = next((r for r in mine if r.is_proposed), None)
     if proposed is None:
         return None, None
-    others = [r for r in mine if not r.is_proposed and r.status == "ok"
+    others = [r for r in mine if not r.is_proposed and r.status == "ok" and r.converged
               and math.isfinite(r.ratio("tace")[0]) and math.isfinite(r.ratio("mce")[0])]
     best = min(others, key=lambda r: best_other_rank(r.ratio("tace")[0], r.ratio("mce")[0]), default=None)
     return proposed, best
@@ -745,7 +766,8 @@ def _best_table(rows: list, families: list) -> list:
             continue
         tr = best.ratio("tace")
         lines.append(here + f"| {best.label} | {_f(best.figure('tace')[0] * 1e6)} / {_f(best.figure('mce')[0] * 1e6)} "
-                     f"| {_iv(tr)} | {_iv(best.ratio('mce'))} | {verdict(tr[1], tr[2])} | {_goal(best)} |")
+                     f"| {_iv(tr)} | {_iv(best.ratio('mce'))} | {best.tace_verdict()} | "
+                     f"{_goal(best) if best.tace_verdict() != NOT_CONVERGED else NOT_CONVERGED} |")
     return lines
 
 
@@ -775,15 +797,25 @@ def _reference_table(rows: list, families: list) -> list:
             tr = r.ratio("tace")
             lines.append(f"| {family.name} | {r.label} | {f'{rank} of {count}' if rank else '-'} | "
                          f"{_iv(r.figure('tace'), 1e6)} | {_iv(r.figure('mce'), 1e6)} | {_iv(tr)} | "
-                         f"{_iv(r.ratio('mce'))} | {verdict(tr[1], tr[2]) if r.ok else '-'} | {r.status} |")
+                         f"{_iv(r.ratio('mce'))} | {r.tace_verdict() or '-'} | {r.status} |")
     return lines
 
 
 def _gain_text(row: Row) -> str:
     if not row.ok or not row.gains:
         return "-"
-    text = ", ".join(f"{k} {_f(v)}" for k, v in row.gains.items())
-    return text + (f" ({'; '.join(row.tuned.at_bound)})" if row.tuned.at_bound else "")
+    point = getattr(row.tuned, "point", {}) or {}
+    text = ", ".join(f"{k} {'off' if v == 0 else _f(v)}" for k, v in point.items())
+    raw = ", ".join(f"{k} {_f(v)}" for k, v in row.gains.items())
+    text = f"{text} ({raw})" if text else raw
+    return text + (f"; {'; '.join(row.tuned.at_bound)}" if row.tuned.at_bound else "")
+
+
+def _searches_cell(row: Row) -> str:
+    a = getattr(row.tuned, "agreement", None) if row.tuned else None
+    if a is None:
+        return "-"
+    return f"{a.agreed}/{a.searches}" + ("" if a.converged else " (not converged)")
 
 
 def _margin_text(m) -> str:
@@ -803,21 +835,23 @@ def _family_table(rows: list, family: Family) -> list:
             + (f"TACE {_f(published.tace * 1e6)} um, MCE {_f(published.mce * 1e6)} um (ideal machine: "
                f"{_f(ref.ideal_published.tace * 1e6)} / {_f(ref.ideal_published.mce * 1e6)} um)."
                if published and published.ok else f"{published.failure if published else 'no run'}."), "",
-            "| combination | tuned gains | evals | TACE [um] median [95%] | MCE [um] median [95%] | TACE ratio [95%] "
-            "| verdict | noise / paper's | saturated | worst at +-20% | Ms (GM, PM) | ideal machine TACE / MCE [um] |",
-            "|---|---|---:|---|---|---|---|---:|---:|---:|---|---|"]
+            "| combination | tuned point (raw gains) | evals | searches agreed | TACE [um] median [95%] | MCE [um] "
+            "median [95%] | TACE ratio [95%] | verdict | noise / paper's | saturated | worst at +-20% | Ms (GM, PM) | "
+            "ideal machine TACE / MCE [um] |",
+            "|---|---|---:|---|---|---|---|---|---:|---:|---:|---|---|"]
     for r in ranked:
         name = f"**{r.label}** (proposed)" if r.is_proposed else r.label
         t = r.tuned
         if not r.ok:
-            head.append(f"| {name} | - | {len(t.evaluations) if t else 0} | {r.status} | | | | | | | | |")
+            head.append(f"| {name} | - | {len(t.evaluations) if t else 0} | {_searches_cell(r)} | {r.status} "
+                        "| | | | | | | | |")
             continue
         tr = r.ratio("tace")
         status = "" if r.status == "ok" else " (not robust)"
         ideal = t.ideal
-        head.append(f"| {name} | {_gain_text(r)} | {len(t.evaluations)} | {_iv(r.figure('tace'), 1e6)} | "
-                    f"{_iv(r.figure('mce'), 1e6)} | {'1' if r.is_proposed else _iv(tr)} | "
-                    f"{'' if r.is_proposed else verdict(tr[1], tr[2])}{status} | {_f(r.noise_ratio)} | "
+        head.append(f"| {name} | {_gain_text(r)} | {len(t.evaluations)} | {_searches_cell(r)} | "
+                    f"{_iv(r.figure('tace'), 1e6)} | {_iv(r.figure('mce'), 1e6)} | {'1' if r.is_proposed else _iv(tr)} | "
+                    f"{'' if r.is_proposed else r.tace_verdict()}{status} | {_f(r.noise_ratio)} | "
                     f"{_f(100 * t.nominal.saturated, 2)}% | {_f(t.robust_worst)}x | {_margin_text(t.margins)} | "
                     f"{_f(ideal.tace * 1e6) if ideal and ideal.ok else 'diverged'} / "
                     f"{_f(ideal.mce * 1e6) if ideal and ideal.ok else '-'} |")
@@ -842,25 +876,25 @@ def _excluded_table(rows: list) -> list:
     return lines
 
 
-def _searches_text(tuned: list, protocol: Protocol) -> str:
-    """With several searches per combination (:attr:`Protocol.searches`): which one each tuned row kept, and
-    how far its searches' chosen nominal TACEs lie apart (the largest / the smallest, over every search that
-    chose a point, robust or not)."""
-    if protocol.searches < 2 or not tuned:
+def convergence_text(tuned: list) -> str:
+    """How many tuned rows converged (their searches agreed, :func:`contouring_ros.search.agreement`), how many
+    searches they took, and the rows that did not, each with its searches' spread."""
+    if not tuned:
         return ""
-    kept = [getattr(r.tuned, "search", 0) for r in tuned]
-    counts = ", ".join(f"search {i + 1} in {kept.count(i)}" for i in range(protocol.searches))
-    spreads = []
-    for r in tuned:
-        values = [v for v in getattr(r.tuned, "search_tace", []) if math.isfinite(v) and v > 0]
-        if len(values) > 1:
-            spreads.append(max(values) / min(values))
-    text = f" **Searches**: each combination's best of {protocol.searches}, kept: {counts} of {len(tuned)} rows"
-    if spreads:
-        text += (f"; the largest of a row's searches' nominal TACEs over its smallest: median "
-                 f"{float(np.median(spreads)):.3g}x, at least 2x in {sum(v >= 2.0 for v in spreads)} of "
-                 f"{len(spreads)} rows (a single search would have given any of them)")
-    return text + "."
+    agreements = [r.tuned.agreement for r in tuned if getattr(r.tuned, "agreement", None) is not None]
+    if not agreements:
+        return ""
+    converged = [r for r in tuned if r.converged]
+    searches = [a.searches for a in agreements]
+    text = (f" **Convergence**: {len(converged)} of {len(tuned)} tuned rows converged "
+            f"({100 * len(converged) / len(tuned):.0f}%); searches per row: median {float(np.median(searches)):g}, "
+            f"at most {max(searches)}.")
+    left = [r for r in tuned if not r.converged]
+    if left:
+        text += " Not converged (no verdict rests on them): " + "; ".join(
+            f"{r.family.name} {r.label} ({r.tuned.agreement.agreed} of {r.tuned.agreement.searches} agree, "
+            f"spread {_f(r.tuned.agreement.spread)}x)" for r in left) + "."
+    return text
 
 
 def benchmark_report(rows: list, families: list, protocol: Protocol, where: str,
@@ -875,7 +909,7 @@ def benchmark_report(rows: list, families: list, protocol: Protocol, where: str,
     compatible = [r for r in rows if r.combination]
     runs = sum(len(r.tuned.evaluations) + r.tuned.robustness_runs + len(r.tuned.draws) + 1
                for r in compatible if r.tuned)
-    tuned = [r for r in compatible if r.ok and r.combination.gain_keys]
+    tuned = [r for r in compatible if r.ok and r.tuned.space]
     at_bound = [r for r in tuned if r.tuned.at_bound]
     upper = [r for r in tuned if any("upper" in b for b in r.tuned.at_bound)]
     not_robust = [r for r in compatible if r.tuned and r.status.startswith("not robust")]
@@ -896,30 +930,33 @@ def benchmark_report(rows: list, families: list, protocol: Protocol, where: str,
         f"{SATURATION_MARGIN:g} x the largest command the proposed method needs with the paper's gains. A key a "
         "scenario file sets itself is kept. The last column of each scenario table runs the same tuned gains "
         "on the ideal machine (the file as it is: no noise, quantisation, delay or added limit).",
-        f"- **Tuning, the same for every method**: {protocol.describe()}. The gains tuned: every gain of the "
-        "controller (variable_gain and unit_vector: kp, ki, kd; tvt: kc; task_frame_pd: f_t, f_n, f_b; "
-        "adaptive_tnb: coupling, alpha, gamma_mass, gamma_damping), each its own variable; a gain that is 0 in "
-        "the file starts from an anchor (ki: 30 kp, kd: 1e-3 kp) and may stay off. The file's gains are the "
-        "first evaluation. Estimators and servos keep the scenario's sections (the servos are the drives' "
-        "own loops, shared by every contour method).",
+        f"- **Tuning, the same for every method**: {protocol.describe()}. The spaces "
+        "(contouring_ros/core/tuning_space.py): PID contour controllers (variable_gain, unit_vector) and the "
+        "ZPETC's PID: the proportional and integral terms' crossover frequencies through the axes' plant "
+        "(f_p, f_i, each 0.01 Hz to a quarter of the sample rate, or off) and the derivative's ratio to the "
+        "proportional term at f_p (r_d); task_frame_pd: its bandwidths and damping ratio; tvt: its bandwidth; "
+        "adaptive_tnb: its tracking bandwidth and its coupling and adaptation gains as ratios to the paper's; "
+        "ILC: its learning gains as ratios to the file's, its lead and its Q-filter cutoff; MPCC: its horizon "
+        "and its weight ratios. The file's gains are the first search's first evaluation. Estimators and the "
+        "papers' servos keep the scenario's sections (the servos are the drives' own loops, shared by every "
+        "contour method).",
         "- **Constraints**: noise sensitivity = RMS of the command's sample-to-sample change in the steady state; "
         "saturation = share of steady-state steps with a command at its limit; robustness = stable with TACE "
         "within the stated factor of nominal, or no worse than the proposed method's worst with the paper's "
         "gains, at each plant parameter (gain, time constant, mass, damping) "
-        f"+-{100 * protocol.perturbation:g}% on every axis, checked at once on every admissible point that "
-        f"beats the robust best by more than {100 * protocol.robust_step:g}% (one that fails is inadmissible, "
-        "and the search turns away from it) and after the search on the smaller improvements, best first. "
-        "A row marked *not robust* had no robust point among those checked: the checked point with the "
-        "lowest worst case is shown, and it cannot be the best of its scenario.",
+        f"+-{100 * protocol.perturbation:g}% on every axis, run for every point of every search in the same "
+        "batch as its nominal run (a point that fails is inadmissible, its objective paying for it). "
+        "A row marked *not robust* had no robust point: its point with the lowest worst case is shown, and "
+        "it cannot be the best of its scenario.",
         f"- **Intervals**: each tuned method runs {protocol.draws} draws (noise seed, model mismatch within "
         f"+-{100 * protocol.mismatch:g}% of every plant parameter), the same draws for every method of a "
         "scenario; figures are the median [2.5%, 97.5%] over the draws, ratios are taken draw by draw. A "
         "verdict is *lower* or *higher* only where the whole interval is on one side of 1, else *undecided*; "
         f"the 2x goal needs both ratios' intervals at or below {GOAL:g}.",
-        f"- **Where the search ended**: {len(at_bound)} of {len(tuned)} tuned combinations have a gain at an "
-        f"end of its span ({len(upper)} at an upper bound, where a larger gain might do better; the others "
-        f"with a gain switched off, an optimum). {len(not_robust)} not robust; {len(none)} without an admissible "
-        "point." + _searches_text(tuned, protocol), ""] + (
+        f"- **Where the search ended**: {len(at_bound)} of {len(tuned)} tuned combinations have a coordinate at "
+        f"an end of its range ({len(upper)} at an upper bound, where a larger value might do better; the others "
+        f"with a term switched off or at a lower bound). {len(not_robust)} not robust; {len(none)} without an admissible "
+        "point." + convergence_text(tuned), ""] + (
         ["The findings written for the default protocol's run (config/benchmark/notes.yaml) are left out: "
          "this run's protocol differs, and its figures may not say the same.", ""] if left_out else []) + [
         f"![TACE relative to the proposed method]({heatmap})", "",

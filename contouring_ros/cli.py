@@ -395,11 +395,15 @@ def _benchmark(args):
         raise ConfigError(f"--draws {args.draws}: expected at least 1 draw per combination")
     if args.searches < 1:
         raise ConfigError(f"--searches {args.searches}: expected at least 1 search per combination")
-    protocol = Protocol(evaluations=args.budget, draws=args.draws, searches=args.searches)
+    max_searches = args.max_searches if args.max_searches is not None else max(Protocol.max_searches, args.searches)
+    if max_searches < args.searches:
+        raise ConfigError(f"--max-searches {max_searches}: expected at least --searches ({args.searches})")
+    protocol = Protocol(evaluations=args.budget, draws=args.draws, searches=args.searches, max_searches=max_searches)
     command = "contouring-ros benchmark" + (f" --scenarios {' '.join(args.scenarios)}" if args.scenarios else "") \
         + (f" --budget {args.budget}" if args.budget != Protocol.evaluations else "") \
         + (f" --draws {args.draws}" if args.draws != Protocol.draws else "") \
         + (f" --searches {args.searches}" if args.searches != Protocol.searches else "") \
+        + (f" --max-searches {max_searches}" if max_searches != Protocol.max_searches else "") \
         + (f" --methods {' '.join(args.methods)}" if args.methods else "")
     if args.from_parts:
         from .benchmark import load_parts, write_outputs
@@ -523,13 +527,18 @@ def main(argv=None):
                    help="scenarios (or scenario files) by name or glob, e.g. 'paper000_*' (default: the papers' own "
                         "experiments; the claims' mechanism scenarios with e.g. '*_mech_*')")
     p.add_argument("--budget", type=int, default=Protocol.evaluations,
-                   help=f"optimiser evaluations per combination (default {Protocol.evaluations})")
+                   help=f"evaluations of each search at most (default {Protocol.evaluations})")
     p.add_argument("--draws", type=int, default=Protocol.draws,
                    help=f"noise-seed and model-mismatch draws per tuned combination (default {Protocol.draws})")
     p.add_argument("--searches", type=int, default=Protocol.searches,
-                   help="independent searches per combination (seeds 1, 2, ...), each of --budget evaluations; "
+                   help="independent searches per combination (seeds 1, 2, ...; the first from the file's gains), "
+                        "each of at most --budget evaluations; a row is converged when "
+                        f"{Protocol.agree} of them end within {100 * Protocol.agreement:g}% of the best nominal TACE; "
                         "the robust result with the lowest nominal TACE is kept, the same for every method "
-                        f"(default {Protocol.searches}; the time grows with it)")
+                        f"(default {Protocol.searches})")
+    p.add_argument("--max-searches", type=int,
+                   help="while a row's searches do not agree, more run one at a time up to this many, the same cap "
+                        f"for every method (default {Protocol.max_searches}, at least --searches)")
     p.add_argument("--out", default="reports", help="folder for benchmark.md, .csv and the figures (default: reports/)")
     p.add_argument("--workers", type=int, help="processes (default: one per core)")
     p.add_argument("--save-part", metavar="FILE", help="also keep this run's rows in FILE, to report them with other "

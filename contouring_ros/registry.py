@@ -19,7 +19,9 @@ entry point names either an :class:`Entry` or a class; a class gives
   servos: ``direct = True`` when it passes the controller's output through; ``preview_steps(section,
   experiment, axis)`` -> how many steps of reference beyond the current one its law reads (its object's
   ``preview``, given through ``look_ahead``; default none);
-  plants: ``varied``: the physical parameters the benchmark's robustness checks and mismatch draws vary.
+  plants: ``varied``: the physical parameters the benchmark's robustness checks and mismatch draws vary,
+  ``response(section, w)``: |position / command| at w rad/s (the tuning space's frequencies); controllers and
+  servos: ``tuning_space(section, context)``: the benchmark's tuning space (contouring_ros.core.tuning_space).
 
 Entry points are listed once per role (importlib.metadata) and each is imported when its type is first
 looked up, so a plugin that fails to load stops only what names it, with one line naming the plugin.
@@ -63,6 +65,9 @@ class Entry:
                                           # the same run, and the benchmark pairs it with the scenario's own only)
     gains: tuple | None = None            # the keys the benchmark's tuning varies (None: the float keys named k*)
     varied: tuple = ()                    # plants: the physical parameters robustness and mismatch draws vary
+    response: Callable | None = None      # plants: (section, w) -> |position / command| at w [rad/s]
+    tuning: Callable | None = None        # controllers, servos: (section, TuningContext) -> the benchmark's
+                                          # tuning space (contouring_ros.core.tuning_space.Space) or None
     origin: str = "contouring_ros"        # the package (or entry point) it comes from
 
     @property
@@ -142,7 +147,8 @@ def entry_from_class(name: str, cls, origin: str = "") -> Entry:
                  preview=getattr(cls, "preview_steps", None),
                  needs_state=bool(getattr(cls, "needs_state", False)), gains=getattr(cls, "gains", None),
                  reads_estimate=bool(getattr(cls, "reads_estimate", True)),
-                 varied=tuple(getattr(cls, "varied", ()) or ()), origin=origin or getattr(cls, "__module__", ""))
+                 varied=tuple(getattr(cls, "varied", ()) or ()), response=getattr(cls, "response", None),
+                 tuning=getattr(cls, "tuning_space", None), origin=origin or getattr(cls, "__module__", ""))
 
 
 class Role(Mapping):

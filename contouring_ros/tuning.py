@@ -15,19 +15,18 @@ from the encoder), and an actuator limit: the paper's where its file states one,
 ideal machine. A key the scenario file sets itself is kept. The ideal machine (none of these) stays
 available for comparison.
 
-Search. Every gain of the controller (:func:`gain_keys`) is a variable of its own on a log10 scale,
-:attr:`Protocol.decades` decades either side of its anchor: the file's value, or for a gain that is 0 in the
-file an anchor from its sibling (ki: 30 kp, kd: 1e-3 kp) so that it is free to become non-zero; the lower
-end of the span means 0 (off). The same budget of evaluations for every method. The file's own gains are the first
-evaluation, so a tuned result is never worse than the file's when that is admissible; a coarse scan of
-every gain scaled together (:attr:`Protocol.scan` decades) comes next, so a paper whose gains sit decades
-from where its loop acts is not tuned short, then :attr:`Protocol.design` quasi-random points (scrambled
-Sobol, scipy.stats.qmc) over the whole box, which reach basins where one gain is off or decades from its
-siblings. From the best of these :func:`minimise` spends the rest: CMA-ES (Hansen, "The CMA evolution
-strategy: a tutorial", 2016; the ``cma`` package) for a global search, each population run as one batch,
-then Nelder-Mead (scipy) to converge from its best point. With :attr:`Protocol.searches` K > 1 the search
-runs K times (seeds ``seed`` to ``seed + K - 1``: other Sobol points and CMA-ES samples) and the one that
-ended best by its own measure is kept (:func:`best_search`); the draws run once, for its gains.
+Search. Each method is searched in its physical tuning space (:func:`tuning_space`: its catalogue entry's
+``tuning``, :mod:`contouring_ros.core.tuning_space`): loop bandwidths and corner frequencies in Hz below the
+Nyquist frequency, damping ratios, weight ratios, each with a range a control engineer would accept; a
+plugin that states none is searched over the log box of its raw gains. Every combination gets
+:attr:`Protocol.searches` independent searches (search i: seed ``seed + i``; the first starts from the file's
+gains, evaluated first, the others from uniform random points of the box), each IPOP-CMA-ES
+(:func:`contouring_ros.search.ipop_cmaes`: restarts with a doubled population, every population run as one
+vectorised batch, robustness checks batched too) of at most :attr:`Protocol.evaluations` evaluations. The
+row is *converged* when at least :attr:`Protocol.agree` searches end within :attr:`Protocol.agreement` of the
+best nominal TACE (:func:`searches_agreement`); while it is not, more searches run, up to
+:attr:`Protocol.max_searches`, the same cap for every method. The best search is kept (:func:`best_search`);
+the draws run once, for its gains.
 
 Constraints (the same for every method of a scenario, measured in simulation):
 
@@ -46,12 +45,10 @@ Constraints (the same for every method of a scenario, measured in simulation):
   :attr:`Protocol.robust_factor` times the nominal one, or no worse than the proposed method's worst TACE
   there with the paper's gains (the same robustness as the paper's own design is enough: where that design
   itself degrades by more than the factor, a rule relative to a point's own error alone would pass only
-  points far worse than the paper's, whose large error hides their degradation). Checked at once on every
-  admissible point that beats the robust best by more than :attr:`Protocol.robust_step` (a point that
-  fails is inadmissible and its objective pays, so the search turns away from gains that work only on the
-  nominal plant); the smaller improvements after the search, best first (:attr:`Protocol.final_checks`).
-  Where no point is robust, the best point backed off a quarter decade at a time, else the checked point
-  with the lowest worst case, marked "not robust".
+  points far worse than the paper's, whose large error hides their degradation). Every point of a search is
+  run at every perturbation, in the same batch as its nominal run (:meth:`Tuning.measure`), so a point's
+  objective depends on the point alone and independent searches see one landscape. Where no point of a
+  search is robust, the one with the lowest worst case is given, marked "not robust".
 
 Objective: the steady-state TACE of the exact contour error (median seed).
 
@@ -75,25 +72,24 @@ from .experiment.catalogue import CONTROLLERS, PLANTS, SERVOS
 from .experiment.validate import experiment_from_data
 from .experiment.schema import GLOBAL_SECTION
 from .core.margins import axis_loop, coupled_loop, margins, quick_robustness
+from .core.tuning_space import Space, TuningContext, combine, log_box
 from .errors import ConfigError
 from .learning import passes, simulate_last_passes
+from .search import IPOPCMAES, Agreement, agreement, run_side_by_side
 from .sweep import apply_settings, score_one, simulate_experiments
 
 __all__ = ["REALISTIC", "SATURATION_MARGIN", "varied_parameters", "Protocol", "Outcome",
-           "Evaluation", "Tuned", "gain_keys", "anchors", "machine_settings", "perturbations", "draw_settings",
-           "experiment_for", "fit_to_machine", "section_with_gains",
-           "experiment_margins", "worst_margins", "loop_robustness", "MS_LIMIT", "run_outcomes", "worst_case", "minimise",
-           "nelder_mead_restarts", "Search", "best_search", "tune", "interval", "pareto_front"]
+           "Evaluation", "Tuned", "gain_keys", "machine_settings", "perturbations", "draw_settings",
+           "experiment_for", "fit_to_machine", "section_with_gains", "sections_with_gains", "tuning_space",
+           "experiment_margins", "worst_margins", "loop_robustness", "MS_LIMIT", "run_outcomes", "worst_case",
+           "Search", "best_search", "searches_agreement", "Tuning", "tune", "interval", "pareto_front"]
 
 #: plant keys of the realistic machine (a key the scenario file sets is kept)
 REALISTIC = {"encoder_resolution": 1e-7, "measurement_noise": 5e-8, "command_delay": 1,
              "velocity_measurement": "encoder"}
 #: the actuator limit, where the paper states none: this times the proposed method's largest command
 SATURATION_MARGIN = 2.0
-#: the anchor of a gain that is 0 in the file, relative to its sibling (same units as the PID's)
-SIBLING_ANCHOR = {"ki": ("kp", 30.0), "kd": ("kp", 1e-3)}
 MS_LIMIT = 2.0      # peak sensitivity a linear loop may reach (Åström & Hägglund: 1.4-2)
-OFF = 0.05          # decades above the lower end of a gain's span that mean "off" (0)
 PENALTY = 10.0      # objective added per decade (log10) a constraint is exceeded by; diverged: 100
 
 
@@ -101,40 +97,38 @@ PENALTY = 10.0      # objective added per decade (log10) a constraint is exceede
 class Protocol:
     """The tuning protocol: the same numbers for every method of a benchmark."""
 
-    evaluations: int = 100         # evaluations per combination (the file's gains included)
-    popsize: int = 6
-    decades: float = 8.0           # each gain's span either side of its anchor [decades]
-    scan: tuple = (-2.0, 2.0, 4.0, 6.0)  # decades every gain is shifted by together in the first scan
+    evaluations: int = 160         # evaluations per search (the file's gains included in the first)
+    design: int = 16               # each search's first points: scrambled Sobol over the whole box, one batch
+    popsize: int = 8               # the first CMA-ES run's population; each restart doubles it (IPOP)
+    step: float = 0.25             # CMA-ES's first step [share of each coordinate's range]
+    searches: int = 3              # independent searches per combination (seeds seed, seed + 1, ...)
+    max_searches: int = 6          # ... more, one at a time, while they do not agree, up to this many
+    agreement: float = 0.05        # searches agree when they end within this share of the best nominal TACE
+    agree: int = 3                 # ... and a row is converged when at least this many do
+    decades: float = 8.0           # the log box of a plugin that states no space: each gain's span either side
     noise_factor: float = 2.0      # noise sensitivity at most this x the proposed method's (paper's gains)
     saturation_share: float = 0.01  # share of steady-state steps at the actuator limit, at most
     perturbation: float = 0.2      # robustness: each plant parameter x (1 +- this)
     robust_factor: float = 3.0     # ... with steady-state TACE at most this x the larger of the nominal and the floor
-    robust_step: float = 0.05      # a point that beats the robust best by more than this share is checked at once
-    final_checks: int = 3          # ... the others after the search, best first, at most this many
-    design: int = 8                # quasi-random points (scrambled Sobol) over the whole box after the scan
-    backoff: int = 4               # no robust point found: the best with every gain lowered a quarter decade at a time
     ms_limit: bool = True          # refuse points whose linear loop has Ms over MS_LIMIT (see loop_robustness)
     draws: int = 8                 # noise seeds x model-mismatch draws of the interval
     mismatch: float = 0.1          # model mismatch of a draw: each plant parameter x U(1 - this, 1 + this)
-    seed: int = 1                  # CMA-ES seed (and the Sobol points'); search i of searches uses seed + i
-    searches: int = 1              # independent searches per combination; the best of them is kept (:func:`best_search`)
-    global_share: float = 0.5      # share of the evaluations for CMA-ES; the rest polish with Nelder-Mead
-    polish_step: float = 0.3       # Nelder-Mead's first simplex [decades]
-    global_step: float = 2.0       # CMA-ES's first step [decades]
+    seed: int = 1                  # search i's seed is seed + i (its CMA-ES samples and, from search 1 on, its start)
 
     def describe(self) -> str:
-        return (f"{self.evaluations} evaluations: the file's gains, the file's gains scaled together by "
-                f"10^({', '.join(f'{d:+g}' for d in self.scan)}), {self.design} scrambled-Sobol points over the whole "
-                f"box, then CMA-ES (population {self.popsize}, first step {self.global_step:g} decades) for "
-                f"{100 * self.global_share:.0f}% of the rest, then Nelder-Mead from its best point; each gain "
-                f"log-scaled over +-{self.decades:g} decades of its anchor; noise sensitivity <= {self.noise_factor:g} "
+        return (f"each method in its physical tuning space (bandwidths and corner frequencies in Hz, damping and "
+                f"weight ratios; a plugin without one: each raw gain log-scaled over +-{self.decades:g} decades); "
+                f"{self.searches} to {max(self.searches, self.max_searches)} independent searches per combination "
+                f"(the first from the file's gains, the others from uniform random points), each "
+                f"{self.design} scrambled-Sobol points over the box, then IPOP-CMA-ES from the best point "
+                f"(population {self.popsize}, doubled at each restart; the searches' populations run as one "
+                f"batch), at most {self.evaluations} evaluations in all; converged when {self.agree} searches end within "
+                f"{100 * self.agreement:g}% of the best nominal TACE; noise sensitivity <= {self.noise_factor:g} "
                 f"x the proposed method's; <= {100 * self.saturation_share:g}% of steps saturated; "
                 f"{f'linear loops stable with Ms <= {MS_LIMIT:g}; ' if self.ms_limit else ''}robust: stable at "
                 f"+-{100 * self.perturbation:g}% of each plant parameter with TACE <= {self.robust_factor:g} x "
                 f"nominal, or no worse than the proposed method's worst there with the paper's gains; "
-                f"{self.draws} draws (noise seed, +-{100 * self.mismatch:g}% model mismatch)"
-                + (f"; the best of {self.searches} such searches (seeds {self.seed} to {self.seed + self.searches - 1}: "
-                   f"the robust chosen point with the lowest nominal TACE)" if self.searches > 1 else ""))
+                f"{self.draws} draws (noise seed, +-{100 * self.mismatch:g}% model mismatch)")
 
 
 @dataclass(frozen=True)
@@ -164,6 +158,9 @@ class Evaluation:
     objective: float
     admissible: bool
     worst: float = math.nan        # the worst steady-state TACE over the robustness runs (nan: not checked)
+    unit: list = field(default_factory=list)     # where in the search's unit box
+    point: dict = field(default_factory=dict)    # the tuning space's values there
+    search: int = 0                              # which search evaluated it
 
 
 @dataclass
@@ -182,8 +179,17 @@ class Tuned:
     margins: object = None                             # worst_margins of the tuned loop on the machine, if linear
     status: str = "ok"
     cpu: float = math.nan                              # CPU seconds the tuning, its checks and draws took
-    search: int = 0                                    # which of the Protocol.searches searches was kept
+    search: int = 0                                    # which of the searches was kept
     search_tace: list = field(default_factory=list)    # each search's chosen nominal TACE [m] (nan: none)
+    search_evaluations: list = field(default_factory=list)   # each search's evaluations
+    agreement: object = None                           # search.Agreement of the searches
+    point: dict = field(default_factory=dict)          # the kept gains in the tuning space's coordinates
+    space: str = ""                                    # the tuning space, described
+
+    @property
+    def converged(self) -> bool:
+        """Whether the searches agreed (:func:`contouring_ros.search.agreement`)."""
+        return bool(self.agreement is not None and self.agreement.converged)
 
     @property
     def ok(self) -> bool:
@@ -215,25 +221,10 @@ def _magnitude(value) -> float:
     return max(values) if values else 0.0
 
 
-def anchors(section: dict, keys: tuple) -> dict:
-    """key -> the gain's anchor: its magnitude in the file (a per-axis list: its largest entry), else
-    :data:`SIBLING_ANCHOR` from a sibling, else 1."""
-    out = {}
-    for key in keys:
-        value = _magnitude(section[key])
-        if value > 0.0:
-            out[key] = value
-            continue
-        sibling, ratio = SIBLING_ANCHOR.get(key, (None, 1.0))
-        base = _magnitude(section.get(sibling, 0.0)) if sibling else 0.0
-        out[key] = base * ratio if base > 0.0 else 1.0
-    return out
-
-
 def _set_gain(section: dict, key: str, magnitude: float) -> None:
     """The gain ``key`` of ``section`` set to ``magnitude`` (a per-axis list keeps its proportions; a list
     of zeros becomes ``magnitude`` on every axis)."""
-    value = section[key]
+    value = section.get(key, magnitude)
     if isinstance(value, list):
         top = _magnitude(value)
         section[key] = [magnitude * float(v) / top for v in value] if top > 0 else [magnitude] * len(value)
@@ -247,14 +238,6 @@ def section_with_gains(section: dict, gains: dict) -> dict:
     out = dict(section)
     for key, magnitude in gains.items():
         _set_gain(out, key, magnitude)
-    return out
-
-
-def _gains_from(x, keys: tuple, anchor: dict, decades: float) -> dict:
-    out = {}
-    for key, xi in zip(keys, x):
-        low = math.log10(anchor[key]) - decades
-        out[key] = 0.0 if xi <= low + OFF else 10.0 ** float(xi)
     return out
 
 
@@ -467,106 +450,20 @@ def worst_margins(per_axis: dict):
 
 
 def _objective(outcome: Outcome, noise_limit: float, protocol: Protocol) -> tuple:
-    """(objective, admissible): log10 of the TACE in um, plus :data:`PENALTY` per decade a constraint is
-    exceeded by; 100 for a run that diverged."""
+    """(objective, admissible): log10 of the TACE in um, plus :data:`PENALTY` per decade the noise bound is
+    exceeded by and per unit share of steps saturated beyond the allowed share (continuous across each
+    bound, so that a search can settle on an optimum that lies on it); 100 for a run that diverged."""
     if not outcome.ok or not math.isfinite(outcome.tace):
         return 100.0, False
     value = math.log10(max(outcome.tace, 1e-15) * 1e6)
     excess = 0.0
     if math.isfinite(noise_limit) and outcome.noise > noise_limit:
-        excess += math.log10(outcome.noise / noise_limit) + 0.1
+        excess += math.log10(outcome.noise / noise_limit)
     if outcome.saturated > protocol.saturation_share:
-        excess += outcome.saturated - protocol.saturation_share + 0.1
-    return value + PENALTY * excess, excess == 0.0
-
-
-def minimise(objective, x0: list, low: list, high: list, evaluations: int, protocol: Protocol) -> tuple:
-    """(best x, its value, evaluations used) of ``objective`` within the box [low, high] from ``x0``.
-
-    Two phases within one budget of ``evaluations``: CMA-ES (Hansen 2016; the ``cma`` package) with a
-    first step of :attr:`Protocol.global_step` units (decades on a log scale) for :attr:`Protocol.global_share`
-    of it, a global search that can leave the start's basin; then Nelder-Mead (scipy.optimize, bounded) from the best point found, with a
-    simplex of :attr:`Protocol.polish_step` units, which converges on the optimum (often on a constraint's
-    edge) in few evaluations where CMA-ES would still be adapting its step. An ``objective`` with a ``many``
-    attribute (a list of points -> their values) gets each CMA-ES population at once (one batch)."""
-    import cma
-    from scipy.optimize import minimize
-    state = {"best": [float(v) for v in x0], "value": math.inf, "used": 0}
-
-    def counted(x):
-        return counted_many([x])[0]
-
-    def counted_many(xs):
-        if state["used"] + len(xs) > evaluations:
-            raise _Spent
-        state["used"] += len(xs)
-        many = getattr(objective, "many", None)
-        values = [float(v) for v in many(xs)] if many else [float(objective(x)) for x in xs]
-        for x, value in zip(xs, values):
-            if value < state["value"]:
-                state["best"], state["value"] = [float(v) for v in x], value
-        return values
-
-    first = max(1, int(round(evaluations * protocol.global_share)))
-    n = len(x0)
-    pad = [0.0] if n == 1 else []         # cma cannot search one dimension: a second one, ignored
-    options = {"bounds": [list(low) + [-1.0] * len(pad), list(high) + [1.0] * len(pad)],
-               "popsize": protocol.popsize, "seed": protocol.seed, "verbose": -9, "tolx": 1e-3, "tolfun": 1e-6}
-    step = min(protocol.global_step, 0.3 * float(np.min(np.subtract(high, low))))   # within the box's narrowest side
-    es = cma.CMAEvolutionStrategy(list(x0) + pad, step, options)
-    try:
-        while not es.stop() and state["used"] + protocol.popsize <= first:
-            xs = es.ask()
-            es.tell(xs, counted_many([list(x[:n]) for x in xs]))
-        start = np.asarray(state["best"], dtype=float)
-        simplex = np.vstack([start] + [start + protocol.polish_step * e for e in np.eye(len(start))])
-        simplex = np.clip(simplex, low, high)
-        for i in range(1, len(simplex)):           # a vertex pushed onto the start by a bound steps back instead
-            if np.array_equal(simplex[i], start):
-                simplex[i, i - 1] -= protocol.polish_step
-        minimize(counted, start, method="Nelder-Mead", bounds=list(zip(low, high)),
-                 options={"maxfev": max(evaluations - state["used"], 1), "initial_simplex": simplex,
-                          "xatol": 1e-3, "fatol": 1e-6})
-    except _Spent:
-        pass
-    return state["best"], state["value"], state["used"]
-
-
-def nelder_mead_restarts(objective, x0: list, low: list, high: list, evaluations: int, protocol: Protocol,
-                         starts: int = 4) -> tuple:
-    """(best x, its value, evaluations used): bounded Nelder-Mead (scipy) from ``x0`` and from
-    ``starts`` - 1 points drawn uniformly in the box, the budget split evenly: an independent search to check
-    :func:`minimise` against (SCIENCE: "Nelder-Mead from several starts")."""
-    from scipy.optimize import minimize
-    rng = np.random.default_rng(protocol.seed + 100)
-    points = [np.asarray(x0, dtype=float)] + [rng.uniform(low, high) for _ in range(starts - 1)]
-    best, value, used = list(x0), math.inf, 0
-    for i, start in enumerate(points):
-        share = (evaluations - used) // (len(points) - i)
-        calls = []
-
-        def counted(x):
-            if len(calls) >= share:
-                raise _Spent
-            calls.append(1)
-            return float(objective(x))
-        simplex = np.clip(np.vstack([start] + [start + 1.0 * e for e in np.eye(len(start))]), low, high)
-        for j in range(1, len(simplex)):
-            if np.array_equal(simplex[j], start):
-                simplex[j, j - 1] -= 1.0
-        try:
-            result = minimize(counted, start, method="Nelder-Mead", bounds=list(zip(low, high)),
-                              options={"maxfev": share, "initial_simplex": simplex, "xatol": 1e-3, "fatol": 1e-6})
-            if result.fun < value:
-                best, value = [float(v) for v in result.x], float(result.fun)
-        except _Spent:
-            pass
-        used += len(calls)
-    return best, value, used
-
-
-class _Spent(Exception):
-    """The evaluation budget is spent."""
+        excess += 10.0 * (outcome.saturated - protocol.saturation_share)
+    admissible = (not math.isfinite(noise_limit) or outcome.noise <= noise_limit) \
+        and outcome.saturated <= protocol.saturation_share
+    return value + PENALTY * excess, admissible
 
 
 def loop_robustness(experiment) -> tuple | None:
@@ -587,26 +484,71 @@ def loop_robustness(experiment) -> tuple | None:
     return worst
 
 
+def tuning_space(data: dict, sections: dict, keys: tuple, protocol: Protocol, where: str = "tuning") -> tuple:
+    """(the space a combination is tuned in, the validated sections its file point is read from): its
+    controller's catalogue ``tuning`` space (else the log box of its raw gains ``keys``,
+    :func:`contouring_ros.core.tuning_space.log_box`; none without either), with the space of the servos
+    added where their law states one (the ZPETC's PID)."""
+    experiment = experiment_for(data, sections, {}, where)
+    axes = list(experiment.axes)
+    responses = {}
+    for a in axes:
+        plant = experiment.plants[a]
+        entry = PLANTS.entry(plant["model"])
+        responses[a] = (lambda w, e=entry, s=plant: e.response(s, w)) if entry.response else None
+    context = TuningContext(float(experiment.sample_time), dict(experiment.plants), dict(experiment.servos), responses)
+    validated = {"/ccc": experiment.controller, **{f"/{a}/servo": experiment.servos[a] for a in axes}}
+    entry = CONTROLLERS.entry(experiment.controller["type"])
+    space = entry.tuning(experiment.controller, context) if entry.tuning else None
+    if space is None and keys:
+        space = log_box(experiment.controller, keys, protocol.decades)
+    laws = {experiment.servos[a]["law"] for a in axes}
+    if len(laws) == 1:
+        servo_entry = SERVOS.entry(laws.pop())
+        if servo_entry.tuning is not None:
+            space = combine(space, servo_entry.tuning(experiment.servos[axes[0]], context))
+    return space or Space((), lambda values: {}, lambda sections: {}, "none"), validated
+
+
+def sections_with_gains(sections: dict, gains: dict) -> dict:
+    """A copy of the node ``sections`` with raw ``gains`` set: a plain key on ``/ccc``, ``<axis>/servo.<key>``
+    on that servo (a per-axis list keeps its proportions, :func:`_set_gain`)."""
+    ccc = {k: v for k, v in gains.items() if "/" not in k}
+    out = dict(sections, **{"/ccc": section_with_gains(sections["/ccc"], ccc)})
+    for key, value in gains.items():
+        if "/" in key:
+            node, name = key.split(".", 1)
+            out[f"/{node}"] = section_with_gains(out[f"/{node}"], {name: value})
+    return out
+
+
 @dataclass
 class Search:
-    """What one search of :func:`tune` ends with: the chosen Evaluation (None: no admissible point), the
+    """What one search of a :class:`Tuning` ends with: the chosen Evaluation (None: no admissible point), the
     status it gives the combination and the chosen point's worst TACE over the perturbations / its nominal."""
 
     chosen: Evaluation | None
     status: str
     robust_worst: float = math.nan
+    evaluations: int = 0
 
     @property
     def tace(self) -> float:
         """The chosen point's nominal TACE (nan where there is none or it diverged)."""
         return self.chosen.outcome.tace if self.chosen is not None else math.nan
 
+    @property
+    def value(self) -> float:
+        """What the searches of a row are compared by (:func:`agreement`): the nominal TACE of a robust
+        choice; inf where the search found none."""
+        return self.tace if self.status == "ok" and math.isfinite(self.tace) else math.inf
+
 
 def best_search(searches: list) -> Search:
-    """The search a combination keeps from its independent searches (:attr:`Protocol.searches`), judged by
-    what each search itself measured, never by the draws: a robust chosen point with the lowest nominal
-    TACE; where no search found one, a not-robust point with the lowest worst case over the perturbations;
-    where none found an admissible point, the first search's status. Ties go to the earlier search."""
+    """The search a combination keeps from its independent searches, judged by what each search itself
+    measured, never by the draws: a robust chosen point with the lowest nominal TACE; where no search found
+    one, a not-robust point with the lowest worst case over the perturbations; where none found an admissible
+    point, the first search's status. Ties go to the earlier search."""
     robust = [s for s in searches if s.status == "ok" and math.isfinite(s.tace)]
     if robust:
         return min(robust, key=lambda s: s.tace)
@@ -616,192 +558,225 @@ def best_search(searches: list) -> Search:
     return searches[0]
 
 
+def searches_agreement(searches: list, protocol: Protocol) -> Agreement:
+    """How far a row's searches agree (:func:`contouring_ros.search.agreement` with the protocol's tolerance):
+    on the robust choices' nominal TACE; where no search found a robust point, on the worst cases of their
+    not-robust choices."""
+    values = [s.value for s in searches]
+    if not any(math.isfinite(v) for v in values):
+        values = [s.chosen.worst if s.chosen is not None and math.isfinite(s.chosen.worst) else math.inf
+                  for s in searches]
+    return agreement(values, protocol.agreement, protocol.agree)
+
+
+@dataclass
+class _Run:
+    """One search under way: its index and its evaluations."""
+
+    index: int
+    evaluations: list = field(default_factory=list)
+
+
+class Tuning:
+    """One combination's tuning (see the module docstring), as named steps: :meth:`measure` a batch of points,
+    each on the nominal plant and at every robustness perturbation, in one vectorised batch; :meth:`evaluate`
+    one round of the populations of searches side by side; :meth:`search` from given seeds and :meth:`choose`
+    what each ends with; :meth:`run` searches until they agree (or the cap), then the draws."""
+
+    def __init__(self, data: dict, sections: dict, keys: tuple, machine: dict, noise_limit: float, from_time: float,
+                 protocol: Protocol, where: str = "tuning", robust_floor: float = 0.0, space: Space | None = None):
+        self.data, self.sections, self.machine, self.where = data, sections, machine, where
+        self.noise_limit, self.from_time, self.protocol, self.robust_floor = noise_limit, from_time, protocol, robust_floor
+        self.space, self.validated = tuning_space(data, sections, keys, protocol, where)
+        if space is not None:
+            self.space = space
+        self.checks = perturbations(data, protocol.perturbation)
+        self.limits = [_limits(data, dict(machine, **change)) for change in [{}] + self.checks]
+        self.tuned = Tuned(file_gains=({k: sections["/ccc"][k] for k in keys}), space=self.space.describe())
+
+    # --- runs ----------------------------------------------------------------------------------------
+    def with_gains(self, gains: dict) -> dict:
+        return sections_with_gains(self.sections, gains)
+
+    def measure(self, points: list) -> list:
+        """An Evaluation per (unit point, values, gains): each point on the nominal plant and with each plant
+        parameter at +-perturbation (:func:`perturbations`), every run of every point in one batch where the
+        classes allow. A point is refused unrun where its linear loop is unstable; beyond the Ms bound
+        (:func:`loop_robustness`), not robust (its worst TACE over the perturbations above robust_factor x
+        its nominal TACE and above the floor), too noisy or saturated it is inadmissible, its objective
+        paying for it continuously across each bound (:func:`_objective`), so that a search can settle on an
+        optimum on a bound. The objective is a function of the point alone: searches from anywhere see the
+        same landscape."""
+        out, experiments, owners = [], [], []
+        for unit, values, gains in points:
+            out.append(Evaluation(gains, Outcome(), 100.0, False, unit=unit, point=values))
+            try:
+                here = [experiment_for(self.data, self.with_gains(gains), dict(self.machine, **change), self.where)
+                        for change in [{}] + self.checks]
+            except ConfigError as error:
+                out[-1].outcome = Outcome(failure=f"refused: {error}")
+                continue
+            robustness = loop_robustness(here[0]) if self.protocol.ms_limit else None
+            if robustness is not None and not robustness[1]:
+                out[-1].outcome = Outcome(failure="refused: its linear loop is unstable")
+                out[-1].objective = 50.0 + PENALTY * 3.0
+                continue
+            out[-1].ms = robustness
+            experiments += here
+            owners += [(len(out) - 1, j) for j in range(len(here))]
+        outcomes = _outcomes(experiments, self.from_time, [self.limits[j] for _, j in owners])
+        runs = {}
+        for (i, j), outcome in zip(owners, outcomes):
+            runs.setdefault(i, [None] * (len(self.checks) + 1))[j] = outcome
+        self.tuned.robustness_runs += len(owners) - len(runs)
+        for i, outcomes in runs.items():
+            self._judge(out[i], outcomes[0], outcomes[1:])
+        return out
+
+    def _judge(self, evaluation: Evaluation, nominal: Outcome, perturbed: list) -> None:
+        """The objective and admissibility of a point from its nominal run and its perturbed runs."""
+        p = self.protocol
+        objective, admissible = _objective(nominal, self.noise_limit, p)
+        evaluation.outcome, evaluation.objective, evaluation.admissible = nominal, objective, admissible
+        if not nominal.ok:
+            return
+        evaluation.worst = max((o.tace if o.ok else math.inf for o in perturbed), default=nominal.tace)
+        ms = evaluation.__dict__.pop("ms", None)
+        if ms is not None and ms[0] > ms[2]:
+            evaluation.objective += PENALTY * math.log10(ms[0] / ms[2])
+            evaluation.admissible = False
+            evaluation.outcome = dataclasses.replace(nominal, failure=f"Ms {ms[0]:.3g} over {ms[2]:.3g}")
+            return
+        bound = max(p.robust_factor * nominal.tace, self.robust_floor)
+        if evaluation.worst > bound:
+            evaluation.objective += PENALTY * min(math.log10(evaluation.worst / bound) if bound > 0 else 3.0, 3.0)
+            evaluation.admissible = False
+            evaluation.outcome = dataclasses.replace(
+                nominal, failure=f"not robust: {evaluation.worst / nominal.tace:.3g}x the nominal TACE at "
+                                 f"+-{100 * p.perturbation:g}% of a plant parameter")
+
+    def evaluate(self, runs: list, asked: list) -> list:
+        """One round of searches side by side: every search's points (``asked[i]`` of ``runs[i]``, unit points)
+        measured in one batch (:meth:`measure`). Returns each search's objectives."""
+        evaluations = self.measure([(list(u), *self.space.decode(u)) for units in asked for u in units])
+        out, at = [], 0
+        for run, units in zip(runs, asked):
+            mine = evaluations[at:at + len(units)]
+            at += len(units)
+            for e in mine:
+                e.search = run.index
+            run.evaluations += mine
+            out.append([e.objective for e in mine])
+        self.tuned.evaluations += evaluations
+        return out
+
+    # --- searches --------------------------------------------------------------------------------------
+    def start(self, index: int) -> list:
+        """Search 0 starts from the file's gains, the others from a point drawn uniformly in the box (from
+        their seed); each then goes from the best of its design's points where that is better."""
+        if index == 0:
+            return self.space.start(self.validated)
+        rng = np.random.default_rng(10_000 + self.protocol.seed + index)
+        return list(rng.uniform(0.0, 1.0, len(self.space.dimensions)))
+
+    def search(self, indices: list, optimiser=None) -> list:
+        """Searches ``indices`` (search i: seed protocol.seed + i) and the choice each ends with
+        (:meth:`choose`). Search 0 evaluates the file's gains first. The searches run side by side, their
+        populations in one batch (:func:`contouring_ros.search.run_side_by_side`); another ``optimiser``
+        runs them one at a time."""
+        p = self.protocol
+        runs = [_Run(i) for i in indices]
+        for run in runs:
+            if run.index == 0:
+                self.evaluate([run], [[self.start(0)]])
+        budget = {run.index: p.evaluations - len(run.evaluations) for run in runs}
+        if optimiser is not None:
+            for run in runs:
+                optimiser(lambda units, run=run: self.evaluate([run], [units])[0], self.start(run.index),
+                          budget[run.index], p.seed + run.index)
+        else:
+            searches = [IPOPCMAES(self.start(run.index), budget[run.index], p.seed + run.index, p.popsize, p.step,
+                                  self.space.steps, math.log10(1.0 + p.agreement), p.design) for run in runs]
+            for run, search in zip(runs, searches):
+                if run.evaluations:                      # search 0: the file's gains, evaluated first
+                    search.known_start(run.evaluations[0].objective)
+            run_side_by_side(searches, lambda asked: self.evaluate(
+                [run for run, search in zip(runs, searches) if not search.done], asked))
+        return [self.choose(run.evaluations) for run in runs]
+
+    def choose(self, mine: list) -> Search:
+        """What a search ends with: its admissible point (robust, quiet, unsaturated) of lowest nominal TACE;
+        where it has none, its point of lowest worst case among those that met every other constraint,
+        marked not robust; else no admissible gain."""
+        p = self.protocol
+        admissible = [e for e in mine if e.admissible]
+        if admissible:
+            chosen = min(admissible, key=lambda e: e.outcome.tace)
+            return Search(chosen, "ok", chosen.worst / chosen.outcome.tace, len(mine))
+        fragile = [e for e in mine if e.outcome.failure.startswith("not robust")]
+        if fragile:
+            chosen = min(fragile, key=lambda e: e.worst)
+            status = (f"not robust: no point of the search stays within {p.robust_factor:g}x at "
+                      f"+-{100 * p.perturbation:g}% of a plant parameter while meeting the other constraints "
+                      f"(given: the point with the lowest worst case)")
+            return Search(chosen, status, chosen.worst / chosen.outcome.tace, len(mine))
+        failures = sorted({e.outcome.failure.split(":")[0] for e in mine if e.outcome.failure})
+        noisy = [e.outcome.noise / self.noise_limit for e in mine
+                 if e.outcome.noise == e.outcome.noise and self.noise_limit > 0]
+        return Search(None, "no admissible gain: every point diverged or broke a constraint"
+                      + (f" (least noise {min(noisy):.3g} x the bound)" if noisy else "")
+                      + (f" ({'; '.join(failures)})" if failures else ""), evaluations=len(mine))
+
+    # --- the whole tuning ----------------------------------------------------------------------------
+    def run(self, optimiser=None) -> Tuned:
+        """protocol.searches searches, then more while they do not agree (:func:`searches_agreement`), up to
+        protocol.max_searches; the best kept (:func:`best_search`); then the draws, the ideal machine and the
+        margins of the kept gains."""
+        p, tuned = self.protocol, self.tuned
+        if not self.space.dimensions:                # nothing to tune: the file's gains, measured once
+            searches = self.search([0], optimiser)
+        else:
+            searches = self.search(list(range(p.searches)), optimiser)
+            while not searches_agreement(searches, p).converged and len(searches) < max(p.max_searches, p.searches):
+                searches += self.search([len(searches)], optimiser)
+        kept = best_search(searches)
+        # nothing to tune: no search to agree with, the file's gains are the answer
+        tuned.agreement = searches_agreement(searches, p) if self.space.dimensions else Agreement(1, 1, 1.0, True)
+        tuned.search, tuned.search_tace = searches.index(kept), [s.tace for s in searches]
+        tuned.search_evaluations = [s.evaluations for s in searches]
+        tuned.status, tuned.robust_worst = kept.status, kept.robust_worst
+        if kept.chosen is None:
+            return tuned
+        chosen = kept.chosen
+        tuned.gains, tuned.nominal, tuned.point = chosen.gains, chosen.outcome, chosen.point
+        tuned.at_bound = self.space.at_bound(chosen.unit)
+        return self._finish(chosen.gains)
+
+    def _finish(self, gains: dict) -> Tuned:
+        tuned, p = self.tuned, self.protocol
+        final = self.with_gains(gains)
+        tuned.draws = run_outcomes(self.data, final, [dict(self.machine, **draw_settings(self.data, j, p.mismatch))
+                                                      for j in range(p.draws)], self.from_time, self.where)
+        tuned.ideal = run_outcomes(self.data, final, [{}], self.from_time, self.where)[0]   # the file's machine
+        tuned.margins = worst_margins(experiment_margins(experiment_for(self.data, final, self.machine, self.where)))
+        return tuned
+
+
 def tune(data: dict, sections: dict, keys: tuple, machine: dict, noise_limit: float, from_time: float,
-         protocol: Protocol, where: str = "tuning", optimiser=None, robust_floor: float = 0.0) -> Tuned:
-    """Tune the gains ``keys`` of ``sections['/ccc']`` (see the module docstring) on ``data`` with the
-    machine settings ``machine``; then check robustness, run the draws and the ideal machine.
-    ``optimiser``: another search with :func:`minimise`'s signature (to check the tuning against it).
+         protocol: Protocol, where: str = "tuning", optimiser=None, robust_floor: float = 0.0,
+         space: Space | None = None) -> Tuned:
+    """Tune the combination ``sections`` (see the module docstring and :class:`Tuning`) on ``data`` with the
+    machine settings ``machine``; then run the draws and the ideal machine. ``keys``: the controller's raw
+    gains (its file gains in the report; the log box of a plugin without a space). ``optimiser``: another
+    search over the unit box, ``optimiser(objective_many, start, budget, seed)``, to check the tuning against
+    it. ``space``: another space (e.g. :func:`contouring_ros.core.tuning_space.log_box` of the raw gains).
     ``robust_floor`` [m]: a point is also robust when its worst TACE over the perturbations is at most this
     (the benchmark gives the proposed method's worst with the paper's gains, :func:`worst_case`): the same
     robustness as the paper's own design is enough, where that design itself degrades by more than
     robust_factor (otherwise only points far worse than the paper's would pass, and their error is large
     enough to hide any degradation)."""
-    ccc = sections["/ccc"]
-    file_gains = {k: ccc[k] for k in keys}
-    tuned = Tuned(file_gains=file_gains)
-    limits = _limits(data, machine)
+    return Tuning(data, sections, keys, machine, noise_limit, from_time, protocol, where, robust_floor, space).run(optimiser)
 
-    def with_gains(gains: dict) -> dict:
-        return dict(sections, **{"/ccc": section_with_gains(ccc, gains)})
-
-    def measure_many(points: list) -> list:
-        """An Evaluation per gains mapping, run as one batch where the classes allow; a point is refused
-        before it runs where its linear loop is unstable or beyond the Ms bound."""
-        out, runnable = [], []
-        for gains in points:
-            try:
-                experiment = experiment_for(data, with_gains(gains), machine, where)
-            except ConfigError as error:
-                out.append(Evaluation(gains, Outcome(failure=f"refused: {error}"), 100.0, False))
-                continue
-            robustness = loop_robustness(experiment) if protocol.ms_limit else None
-            if robustness is not None and not robustness[0] <= robustness[2]:
-                ms, stable, allowed = robustness
-                what = "its linear loop is unstable" if not stable else f"Ms {ms:.3g} over {allowed:.3g}"
-                excess = 3.0 if not stable else math.log10(ms / allowed)
-                out.append(Evaluation(gains, Outcome(failure=f"refused: {what}"), 50.0 + PENALTY * excess, False))
-                continue
-            runnable.append((len(out), experiment))
-            out.append(None)
-        outcomes = _outcomes([e for _, e in runnable], from_time, [limits] * len(runnable))
-        for (i, _), outcome in zip(runnable, outcomes):
-            out[i] = Evaluation(points[i], outcome, *_objective(outcome, noise_limit, protocol))
-        return out
-
-    def measure(gains: dict) -> Evaluation:
-        return measure_many([gains])[0]
-
-    checks = perturbations(data, protocol.perturbation)
-    incumbent = []             # the robust point with the lowest TACE so far in this search (at most one)
-
-    def check(candidate: Evaluation) -> bool:
-        """Robustness: every +-perturbation run stable, with its TACE at most robust_factor x the candidate's
-        nominal TACE or at most ``robust_floor``. Keeps the worst TACE on the candidate."""
-        candidate.worst = worst_case(data, with_gains(candidate.gains), machine, from_time, protocol, where)
-        tuned.robustness_runs += len(checks)
-        if math.isnan(candidate.worst):
-            candidate.worst = candidate.outcome.tace
-        return candidate.worst <= max(protocol.robust_factor * candidate.outcome.tace, robust_floor)
-
-    def judge(evaluation: Evaluation) -> None:
-        """Robust: the incumbent; not: inadmissible, its objective paying for it."""
-        if check(evaluation):
-            incumbent[:] = [evaluation]
-            return
-        bound = max(protocol.robust_factor * evaluation.outcome.tace, robust_floor)
-        excess = evaluation.worst / bound if bound > 0 else math.inf
-        evaluation.admissible = False
-        evaluation.objective += PENALTY * (min(math.log10(max(excess, 1.0)), 3.0) + 0.1)
-        evaluation.outcome = dataclasses.replace(
-            evaluation.outcome, failure=f"not robust: {evaluation.worst / evaluation.outcome.tace:.3g}x the nominal "
-                                        f"TACE at +-{100 * protocol.perturbation:g}% of a plant parameter")
-
-    def evaluate_many(points: list) -> list:
-        """Points of the search, run together. An admissible point that beats the robust incumbent by more
-        than robust_step (or any, while there is none) is checked for robustness at once (:func:`judge`), so
-        the search turns away from gains that only work on the nominal plant; smaller gains wait for the
-        end."""
-        evaluations = measure_many(points)
-        for evaluation in evaluations:
-            tuned.evaluations.append(evaluation)
-            if evaluation.admissible and (not incumbent or evaluation.outcome.tace
-                                          < (1.0 - protocol.robust_step) * incumbent[0].outcome.tace):
-                judge(evaluation)
-        return evaluations
-
-    def evaluate(gains: dict) -> Evaluation:
-        return evaluate_many([gains])[0]
-
-    anchor = anchors(ccc, keys)
-    # the box of the log-scaled gains and the file's point in it, the same for every search
-    low = [math.log10(anchor[k]) - protocol.decades for k in keys]
-    high = [math.log10(anchor[k]) + protocol.decades for k in keys]
-    x0 = [math.log10(_magnitude(ccc[k])) if _magnitude(ccc[k]) > 0 else math.log10(anchor[k]) - 1.0 for k in keys]
-
-    def objective(x):
-        return evaluate(_gains_from(x, keys, anchor, protocol.decades)).objective
-
-    def objectives(xs):
-        return [e.objective for e in evaluate_many([_gains_from(x, keys, anchor, protocol.decades) for x in xs])]
-    objective.many = objectives
-
-    def search(search_protocol: Protocol) -> Search:
-        """One search from the file's gains (its seed: ``search_protocol.seed``) and the choice it ends with."""
-        incumbent.clear()
-        first = len(tuned.evaluations)
-        evaluate({k: _magnitude(ccc[k]) for k in keys})             # the file's gains
-        if keys:
-            # a coarse scan first: every gain scaled together by each of Protocol.scan (a file's gains may sit
-            # decades from where the loop acts), then quasi-random points over the whole box (a basin where one
-            # gain is off or decades from the others); the search starts from the best of all of them
-            values = {tuple(x0): tuned.evaluations[first].objective}
-            starts = [[min(max(v + shift, lo), hi) for v, lo, hi in zip(x0, low, high)] for shift in protocol.scan]
-            if protocol.design:
-                from scipy.stats import qmc
-                unit = qmc.Sobol(len(keys), scramble=True, seed=search_protocol.seed).random(protocol.design)
-                starts += qmc.scale(unit, low, high).tolist()
-            fresh = []
-            for x in starts:
-                if tuple(x) not in values and tuple(x) not in map(tuple, fresh):
-                    fresh.append(x)
-            fresh = fresh[:max(protocol.evaluations - 1 - (len(tuned.evaluations) - first), 0)]
-            values.update(zip(map(tuple, fresh), objectives(fresh)))
-            start = list(min(values, key=values.get))
-            (optimiser or minimise)(objective, start, low, high,
-                                    protocol.evaluations - (len(tuned.evaluations) - first), search_protocol)
-        mine = tuned.evaluations[first:]
-        # the admissible points not checked yet that beat the incumbent, best first
-        waiting = sorted((e for e in mine if e.admissible and math.isnan(e.worst)
-                          and (not incumbent or e.outcome.tace < incumbent[0].outcome.tace)), key=lambda e: e.outcome.tace)
-        for evaluation in waiting[:protocol.final_checks]:
-            judge(evaluation)
-            if incumbent and incumbent[0] is evaluation:
-                break
-        if incumbent:
-            chosen = incumbent[0]
-            return Search(chosen, "ok", chosen.worst / chosen.outcome.tace)
-        # no robust point in the search: the best stable point that met the other constraints, backed off
-        # a quarter decade at a time (every gain together, toward more margin)
-        near = sorted((e for e in mine if e.outcome.ok or e.outcome.failure.startswith("not robust")),
-                      key=lambda e: e.objective)
-        if not near or near[0].objective >= 50.0:
-            failures = sorted({e.outcome.failure.split(":")[0] for e in mine if e.outcome.failure})
-            noisy = [e.outcome.noise / noise_limit for e in mine if e.outcome.ok and noise_limit > 0]
-            return Search(None, "no admissible gain: every point diverged or broke a constraint"
-                          + (f" (least noise {min(noisy):.3g} x the bound)" if noisy else "")
-                          + (f" ({'; '.join(failures)})" if failures else ""))
-        best = near[0]
-        tried = []
-        for step in range(1, protocol.backoff + 1):
-            candidate = measure({k: v * 10.0 ** (-0.25 * step) for k, v in best.gains.items()})
-            tuned.robustness_runs += 1
-            if candidate.admissible:
-                tried.append(candidate)
-                if check(candidate):
-                    return Search(candidate, "ok", candidate.worst / candidate.outcome.tace)
-        # the checked point whose worst case over the perturbations is the lowest
-        checked = [e for e in mine + tried if math.isfinite(e.worst)]
-        chosen = min(checked, key=lambda e: e.worst) if checked else best
-        status = (f"not robust: no point of the search, nor the best backed off {protocol.backoff} times, "
-                  f"stays within {protocol.robust_factor:g}x at +-{100 * protocol.perturbation:g}% of a "
-                  f"plant parameter while meeting the other constraints (given: the point with the "
-                  f"lowest worst case)")
-        robust_worst = chosen.worst / chosen.outcome.tace if math.isfinite(chosen.worst) and chosen.outcome.tace > 0 \
-            else math.nan
-        if not chosen.outcome.ok:
-            chosen = Evaluation(chosen.gains, measure(chosen.gains).outcome, chosen.objective, False, chosen.worst)
-        return Search(chosen, status, robust_worst)
-
-    searches = [search(dataclasses.replace(protocol, seed=protocol.seed + i)) for i in range(protocol.searches)]
-    kept = best_search(searches)
-    tuned.search, tuned.search_tace = searches.index(kept), [s.tace for s in searches]
-    tuned.status, tuned.robust_worst = kept.status, kept.robust_worst
-    if kept.chosen is None:
-        return tuned
-    chosen = kept.chosen
-    tuned.gains, tuned.nominal = chosen.gains, chosen.outcome
-    for key in keys:
-        value = chosen.gains[key]
-        if value == 0.0:
-            tuned.at_bound.append(f"{key} off")
-        elif math.log10(value) >= math.log10(anchor[key]) + protocol.decades - 0.05:
-            tuned.at_bound.append(f"{key} at the upper bound")
-    final = with_gains(chosen.gains)
-    tuned.draws = run_outcomes(data, final, [dict(machine, **draw_settings(data, j, protocol.mismatch))
-                                             for j in range(protocol.draws)], from_time, where)
-    tuned.ideal = run_outcomes(data, final, [{}], from_time, where)[0]          # the file's machine as it is
-    tuned.margins = worst_margins(experiment_margins(experiment_for(data, final, machine, where)))
-    return tuned
 
 
 # ------------------------------------------------------------------------------------------ figures

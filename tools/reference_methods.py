@@ -28,7 +28,7 @@ from contouring_ros.experiment.build import build_loop  # noqa: E402
 from contouring_ros.learning import simulate_passes  # noqa: E402
 from contouring_ros.sweep import score_one  # noqa: E402
 from contouring_ros.tuning import (  # noqa: E402
-    experiment_for, fit_to_machine, machine_settings, run_outcomes, section_with_gains)
+    experiment_for, fit_to_machine, machine_settings, run_outcomes, sections_with_gains)
 
 
 def _sections(family, row: dict, file_gains: bool) -> tuple:
@@ -41,7 +41,7 @@ def _sections(family, row: dict, file_gains: bool) -> tuple:
     machine = machine_settings(data, "realistic", ideal.peak_command if ideal.ok else ())
     sections = fit_to_machine(data, combo.sections, machine)
     gains = json.loads(row["file_gains" if file_gains or not row["gains"] else "gains"] or "{}")
-    sections = dict(sections, **{"/ccc": section_with_gains(sections["/ccc"], gains)})
+    sections = sections_with_gains(sections, gains)
     return experiment_for(data, sections, machine, family.name), gains
 
 

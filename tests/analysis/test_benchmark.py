@@ -13,7 +13,7 @@ from contouring_ros.errors import ConfigError
 from contouring_ros.tuning import Protocol
 
 SMALL = "paper003_mech_ellipse"      # one scenario of two files, two combinations
-FAST = Protocol(evaluations=6, popsize=4, draws=2, backoff=1)
+FAST = Protocol(evaluations=6, popsize=4, design=0, draws=2, searches=1, max_searches=1)
 
 
 def test_scenarios_group_the_files_of_one_experiment_and_pick_the_proposed_file():
@@ -69,7 +69,7 @@ def test_pairings_skip_what_cannot_differ_and_bound_the_reference_methods():
     combos, _ = plan(families["paper003_ellipse"])
     mpcc = [c for c in combos if c.controller == "mpcc"]
     assert [(c.estimator, c.servo, c.gain_keys) for c in mpcc] == [("natural_local", "direct",
-                                                                     ("q_contour", "q_lag", "r_rate"))]
+                                                                     ("horizon", "q_contour", "q_lag", "r_rate"))]
 
 
 def test_a_method_that_models_its_drive_is_given_the_realistic_machine():
@@ -153,35 +153,19 @@ def test_a_method_rerun_alone_takes_its_rows_place_in_an_earlier_full_run(small_
 # ------------------------------------------------------------------------------------ the protocol
 
 
-def test_anchors_free_a_gain_that_is_zero_in_the_file():
+def test_a_plugin_without_a_space_is_searched_in_the_log_box_of_its_raw_gains():
+    from contouring_ros.core.tuning_space import log_box
     section = {"kp": 2.0, "ki": 0.0, "kd": 0.0, "coupling": [0.0, 0.0]}
-    assert tuning.anchors(section, ("kp", "ki", "kd", "coupling")) == \
-        {"kp": 2.0, "ki": 60.0, "kd": 2e-3, "coupling": 1.0}
+    space = log_box(section, ("kp", "ki", "kd", "coupling"), 4.0)
+    anchors = {d.name: (d.low * d.high) ** 0.5 for d in space.dimensions}
+    assert anchors == pytest.approx({"kp": 2.0, "ki": 60.0, "kd": 2e-3, "coupling": 1.0})
     # the lowest end of a span means off; elsewhere the gain is 10^x
-    gains = tuning._gains_from([math.log10(2.0) - 4.0, math.log10(60.0)], ("kp", "ki"), {"kp": 2.0, "ki": 60.0}, 4.0)
-    assert gains["kp"] == 0.0 and gains["ki"] == pytest.approx(60.0)
+    values, gains = space.decode([0.0, 0.5, 1.0, 0.5])
+    assert gains["kp"] == 0.0 and gains["ki"] == pytest.approx(60.0) and gains["kd"] == pytest.approx(2e-3 * 1e4)
     # a per-axis list keeps its proportions
     section = {"coupling": [1.0, 3.0]}
     tuning._set_gain(section, "coupling", 6.0)
     assert section["coupling"] == [2.0, 6.0]
-
-
-def test_minimise_finds_a_known_optimum_within_its_budget():
-    """A quadratic bowl in log10 gains with its minimum 2 decades from the start (residual check: the
-    objective at the answer is near its minimum 0), and the budget is never exceeded."""
-    centre = np.array([1.7, -2.1, 0.4])
-    calls = []
-
-    def bowl(x):
-        calls.append(1)
-        return float(np.sum((np.asarray(x) - centre) ** 2))
-
-    best, value, used = tuning.minimise(bowl, [0.0, 0.0, 0.0], [-4] * 3, [4] * 3, 60, Protocol())
-    assert used == len(calls) <= 60
-    assert value < 0.05 and np.max(np.abs(np.asarray(best) - centre)) < 0.2
-    # the box is kept
-    best, _, _ = tuning.minimise(lambda x: -float(x[0]), [0.0], [-1.0], [1.0], 20, Protocol())
-    assert -1.0 <= best[0] <= 1.0 and best[0] > 0.9
 
 
 def test_the_objective_penalises_noise_saturation_and_divergence():
@@ -260,7 +244,7 @@ def test_the_findings_written_for_the_default_run_are_shown_only_under_its_proto
     families, rows = small_run
     notes = {families[0].paper: "FINDINGS OF THE DEFAULT RUN"}
     default = benchmark.benchmark_report(rows, families, Protocol(), "here", notes=notes)
-    other = benchmark.benchmark_report(rows, families, Protocol(searches=3), "here", notes=notes)
+    other = benchmark.benchmark_report(rows, families, Protocol(searches=4), "here", notes=notes)
     assert "FINDINGS OF THE DEFAULT RUN" in default and "are left out" not in default
     assert "FINDINGS OF THE DEFAULT RUN" not in other and "notes.yaml) are left out" in other
 
@@ -334,9 +318,10 @@ def test_quick_robustness_agrees_with_the_margins_and_the_ms_bound_refuses_befor
     experiment = tuning.experiment_for(data, sections, {}, "test")
     ms, stable, allowed = tuning.loop_robustness(experiment)
     assert not ms <= allowed
-    tuned = tuning.tune(data, sections, ("kp",), {}, math.inf, family.from_time,
-                        Protocol(evaluations=2, popsize=2, draws=1, backoff=0))
-    assert tuned.evaluations[0].outcome.failure.startswith("refused: ")
+    search = tuning.Tuning(data, combo.sections, combo.gain_keys, {}, math.inf, family.from_time, Protocol(), "test")
+    beyond, = search.measure([([], {}, {"kp": 1e6, "ki": 0.0, "kd": 0.0})])
+    assert not beyond.admissible
+    assert beyond.outcome.failure.startswith("refused: its linear loop is unstable" if not stable else "Ms ")
 
 
 def test_runs_together_equal_the_runs_one_by_one(monkeypatch):
@@ -364,20 +349,27 @@ def _small_tune(**options):
     data = family.data[family.proposed]
     combo = next(c for c in plan(family)[0] if c.estimator == "natural_local")
     return tuning.tune(data, combo.sections, combo.gain_keys, {}, math.inf, family.from_time,
-                       dataclasses.replace(Protocol(evaluations=8, popsize=4, draws=1, backoff=0),
+                       dataclasses.replace(Protocol(evaluations=8, popsize=4, design=0, draws=1, searches=1,
+                                                    max_searches=1),
                                            **options.pop("protocol", {})),
                        "test", **options)
 
 
-def test_the_robustness_floor_and_the_checks_after_the_search():
+def test_the_robustness_floor_and_every_point_checked():
     # the paper's own design degrading as much is enough: with no limit every point is robust and the tuned
-    # point is the admissible one of lowest TACE, also where it only beat the best by less than robust_step
-    tuned = _small_tune(robust_floor=math.inf, protocol={"robust_step": 0.5})
+    # point is the admissible one of lowest TACE; every point that ran was run at every perturbation
+    tuned = _small_tune(robust_floor=math.inf)
     admissible = [e for e in tuned.evaluations if e.admissible]
     assert tuned.ok and tuned.nominal.tace == min(e.outcome.tace for e in admissible)
-    assert all(math.isnan(e.worst) or e.worst >= 0 for e in tuned.evaluations)
+    ran = [e for e in tuned.evaluations if e.outcome.ok]
+    assert ran and all(e.worst >= 0 for e in ran)
+    family = select_families(scenario_families(), [SMALL])[0]
+    checks = tuning.perturbations(family.data[family.proposed], Protocol().perturbation)
+    assert len(checks) == 6                                   # mass, damping, gain; -20% and +20%
+    unrun = [e for e in tuned.evaluations if e.outcome.failure.startswith("refused")]
+    assert tuned.robustness_runs == len(checks) * (len(tuned.evaluations) - len(unrun))
     # no point robust (its worst case within 0.001x its own error): said so, and the point given is the
-    # checked one whose worst case is the lowest
+    # one whose worst case is the lowest
     tuned = _small_tune(protocol={"robust_factor": 1e-3})
     assert tuned.status.startswith("not robust") and not tuned.ok
     checked = [e for e in tuned.evaluations if math.isfinite(e.worst)]
@@ -386,34 +378,43 @@ def test_the_robustness_floor_and_the_checks_after_the_search():
 
 
 def test_several_searches_keep_the_robust_one_with_the_lowest_nominal_error():
-    # a search that goes where its seed says: seed 1 to the file's gains scaled by 10^0.1, seed 2 by 10^0.25
-    # (both lower the TACE from the file's on this loop, the second more)
-    def seeded(objective, start, low, high, evaluations, protocol):
-        shift = 0.15 * protocol.seed - 0.05
-        objective([min(max(v + shift, lo), hi) for v, lo, hi in zip(start, low, high)])
+    # a search that goes where its seed says: seed 1 to one point of the box, seed 2 to another
+    def seeded(objective_many, start, budget, seed):
+        objective_many([[0.3 + 0.15 * seed] * len(start)])
 
     def small(**protocol):
-        return _small_tune(robust_floor=math.inf, optimiser=seeded, protocol=dict(design=0, scan=(), **protocol))
-    one, two, both = small(seed=1), small(seed=2), small(searches=2)
-    assert one.ok and two.ok and one.nominal.tace != two.nominal.tace          # the seeds lead elsewhere
-    better = min((one, two), key=lambda t: t.nominal.tace)
-    assert both.ok and both.nominal.tace == better.nominal.tace and both.gains == better.gains
-    assert both.search == (0 if better is one else 1)
-    assert both.search_tace == [one.nominal.tace, two.nominal.tace]
-    assert len(both.evaluations) == len(one.evaluations) + len(two.evaluations)
-    assert [d.tace for d in both.draws] == [d.tace for d in better.draws]
-    assert "the best of 2 such searches" in Protocol(searches=2).describe()
-    assert "searches" not in Protocol().describe()
+        return _small_tune(robust_floor=math.inf, optimiser=seeded, protocol=protocol)
+    one, both = small(seed=1), small(searches=2, max_searches=2)
+    assert one.ok and both.ok
+    assert both.search_tace[0] == one.nominal.tace
+    assert both.nominal.tace == min(both.search_tace) and both.search == both.search_tace.index(both.nominal.tace)
+    assert both.search_evaluations == [2, 1]                   # search 0 also ran the file's gains
+    assert both.agreement.searches == 2 and not both.converged     # 2 searches cannot make 3 agree
 
 
-def test_the_report_says_which_search_each_row_kept_and_how_far_the_searches_lie_apart():
+def test_searches_run_until_they_agree_and_report_it():
+    """Independent searches of a small loop: the row is converged exactly when 3 end within 5% of the
+    best; a deliberately short search is not."""
+    tuned = _small_tune(robust_floor=math.inf, protocol=dict(evaluations=60, design=8, searches=3, max_searches=4))
+    assert tuned.agreement.searches >= 3
+    assert tuned.converged == (tuned.agreement.agreed >= 3)
+    short = _small_tune(robust_floor=math.inf, protocol=dict(evaluations=2, design=0, searches=3, max_searches=3))
+    assert short.agreement.searches == 3 and not short.converged
+
+
+def test_the_report_counts_converged_rows_and_names_the_others():
     from types import SimpleNamespace
-    rows = [SimpleNamespace(tuned=SimpleNamespace(search=s, search_tace=t))
-            for s, t in ((0, [1e-6, 3e-6, math.nan]), (2, [2e-6, 2e-6, 1e-6]), (0, [1e-6, 1.5e-6, 1.2e-6]))]
-    text = benchmark._searches_text(rows, Protocol(searches=3))
-    assert "best of 3, kept: search 1 in 2, search 2 in 0, search 3 in 1 of 3 rows" in text
-    assert "median 2x, at least 2x in 2 of 3 rows" in text
-    assert benchmark._searches_text(rows, Protocol()) == ""
+    from contouring_ros.search import agreement
+    family = SimpleNamespace(name="scenario")
+
+    def row(values):
+        a = agreement(values)
+        return SimpleNamespace(tuned=SimpleNamespace(agreement=a), converged=a.converged, family=family,
+                               label="est + ccc / servo")
+    rows = [row([1e-6, 1.01e-6, 1.02e-6]), row([1e-6, 3e-6, 1.5e-6, 2e-6, 1.2e-6, 4e-6])]
+    text = benchmark.convergence_text(rows)
+    assert "1 of 2 tuned rows converged (50%)" in text and "at most 6" in text
+    assert "scenario est + ccc / servo (1 of 6 agree, spread 4x)" in text
 
 
 def test_the_kept_search_prefers_robust_then_the_lowest_worst_case():

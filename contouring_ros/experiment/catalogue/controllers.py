@@ -11,6 +11,8 @@ from ...core import contouring, estimators, ilc, mpc
 from ...core.plants import MAX_COMMAND_DELAY
 from ...errors import ConfigError
 from ...registry import Entry, Role
+from ...core.tuning_space import (adaptive_tnb_space, ilc_space, mpcc_space, pid_contour_space, task_frame_space,
+                             tvt_space)
 from ..schema import AXIS_GAIN_RANGE, BANDWIDTH_RANGE, DAMPING_RANGE, FORCE_RANGE, GAIN_RANGE, MASS_RANGE, POSITIVE_RANGE, REQUIRED, \
     Param, pid_gains
 
@@ -141,10 +143,10 @@ for _entry in (
     Entry("none", {}, lambda s, c: contouring.NoCoupling(c.n_axes), gains=(), reads_estimate=False),
     Entry("variable_gain", pid_gains(_LIMIT),
           lambda s, c: contouring.VariableGainCCC(c.curve, s["kp"], s["ki"], s["kd"], c.sample_time, s["output_limit"]),
-          gains=_PID),
+          gains=_PID, tuning=pid_contour_space),
     Entry("unit_vector", pid_gains(_LIMIT),
           lambda s, c: contouring.UnitVectorCCC(c.n_axes, s["kp"], s["ki"], s["kd"], c.sample_time, s["output_limit"]),
-          gains=_PID),
+          gains=_PID, tuning=pid_contour_space),
     Entry("task_frame_pd", {
         "approximation": Param("str", choices=tuple(APPROXIMATIONS), help="local contour approximation"),
         "mass": _per_axis_values("axis masses [kg]", MASS_RANGE),
@@ -156,12 +158,14 @@ for _entry in (
         "f_b": _bandwidth("binormal bandwidth [Hz]", None),
         "zeta": Param("float", 1.0, "positive", help="damping ratio", bounds=(1e-6, 1e3))},
         _task_frame_pd, check=_check_task_frame_pd, combination=_task_frame_estimator, whole_command=True,
-        needs_state=contouring.TaskFramePD.needs_state, gains=("f_t", "f_n", "f_b")),
+        needs_state=contouring.TaskFramePD.needs_state, gains=("f_t", "f_n", "f_b", "zeta"),
+        tuning=task_frame_space),
     Entry("tvt", {
         "kc": Param("float", check="nonnegative", help="tangential velocity gain [1/s]", bounds=GAIN_RANGE),
         "min_feedrate": Param("float", 1e-3, "nonnegative", help="feedrate floor [m/s]", bounds=(0.0, 100.0))},
         lambda s, c: contouring.TangentialVelocityCCC(c.curve, c.schedule, s["kc"], s["min_feedrate"]),
-        whole_command=True, needs_state=contouring.TangentialVelocityCCC.needs_state, gains=("kc",)),
+        whole_command=True, needs_state=contouring.TangentialVelocityCCC.needs_state, gains=("kc",),
+        tuning=tvt_space),
     Entry("adaptive_tnb", {
         "coupling": _per_axis_values("coupling gains", (-1e12, 1e12)),
         "alpha": Param("float", check="positive", help="tracking gain alpha [1/s]", bounds=POSITIVE_RANGE),
@@ -173,7 +177,7 @@ for _entry in (
                                                s["gamma_damping"], s["mass0"], s["damping0"], c.sample_time),
         check=_per_axis("adaptive_tnb", ("coupling", "gamma_mass", "gamma_damping", "mass0", "damping0")),
         needs_state=contouring.AdaptiveTNBCCC.needs_state, gains=("coupling", "alpha", "gamma_mass", "gamma_damping"),
-        reads_estimate=False),
+        reads_estimate=False, tuning=adaptive_tnb_space),
     Entry("ilc", {
         "gamma_tracking": Param("float", 0.0, "nonnegative", help="learning gain on each axis' tracking error "
                                 "[command units/m]", bounds=GAIN_RANGE),
@@ -186,7 +190,7 @@ for _entry in (
                         bounds=(1, 1000)),
         "learned_file": Param("str", "", help="the correction this pass plays back (.npy, steps x axes; the "
                               "passes write it), empty: none")},
-        _ilc, check=_check_ilc, gains=("gamma_tracking", "gamma_contour")),
+        _ilc, check=_check_ilc, gains=("gamma_tracking", "gamma_contour", "lead", "q_cutoff"), tuning=ilc_space),
     Entry("mpcc", {
         "mass": _per_axis_values("axis model masses [kg] (a first-order velocity axis: its time constant)",
                                  MASS_RANGE),
@@ -210,8 +214,8 @@ for _entry in (
                                    "the applied command through the axis model (for a velocity differentiated from "
                                    "the encoder)")},
         _mpcc, check=_check_mpcc, whole_command=True, needs_state=mpc.ModelPredictiveContouring.needs_state,
-        gains=("q_contour", "q_lag", "r_rate"), preview=lambda s, experiment, axis: s["command_delay"] + s["horizon"],
-        reads_estimate=False),
+        gains=("horizon", "q_contour", "q_lag", "r_rate"),
+        preview=lambda s, experiment, axis: s["command_delay"] + s["horizon"], reads_estimate=False, tuning=mpcc_space),
 ):
     CONTROLLERS.add(_entry)
 

@@ -5,6 +5,7 @@ model-mismatch draws vary (contouring_ros/tuning.py)."""
 from __future__ import annotations
 
 from ...core import plants
+from ...core.tuning_space import first_order_response, mass_damper_response
 from ...registry import Entry, Role
 from ..schema import AXIS_GAIN_RANGE, DAMPING_RANGE, FORCE_RANGE, MASS_RANGE, SEED_RANGE, TIME_CONSTANT_RANGE, Param, limit
 from .disturbances import DISTURBANCES, build_disturbance
@@ -44,7 +45,7 @@ PLANTS.add(Entry("first_order_velocity", {
     "disturbance": _DISTURBANCE, "saturation": _SATURATION, **MACHINE,
 }, lambda s, c: plants.FirstOrderVelocityAxis(
     s["gain"], s["time_constant"], c.sample_time, build_disturbance(s["disturbance"]), c.position, c.velocity,
-    s["saturation"], **_machine(s)), varied=("gain", "time_constant")))
+    s["saturation"], **_machine(s)), varied=("gain", "time_constant"), response=first_order_response))
 PLANTS.add(Entry("mass_damper", {
     "mass": Param("float", check="positive", help="moving mass [kg]", bounds=MASS_RANGE),
     "damping": Param("float", check="nonnegative", help="viscous damping [N s/m]", bounds=DAMPING_RANGE),
@@ -59,4 +60,4 @@ PLANTS.add(Entry("mass_damper", {
 }, lambda s, c: plants.MassDamperAxis(
     s["mass"], s["damping"], s["gain"], c.sample_time, build_disturbance(s["disturbance"]), c.position,
     c.velocity, s["saturation"], s["coulomb_positive"], s["coulomb_negative"], s["disturbance_unit"],
-    **_machine(s)), varied=("mass", "damping", "gain")))
+    **_machine(s)), varied=("mass", "damping", "gain"), response=mass_damper_response))

@@ -7,6 +7,7 @@ from __future__ import annotations
 from ...core import servo
 from ...core.plants import MAX_COMMAND_DELAY
 from ...registry import Entry, Role
+from ...core.tuning_space import pid_servo_space
 from ..schema import AXIS_GAIN_RANGE, DAMPING_RANGE, FORCE_RANGE, GAIN_RANGE, MASS_RANGE, POSITIVE_RANGE, REQUIRED, \
     TIME_CONSTANT_RANGE, Param, limit, pid_gains
 from .curves import TOOL_PATH_TYPES
@@ -111,6 +112,7 @@ for _entry in (
                                "[samples] (the plant's command_delay, where it is known)", bounds=(0, MAX_COMMAND_DELAY)),
         "zero_radius": Param("float", 0.5, "positive", help="a closed-loop zero on the negative real side with at "
                              "least this modulus is not inverted (nor any outside the unit circle)", bounds=(1e-3, 1.0))},
-        _zpetc, check=_check_zpetc, preview=lambda s, experiment, axis: s["command_delay"] + 3),
+        _zpetc, check=_check_zpetc, preview=lambda s, experiment, axis: s["command_delay"] + 3,
+        tuning=pid_servo_space),
 ):
     SERVOS.add(_entry)

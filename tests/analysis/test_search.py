@@ -1,0 +1,119 @@
+"""The tuning's global search (IPOP-CMA-ES over the unit box) on functions whose minimum is known, and the
+rule that says whether independent searches agree."""
+import math
+
+import numpy as np
+import pytest
+
+from contouring_ros.search import IPOPCMAES, agreement, ipop_cmaes, run_side_by_side
+from contouring_ros.tuning import Protocol
+
+PROTOCOL = Protocol()
+
+
+def search(objective, start, budget, seed):
+    """The benchmark's search (its population, first step and design) on ``objective``."""
+    return ipop_cmaes(objective, start, budget, seed, PROTOCOL.popsize, PROTOCOL.step, design=PROTOCOL.design)
+
+VALLEY_MINIMUM = np.array([0.7, 0.3, 0.55])
+WITHIN_5_PERCENT = math.log10(1.05)      # the tuning's objective is log10 of a TACE: 5% of it is this
+
+
+def valley(points):
+    """log10 of a TACE-like error over a narrow curved valley (1:1000 across it) whose only minimum, 1 (log 0),
+    is at VALLEY_MINIMUM."""
+    out = []
+    for x in points:
+        d = np.asarray(x) - VALLEY_MINIMUM
+        along, across = d[0] + d[1], d[1] - d[0] - 2.0 * (d[0] + d[1]) ** 2
+        out.append(float(math.log10(1.0 + along ** 2 + 1e3 * across ** 2 + 10.0 * d[2] ** 2)))
+    return out
+
+
+SHALLOW, DEEP = np.array([0.2, 0.25, 0.2]), np.array([0.75, 0.8, 0.7])
+
+
+def basins(points):
+    """log10 of a TACE-like error with two basins: a broad one around the start (floor 2) and a narrower,
+    deeper one elsewhere (floor 1, log 0)."""
+    out = []
+    for x in points:
+        x = np.asarray(x)
+        out.append(float(math.log10(min(2.0 + 20.0 * np.sum((x - SHALLOW) ** 2), 1.0 + 15.0 * np.sum((x - DEEP) ** 2)))))
+    return out
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_it_follows_a_narrow_valley_to_its_minimum(seed):
+    trace = search(valley, [0.1, 0.9, 0.1], 480, seed)
+    point, value = trace.best
+    assert trace.evaluations <= 480
+    assert valley([[0.1, 0.9, 0.1]])[0] > 3.0 and value < WITHIN_5_PERCENT      # 1442x the floor at the start
+    d = point - VALLEY_MINIMUM
+    assert abs(d[1] - d[0] - 2.0 * (d[0] + d[1]) ** 2) < 0.01                  # on the valley's floor
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3, 4])
+def test_restarts_with_growing_populations_find_the_deeper_of_two_basins(seed):
+    """Started in the broad basin, the search finds the deeper one (its design's quasi-random points
+    reach it, and restarts from elsewhere), within the benchmark's budget of a search."""
+    trace = search(basins, SHALLOW, PROTOCOL.evaluations, seed)
+    point, value = trace.best
+    assert basins([SHALLOW])[0] == pytest.approx(math.log10(2.0))
+    assert value < WITHIN_5_PERCENT and np.max(np.abs(point - DEEP)) < 0.05
+
+
+def test_restarts_double_the_population():
+    trace = ipop_cmaes(basins, SHALLOW, 400, 1, popsize=8)
+    assert len(trace.populations) >= 2 and trace.populations[:2] == [8, 16]
+
+
+def test_the_box_and_the_budget_are_kept_and_the_seed_decides_every_draw():
+    seen = []
+
+    def slope(points):
+        seen.extend(points)
+        return [-float(x[0]) for x in points]
+    trace = search(slope, [0.5, 0.5], 100, 7)
+    assert trace.evaluations == len(seen) == 100
+    assert all(0.0 <= v <= 1.0 for x in seen for v in x)
+    assert trace.best[0][0] > 0.99
+    again = search(slope, [0.5, 0.5], 100, 7)
+    assert [list(p) for p in again.points] == [list(p) for p in trace.points]
+    other = search(slope, [0.5, 0.5], 100, 8)
+    assert [list(p) for p in other.points] != [list(p) for p in trace.points]
+
+
+def test_searches_side_by_side_share_each_round_and_end_as_they_would_alone():
+    alone = [ipop_cmaes(valley, [0.1, 0.9, 0.1], 120, seed) for seed in (1, 2)]
+    together = [IPOPCMAES([0.1, 0.9, 0.1], 120, seed) for seed in (1, 2)]
+    rounds = []
+
+    def objective(asked):
+        rounds.append([len(points) for points in asked])
+        return [valley(points) for points in asked]
+    run_side_by_side(together, objective)
+    assert all(len(r) == 2 for r in rounds[:5])          # both searches' populations in one call
+    for a, b in zip(alone, together):
+        assert b.trace.values == a.values
+
+
+def test_a_short_search_is_not_converged_and_long_ones_are():
+    starts = [[0.1, 0.9, 0.1], [0.9, 0.1, 0.9], [0.5, 0.95, 0.05]]
+    short = [ipop_cmaes(valley, start, 12, seed).best[1] for seed, start in enumerate(starts, 1)]
+    long = [search(valley, start, 480, seed).best[1] for seed, start in enumerate(starts, 1)]
+    # compared as the tuning compares its searches: by the TACE, 10^value
+    assert not agreement([10.0 ** v for v in short]).converged
+    assert agreement([10.0 ** v for v in long]).converged
+
+
+def test_the_agreement_rule():
+    assert agreement([1.0, 1.04, 1.049]).converged
+    assert agreement([1.0, 1.04, 1.06]) .agreed == 2 and not agreement([1.0, 1.04, 1.06]).converged
+    four = agreement([2.0, 1.0, 1.03, 1.01])
+    assert four.converged and four.agreed == 3 and four.searches == 4 and four.spread == 2.0
+    nothing = agreement([math.inf, math.nan, math.inf])
+    assert not nothing.converged and nothing.agreed == 0
+    partial = agreement([1.0, 1.0, 1.0, math.inf])
+    assert partial.converged and partial.spread == math.inf
+    assert "3 of 4 searches within 5% of the best" in partial.describe()
