@@ -2,6 +2,7 @@
 parsed once (:func:`read_run`)."""
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 from pathlib import Path
 
@@ -9,8 +10,8 @@ import numpy as np
 
 from . import bag
 from .bag import RecordedRun
-from .blocks import cutting_scores
-from .experiment.build import build_curve, build_schedule
+from .blocks import cutting_scores, motion_end
+from .experiment.build import build_curve, build_schedule, in_position_windows
 from .experiment.validate import parse_experiment
 from .core.geometry import ExactContourError
 from .core.metrics import Scores, score
@@ -18,7 +19,7 @@ from .core.simulation import path_bound
 from .errors import BagError, ConfigError, ContouringError, ScoreError
 
 __all__ = ["read_run", "score_run", "score_bag", "check_experiment_matches", "curve_of", "format_scores",
-           "format_realtime", "miss_rate", "tolerance_line", "cutting_lines", "SCORE_ROWS", "BAG_EXPERIMENT"]
+           "format_realtime", "miss_rate", "tolerance_line", "cutting_lines", "motion_steps", "SCORE_ROWS", "BAG_EXPERIMENT"]
 
 #: the name a bag's experiment goes by in messages (its ``where``)
 BAG_EXPERIMENT = "the bag's experiment"
@@ -70,12 +71,24 @@ def _divergence_bound(experiment) -> float | None:
         return None
 
 
-def score_run(curve, run, from_time: float = 0.0) -> Scores:
+def motion_steps(curve, result, experiment=None) -> int:
+    """How many steps of ``result`` its motion takes (:func:`contouring_ros.blocks.motion_end`; every step for
+    a curve that is not a tool path), with the ``experiment``'s in-position windows and timeout where it has
+    them (without an experiment: up to the step at which the reference comes to rest at the path's end)."""
+    windows = in_position_windows(experiment) if experiment is not None else None
+    timeout = (experiment.schedule.get("in_position_timeout") or math.inf) if windows is not None else math.inf
+    return motion_end(curve, result, windows, timeout)
+
+
+def score_run(curve, run, from_time: float = 0.0, experiment=None) -> Scores:
     """Scores of a SimulationResult on ``curve``; with ``from_time`` only of its samples at t >= from_time
-    (steady state). A run with no such sample is refused with a ScoreError."""
+    (steady state). A run with no such sample is refused with a ScoreError. On a tool path only the steps
+    of the motion count (:func:`motion_steps` with the ``experiment``'s in-position check): the travel time
+    ends when the last motion has ended and its axes are in position, not with the reserve after it."""
+    end = motion_steps(curve, run, experiment)
     try:
-        return score(curve, run.time, run.position, run.reference_position, run.estimate_vector, run.command,
-                     theta=run.theta, from_time=from_time)[0]
+        return score(curve, run.time[:end], run.position[:end], run.reference_position[:end],
+                     run.estimate_vector[:end], run.command[:end], theta=run.theta[:end], from_time=from_time)[0]
     except ValueError as error:
         raise ScoreError(f"--from {from_time:g}: {error}") from None
 
@@ -91,11 +104,13 @@ def tolerance_line(schedule: dict, mce: float) -> str | None:
     return f"contour tolerance {tolerance * 1e6:.4g} um: {verdict} (MCE {mce * 1e6:.4g} um)"
 
 
-def cutting_lines(curve, result, schedule: dict) -> list:
-    """For a tool path run: one line with the scores of its cutting moves alone (G1 / G2 / G3, the start-up
-    and rapids left out: :mod:`contouring_ros.blocks`), then the contour-tolerance verdict on them (where the
-    schedule has a tolerance); for any other run the verdict on the whole run, if any."""
-    cutting = cutting_scores(curve, result)
+def cutting_lines(curve, result, experiment) -> list:
+    """For a tool path run: one line with the scores of its cutting moves alone (G1 / G2 / G3, the start-up,
+    rapids and the reserve after the motion left out: :mod:`contouring_ros.blocks`), then the
+    contour-tolerance verdict on them (where the ``experiment``'s schedule has a tolerance); for any other run
+    the verdict on the whole run, if any."""
+    schedule = experiment.schedule
+    cutting = cutting_scores(curve, result, motion_steps(curve, result, experiment))
     if cutting is None:
         held = tolerance_line(schedule, score_run(curve, result).mce) if schedule.get("contour_tolerance") else None
         return [held] if held else []
@@ -114,7 +129,7 @@ def score_bag(path, experiment_text: str | None = None, progress: bool = False,
     curve = curve_of(run)
     if experiment_text is not None:
         check_experiment_matches(run, curve, path)
-    return score_run(curve, run.result, from_time), run
+    return score_run(curve, run.result, from_time, run.experiment), run
 
 
 def check_experiment_matches(run: RecordedRun, curve, path) -> None:

@@ -120,13 +120,15 @@ class Block:
 class Program:
     """A parsed part program: its motion blocks and its dimension: 3 where it moves Z, arcs outside the XY
     plane or starts off z = 0, else 2; ``warnings``: one line per kind of setup word read; ``dwell``: [s] of
-    G4 before the first motion."""
+    G4 before the first motion; ``unit``: [m] per program unit (MM or INCH) of its first motion, in which
+    results per block are reported."""
 
     blocks: list
     dimension: int
     has_feed_words: bool
     warnings: tuple = ()
     dwell: float = 0.0
+    unit: float = MM
 
 
 def _strip_comments(text: str, number: int) -> str:
@@ -194,6 +196,7 @@ def parse_program(text: str, start=(0.0, 0.0, 0.0), strict: bool = False) -> Pro
     unit, absolute, plane, motion, feed = MM, True, _PLANES[17], None, None
     tolerance = None                            # the path control mode: None (the experiment's), 0 (G61), P
     blocks, has_feed, ended, warnings, first_dwell = [], False, None, {}, 0.0
+    first_unit = None                           # the unit of the first motion (results are reported in it)
     moved_z = bool(position[2] != 0.0)         # a start off the XY plane keeps Z
     lines = text.splitlines()
     for number, raw in enumerate(lines, start=1):
@@ -306,6 +309,8 @@ def parse_program(text: str, start=(0.0, 0.0, 0.0), strict: bool = False) -> Pro
         block_feed = None if motion == 0 or feed is None else feed * unit / 60.0
         block_tolerance = 0.0 if exact_once else tolerance
         label = _code(words["N"][0]) if "N" in words else None
+        if first_unit is None:
+            first_unit = unit
         if motion in (0, 1):
             if centre or radius is not None:
                 raise ProgramError(f"line {number}: {'I, J, K' if centre else 'R'} on a G{motion} line")
@@ -323,7 +328,8 @@ def parse_program(text: str, start=(0.0, 0.0, 0.0), strict: bool = False) -> Pro
         if has_feed and block.kind != "rapid" and block.feed is None:
             code = "G1" if block.kind == "line" else "G2" if block.clockwise else "G3"
             raise ProgramError(f"line {block.line}: {code} before any feed rate (F)")
-    return Program(blocks, 3 if moved_z else 2, has_feed, tuple(warnings.values()), first_dwell)
+    return Program(blocks, 3 if moved_z else 2, has_feed, tuple(warnings.values()), first_dwell,
+                   first_unit or MM)
 
 
 def _arc(number, motion, plane, start, end, centre_words, radius, unit, feed) -> Block:
