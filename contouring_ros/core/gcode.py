@@ -20,8 +20,8 @@ The language is that of Kramer, Proctor and Messina, "The NIST RS274NGC Interpre
   A program that says none of them takes the experiment's ``blend_tolerance`` (0: exact stop, as G61);
 - setup words every post-processor writes at the top of a program (:data:`SETUP_WORDS`): G40, G49, G54-G59
   (zero work offsets: the program's coordinates are the machine's), G80, G94, M3 / M4 / M5 with S, T with M6,
-  M7 / M8 / M9 and O numbers are read and have no effect on the path; each kind is reported once, naming its
-  first line (``Program.warnings``). ``strict=True`` refuses them instead.
+  M7 / M8 / M9 and O numbers are read and have no effect on the path; they are reported in one line naming
+  each word once and the lines they span (``Program.warnings``). ``strict=True`` refuses them instead.
 
 Motion the project cannot do (cutter compensation G41 / G42, tool length offsets G43, inverse-time and
 per-revolution feed G93 / G95, canned cycles G73 G76 G81-G89) is refused in either mode, and so is every
@@ -119,7 +119,8 @@ class Block:
 @dataclass(frozen=True)
 class Program:
     """A parsed part program: its motion blocks and its dimension: 3 where it moves Z, arcs outside the XY
-    plane or starts off z = 0, else 2; ``warnings``: one line per kind of setup word read; ``dwell``: [s] of
+    plane or starts off z = 0, else 2; ``warnings``: one line naming the setup words read (none without);
+    ``dwell``: [s] of
     G4 before the first motion; ``unit``: [m] per program unit (MM or INCH) of its first motion, in which
     results per block are reported."""
 
@@ -220,11 +221,11 @@ def parse_program(text: str, start=(0.0, 0.0, 0.0), strict: bool = False) -> Pro
                                    "the programmed path as it is, in either mode)")
             if name in _SETUP_KIND:
                 kind = _SETUP_KIND[name]
-                meaning, reading = SETUP_WORDS[kind]
+                meaning = SETUP_WORDS[kind][0]
                 if strict:
                     raise ProgramError(f"line {number}: {word} ({meaning}) is a setup word; strict: true refuses "
                                        "them (leave strict out to read and report them)")
-                warnings.setdefault(kind, f"line {number}: {word} ({meaning}) read: {reading}")
+                warnings.setdefault(name, (word, number))
                 continue
             if letter in "NPQ":
                 continue
@@ -328,8 +329,19 @@ def parse_program(text: str, start=(0.0, 0.0, 0.0), strict: bool = False) -> Pro
         if has_feed and block.kind != "rapid" and block.feed is None:
             code = "G1" if block.kind == "line" else "G2" if block.clockwise else "G3"
             raise ProgramError(f"line {block.line}: {code} before any feed rate (F)")
-    return Program(blocks, 3 if moved_z else 2, has_feed, tuple(warnings.values()), first_dwell,
+    return Program(blocks, 3 if moved_z else 2, has_feed, _setup_summary(warnings), first_dwell,
                    first_unit or MM)
+
+
+def _setup_summary(seen: dict) -> tuple:
+    """One line naming each setup word read (name -> (the word as first written, its line)), in the order
+    first read, with the lines they span: a CAM post-processor's header is one line, not one per kind."""
+    if not seen:
+        return ()
+    lines = sorted({line for _, line in seen.values()})
+    where = f"line {lines[0]}" if len(lines) == 1 else f"lines {lines[0]}-{lines[-1]}"
+    return (f"{where}: setup words {' '.join(word for word, _ in seen.values())} read, with no effect on the "
+            "path (zero work offsets; no spindle, tool or coolant is simulated; strict: true refuses them)",)
 
 
 def _arc(number, motion, plane, start, end, centre_words, radius, unit, feed) -> Block:

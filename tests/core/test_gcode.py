@@ -133,16 +133,15 @@ M30
 """
 
 
-def test_setup_words_are_read_and_reported_once_per_kind_naming_a_line():
+def test_setup_words_are_read_and_reported_in_one_line():
     program = parse_program(POST_PROCESSOR_HEADER)
     assert [b.kind for b in program.blocks] == ["line", "line"]          # G0 X0 Y0 is where the tool is
-    kinds = ["program numbers", "cutter compensation off", "tool length offset off", "canned cycle off",
-             "feed per minute", "work offsets", "tool change", "spindle", "coolant"]
-    assert len(program.warnings) == len(kinds)
-    for kind, warning in zip(kinds, program.warnings):
-        assert kind in warning and warning.startswith("line ") and "\n" not in warning
-    assert program.warnings[0].startswith("line 2: O1000")
-    assert program.warnings[7].startswith("line 6: S12000")               # S and M3, M5 later: one warning
+    assert len(program.warnings) == 1
+    line = program.warnings[0]
+    assert line.startswith("lines 2-12: setup words O1000 G40 G49 G80 G94 G54 T1 M6 S12000 M3 M8 M9 M5 read,")
+    assert "no effect on the path" in line and "strict: true" in line and "\n" not in line
+    assert parse_program("G54\nG1 X1 F60").warnings[0].startswith("line 1: setup words G54 read")
+    assert parse_program("G1 X1 F60").warnings == ()
 
 
 @pytest.mark.parametrize("word, line", [("O1000", 2), ("G40", 3), ("G54", 4), ("T1", 5), ("S12000", 6),
