@@ -21,7 +21,7 @@ from .core.metrics import Scores, score
 from .errors import write_atomically
 
 __all__ = ["BlockResult", "block_results", "cutting_steps", "cutting_scores", "format_blocks", "write_blocks_csv",
-           "block_cells", "block_headings", "block_columns", "motion_end", "feed_unit", "block_codes"]
+           "block_cells", "block_headings", "block_columns", "motion_end", "feed_unit", "block_codes", "breach_line"]
 
 
 @dataclass(frozen=True)
@@ -67,17 +67,18 @@ class BlockResult:
     verdict: str
 
 
-def motion_end(curve, result, windows=None, timeout: float = math.inf) -> int:
+def motion_end(curve, result, windows=None, timeout: float = math.inf, stopped: bool = False) -> int:
     """How many steps of a tool path run its motion takes: up to the step at which the reference has come to
     rest at the path's end and, with in-position ``windows`` [m] (one per axis; None: no check), every axis is
     in position there (within its window of the end point and slower than window / SETTLE, as at an exact
     stop, :class:`~contouring_ros.core.interpolation.InPositionClock`) or ``timeout`` [s] has passed; that
     step included. The steps after it are the run's reserve (the time kept for in-position waits that did
-    not happen, and ``settle_time``): no part of the cycle. Every step for a run that never reached the end
-    (cut short) and for a curve that is not a tool path."""
+    not happen, and ``settle_time``): no part of the cycle. A run ``stopped`` on the path by monitoring
+    (:mod:`contouring_ros.core.monitoring`) ends alike where its reference came to rest. Every step for a run
+    that never reached the end (cut short) and for a curve that is not a tool path."""
     theta = np.asarray(result.theta, dtype=float)
     m = len(theta)
-    if not hasattr(curve, "blocks") or m == 0 or theta[-1] != curve.domain[1]:
+    if not hasattr(curve, "blocks") or m == 0 or (theta[-1] != curve.domain[1] and not stopped):
         return m
     moving = np.flatnonzero(theta != theta[-1])
     stop = int(moving[-1]) + 1 if moving.size else 0             # the first step at rest at the end
@@ -91,6 +92,20 @@ def motion_end(curve, result, windows=None, timeout: float = math.inf) -> int:
     end = np.asarray(result.reference_position, dtype=float)[stop]
     settled = np.all(np.abs(position - end) <= windows, axis=1) & np.all(np.abs(velocity) * SETTLE <= windows, axis=1)
     return stop + (int(np.argmax(settled)) if settled.any() else last - stop) + 1
+
+
+def breach_line(breach, curve, axes, sample_time: float) -> str:
+    """One line naming a monitoring breach (:class:`~contouring_ros.core.monitoring.Breach`): the error and
+    its limit, the block (N number, source line, G word) the reference was in and the time."""
+    i = int(_block_index(curve, [breach.theta])[0])
+    block = curve.blocks[i]
+    source = {b.line: b for b in getattr(getattr(curve, "program", None), "blocks", [])}.get(block.line)
+    number = getattr(source, "number", None)
+    what = "contour error" if breach.what == "contour" else f"following error of axis {axes[breach.what]}"
+    name = f"block N{number} (line {block.line}, {block_codes(curve)[i]})" if number is not None else \
+        f"block at line {block.line} ({block_codes(curve)[i]})"
+    return (f"monitoring: {what} {breach.error * 1e6:.3f} um passed its limit {breach.limit * 1e6:.3f} um in "
+            f"{name} at t = {breach.step * sample_time:.{_time_decimals(sample_time)}f} s (step {breach.step})")
 
 
 def _block_index(curve, theta) -> np.ndarray:

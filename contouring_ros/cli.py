@@ -119,6 +119,16 @@ def _run_config(args, config: Path, experiment=None):
     realtime = format_realtime(node_reports(bag))
     if realtime:
         print(realtime)
+    _exit_on_breach(curve_of(run), run.result, run.require_experiment(), bag)
+
+
+def _exit_on_breach(curve, result, experiment, bag=None):
+    """A run that monitoring stopped ends in one line on stderr and exit status 1 (its bag, if any, whole)."""
+    from .scoring import breach_message
+    line = breach_message(curve, result, experiment)
+    if line is not None:
+        print(f"error: {line}" + (f" (bag {bag}, complete)" if bag is not None else ""), file=sys.stderr)
+        raise SystemExit(1)
 
 
 def _run_passes(config: Path, experiment, bag, run_one):
@@ -172,6 +182,7 @@ def _simulate(args):
     print(format_scores([(experiment.name, scores)], list(experiment.axes)))
     for line in cutting_lines(loop.curve, result, experiment):
         print(line)
+    _exit_on_breach(loop.curve, result, experiment)
 
 
 def _simulate_passes(experiment, from_time: float = 0.0):

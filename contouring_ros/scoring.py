@@ -10,8 +10,9 @@ import numpy as np
 
 from . import bag
 from .bag import RecordedRun
-from .blocks import cutting_scores, motion_end
-from .experiment.build import build_curve, build_schedule, in_position_windows
+from .blocks import breach_line, cutting_scores, motion_end
+from .core.monitoring import first_breach
+from .experiment.build import build_curve, build_schedule, in_position_windows, monitoring_limits
 from .experiment.validate import parse_experiment
 from .core.geometry import ExactContourError
 from .core.metrics import Scores, score
@@ -19,7 +20,8 @@ from .core.simulation import path_bound
 from .errors import BagError, ConfigError, ContouringError, ScoreError
 
 __all__ = ["read_run", "score_run", "score_bag", "check_experiment_matches", "curve_of", "format_scores",
-           "format_realtime", "miss_rate", "tolerance_line", "cutting_lines", "motion_steps", "SCORE_ROWS", "BAG_EXPERIMENT"]
+           "format_realtime", "miss_rate", "tolerance_line", "cutting_lines", "motion_steps", "breach_of", "breach_message", "SCORE_ROWS",
+           "BAG_EXPERIMENT"]
 
 #: the name a bag's experiment goes by in messages (its ``where``)
 BAG_EXPERIMENT = "the bag's experiment"
@@ -77,7 +79,28 @@ def motion_steps(curve, result, experiment=None) -> int:
     them (without an experiment: up to the step at which the reference comes to rest at the path's end)."""
     windows = in_position_windows(experiment) if experiment is not None else None
     timeout = (experiment.schedule.get("in_position_timeout") or math.inf) if windows is not None else math.inf
-    return motion_end(curve, result, windows, timeout)
+    stopped = experiment is not None and breach_of(result, experiment) is not None
+    return motion_end(curve, result, windows, timeout, stopped)
+
+
+def breach_of(result, experiment):
+    """The first monitoring breach of a run (:func:`contouring_ros.core.monitoring.first_breach` with the
+    experiment's ``contour_error_limit`` and ``following_error_limit``; the test the run applied as it ran, so
+    a bag tells what its interpolator did), or None."""
+    limits = monitoring_limits(experiment)
+    return None if limits is None else first_breach(result, *limits)
+
+
+def breach_message(curve, result, experiment) -> str | None:
+    """One line for a run that monitoring stopped: the breach (:func:`contouring_ros.blocks.breach_line`) and
+    where the reference came to rest; None for a run without a breach."""
+    breach = breach_of(result, experiment)
+    if breach is None:
+        return None
+    end = motion_steps(curve, result, experiment)
+    return (f"{breach_line(breach, curve, list(experiment.axes), experiment.sample_time)}; stopped on the path at "
+            f"{float(result.theta[end - 1]) * 1e3:.3f} mm of {curve.domain[1] * 1e3:.3f} mm, "
+            f"t = {float(result.time[end - 1]):g} s")
 
 
 def score_run(curve, run, from_time: float = 0.0, experiment=None) -> Scores:

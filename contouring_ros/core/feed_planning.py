@@ -415,6 +415,11 @@ class FeedPlan:
         out[-1] = v[-1]
         return out
 
+    def bounds_at(self, theta: float) -> tuple:
+        """(acceleration, jerk) bounds along the path of the block at arc length theta."""
+        i = int(np.clip(np.searchsorted(self._starts, theta, side="right") - 1, 0, len(self.limits) - 1))
+        return self.limits[i].acceleration, self.limits[i].jerk
+
     def feed_limit_at(self, theta):
         """The feed limit of the block at arc length(s) theta."""
         i = np.clip(np.searchsorted(self._starts, theta, side="right") - 1, 0, len(self.limits) - 1)

@@ -11,6 +11,7 @@ import numpy as np
 
 from ..core import curves
 from ..core.interpolation import InPositionClock, ReferenceTable, reference
+from ..core.monitoring import Monitor
 from ..core.simulation import ControlLoop
 from ..errors import ConfigError
 from ..graph import LOOKAHEAD
@@ -21,7 +22,8 @@ from .catalogue.disturbances import build_disturbance
 from .model import Experiment
 
 __all__ = ["build_curve_from", "build_curve", "build_schedule_from", "build_schedule", "build_disturbance",
-           "initial_state", "build_plant", "in_position_windows", "build_clock", "build_servo", "build_estimator",
+           "initial_state", "build_plant", "in_position_windows", "planned_tool_path", "monitoring_limits",
+           "interpolator_takes_state", "build_monitor", "build_clock", "build_servo", "build_estimator",
            "build_controller", "build_loop", "build_path", "servo_preview", "controller_preview", "reference_preview"]
 
 #: how many paths (curve, schedule, sample time) :func:`build_path` keeps
@@ -71,17 +73,56 @@ def build_plant(experiment: Experiment, axis: str, position: float, velocity: fl
                                                               velocity=velocity, where=experiment.path))
 
 
+def _getter(shared):
+    return shared.get if isinstance(shared, dict) else lambda key: getattr(shared, key)
+
+
+def planned_tool_path(shared) -> bool:
+    """Whether the experiment (an Experiment or the shared section) runs a tool path planned by the
+    jerk-limited feed plan: a gcode curve, or a toolpath with a feedrate schedule with jerk."""
+    get = _getter(shared)
+    curve, schedule = get("curve"), get("schedule")
+    return curve["type"] == "gcode" or bool(curve["type"] == "toolpath" and schedule["type"] == "feedrate"
+                                            and schedule.get("jerk"))
+
+
+def monitoring_limits(shared) -> tuple | None:
+    """(contour limit, per-axis following limits) [m] of the shared keys ``contour_error_limit`` and
+    ``following_error_limit`` where either is on (validation allows them on planned tool paths only); else None."""
+    get = _getter(shared)
+    contour, following = float(get("contour_error_limit")), [float(v) for v in get("following_error_limit")]
+    if not contour and not any(following):
+        return None
+    return contour, following * len(get("axes")) if len(following) == 1 else following
+
+
+def interpolator_takes_state(shared) -> bool:
+    """Whether the interpolator subscribes to every axis state: for the in-position check at exact stops or
+    for following-error monitoring (decided from the shared keys alone, so every node agrees)."""
+    limits = monitoring_limits(shared)
+    return in_position_windows(shared) is not None or (limits is not None and any(limits[1]))
+
+
+def build_monitor(experiment: Experiment, curve, schedule):
+    """The run's :class:`~contouring_ros.core.monitoring.Monitor`, or None without limits."""
+    limits = monitoring_limits(experiment)
+    if limits is None:
+        return None
+    if reference_preview(experiment):
+        raise ConfigError(f"{experiment.path}: contour_error_limit / following_error_limit: monitoring does not "
+                          "run with a servo or controller that reads the reference ahead (its preview would not "
+                          "follow the stop)")
+    return Monitor(curve, schedule, limits[0], limits[1], experiment.sample_time, LOOKAHEAD)
+
+
 def in_position_windows(shared) -> list | None:
     """Each axis' in-position window [m] (the shared key ``in_position``, an Experiment or the shared
     section) where the reference waits at exact stops for the axes: a tool path planned by the jerk-limited
     feed plan with a window > 0; else None (the reference runs on the plan's own time and the interpolator
     takes no axis state)."""
-    get = shared.get if isinstance(shared, dict) else lambda key: getattr(shared, key)
-    curve, schedule = get("curve"), get("schedule")
-    planned = curve["type"] == "gcode" or (curve["type"] == "toolpath" and schedule["type"] == "feedrate"
-                                           and schedule.get("jerk"))
+    get = _getter(shared)
     windows = [float(w) for w in get("in_position")]
-    if not planned or not any(windows):
+    if not planned_tool_path(shared) or not any(windows):
         return None
     return windows * len(get("axes")) if len(windows) == 1 else windows
 
@@ -202,4 +243,4 @@ def build_loop(experiment: Experiment) -> ControlLoop:
         estimator=build_estimator(experiment, curve), controller=build_controller(experiment, curve),
         sample_time=experiment.sample_time, n_steps=experiment.n_steps,
         divergence_factor=experiment.divergence_factor, preview=reference_preview(experiment),
-        reference_table=table)
+        reference_table=table, monitor=build_monitor(experiment, curve, schedule))
