@@ -314,11 +314,12 @@ def test_tool_path_runs_get_the_feed_and_per_block_figure(tmp_path):
     drawn = figures([("run", read_run(bag))])
     assert "feed" in drawn
     top, bottom = drawn["feed"].axes[:2]
-    assert [tick.get_text() for tick in bottom.get_xticklabels()] == ["line 1\nG1", "line 2\nG1", "line 3\nG2/G3"]
+    assert [tick.get_text() for tick in bottom.get_xticklabels()] == ["line 1\nG1", "line 2\nG1", "line 3\nG2"]
     heights = [patch.get_height() for patch in bottom.patches]
     assert len(heights) == 3 and all(h > 0 for h in heights)
     feed = top.lines[0].get_ydata()
-    assert max(feed) == pytest.approx(10.0)                        # mm/s: F600
+    assert max(feed) == pytest.approx(600.0)                       # mm/min, the program's unit: F600
+    assert bottom.get_xlabel() == "block (by its source line)" and top.get_ylabel() == "feed [mm/min]"
     circle = CONFIG_DIR / "paper003_ellipse_first_order_fn60.yaml"
     from conftest import shortened
     other = tmp_path / "ellipse.yaml"
