@@ -559,3 +559,34 @@ def test_a_long_simulation_off_a_terminal_says_it_is_under_way(monkeypatch, caps
     assert cli.main(["simulate", str(CONFIG_DIR / "paper000_b_ismc_h50_newton.yaml")]) == 0
     err = capsys.readouterr().err
     assert "note: simulating " in err and "steps: still under way after" in err
+
+
+def _chord_circle(chords: int, radius_mm: float = 10.0) -> str:
+    points = [(radius_mm * math.cos(2 * math.pi * i / chords), radius_mm * math.sin(2 * math.pi * i / chords))
+              for i in range(1, chords + 1)]
+    return f"G21 G90 G0 X{radius_mm} Y0\nG64 P0.001\n" + "\n".join(
+        f"G1 X{x:.6f} Y{y:.6f}" + (" F1200" if i == 0 else "") for i, (x, y) in enumerate(points))
+
+
+def test_a_window_that_sees_the_whole_program_plans_as_the_whole_program():
+    path, whole = plan(_chord_circle(90), acceleration=1.0, jerk=10.0, rapid_feedrate=0.05)
+    windowed = FeedPlan(path, 1.0, 10.0, rapid_feedrate=0.05, lookahead_blocks=len(path.blocks))
+    assert windowed.duration == whole.duration
+    assert np.array_equal(windowed.junctions, whole.junctions)
+
+
+@pytest.mark.parametrize("window", [6, 20, 100])
+def test_a_short_look_ahead_is_only_slower_and_keeps_every_bound(window):
+    a, j = 1.0, 10.0
+    path, whole = plan(_chord_circle(360), acceleration=a, jerk=j, rapid_feedrate=0.05)
+    schedule = FeedPlan(path, a, j, rapid_feedrate=0.05, lookahead_blocks=window)
+    assert schedule.duration >= whole.duration * (1 - 1e-9)
+    t, s, v, acc = sampled(schedule)
+    assert np.all(np.diff(s) >= -1e-15) and s[-1] == pytest.approx(schedule.theta_end)
+    assert np.all(v <= schedule.feed_limit_at(s) * (1 + 1e-9))
+    assert np.abs(acc).max() <= a * (1 + 1e-9)
+    assert np.abs(np.diff(acc) / DT).max() <= j * (1 + 1e-6)
+    # the feed at each block boundary is at most the whole program's plan there
+    assert np.all(schedule.junctions <= whole.junctions * (1 + 1e-9) + 1e-12)
+    if window == 6:       # 6 blocks of 0.17 mm (3 chords and their blend arcs) cannot brake from F1200: slower
+        assert schedule.duration > 1.2 * whole.duration
