@@ -141,14 +141,20 @@ def test_simulate_exits_non_zero_with_one_line(tmp_path):
 
 @pytest.mark.graph
 @pytest.mark.slow
-def test_the_graph_stops_as_the_simulation_does_and_keeps_the_bag_whole(tmp_path):
+def test_the_graph_stops_as_the_simulation_does_and_keeps_the_bag_whole(tmp_path, capsys):
     from conftest import assert_graph_equals_simulation
-    from contouring_ros.runner import run_graph
+    from contouring_ros.cli import main
     path = part(tmp_path, "contour_error_limit: 3.0e-6\nfollowing_error_limit: [0.0, 6.0e-6]\nduration: 3.0")
-    bag = run_graph(path, tmp_path / "monitored.mcap")
-    assert_graph_equals_simulation(path, bag)
+    bag = tmp_path / "monitored.mcap"
+    with pytest.raises(SystemExit) as exit_status:
+        main(["run", str(path), "--bag", str(bag)])
+    assert exit_status.value.code == 1
+    errors = [line for line in capsys.readouterr().err.splitlines() if line.startswith("error:")]
+    assert len(errors) == 1 and "monitoring: contour error" in errors[0] and "block N30 (line 5, G3)" in errors[0]
+    assert f"(bag {bag}, complete)" in errors[0]
+    assert_graph_equals_simulation(path, bag)                     # bit for bit, and the bag reads whole
     recorded = read_run(bag)
     assert recorded.complete_steps == load_experiment(path).n_steps
-    experiment, loop, _ = run(path)
-    assert breach_message(loop.curve, recorded.result, recorded.experiment).startswith(
-        "monitoring: contour error") and loop.monitor.breach is not None
+    _, loop, result = run(path)
+    assert loop.monitor.breach is not None
+    assert errors[0] == "error: " + breach_message(loop.curve, result, recorded.experiment) + f" (bag {bag}, complete)"
