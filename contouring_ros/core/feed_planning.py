@@ -32,6 +32,7 @@ parameter is s itself: theta = s, theta_dot = v (the feed), theta_ddot = dv/dt.
 from __future__ import annotations
 
 import copy
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -210,6 +211,29 @@ def block_limits(path: ToolPath, acceleration: float, jerk: float, feedrate: flo
     return out
 
 
+class _PathFrom:
+    """The blocks of a tool path from arc length ``theta`` on (the block holding it cut there, its tangent
+    taken at theta), in the path's own arc length: what :meth:`FeedPlan.rest_of_path` plans."""
+
+    def __init__(self, path, theta: float):
+        self.path, self.dimension, self.dwell = path, path.dimension, 0.0
+        self.domain = (float(theta), path.domain[1])
+        blocks = []
+        for block in path.blocks:
+            end = block.start + block.length
+            if end <= theta + 1e-12:
+                continue
+            if block.start < theta:
+                tangent = np.asarray(path.columns(float(theta))[1], dtype=float)
+                block = dataclasses.replace(block, start=float(theta), length=end - float(theta),
+                                            tangent_in=tangent / np.linalg.norm(tangent))
+            blocks.append(block)
+        self.blocks = blocks
+
+    def point(self, theta):
+        return self.path.point(theta)
+
+
 #: a span's profile is planned over this fraction of its length less, so that none overshoots its end
 SPARE = 1e-9
 
@@ -272,6 +296,11 @@ class FeedPlan:
         if contour_tolerance > 0.0 and tracking_lag is None:
             raise ValueError("a contour_tolerance needs the axes' tracking_lag")
         self.curve = path
+        self._arguments = dict(acceleration=acceleration, jerk=jerk, feedrate=feedrate, rapid_feedrate=rapid_feedrate,
+                               normal_acceleration=normal_acceleration, axis_feedrate=axis_feedrate,
+                               axis_acceleration=axis_acceleration, axis_jerk=axis_jerk,
+                               contour_tolerance=contour_tolerance, tracking_lag=tracking_lag, dwell=dwell,
+                               feed_override=feed_override, lookahead_blocks=lookahead_blocks)
         self.contour_tolerance = float(contour_tolerance)
         self.theta_start, self.theta_end = path.domain
         blocks = path.blocks
@@ -447,6 +476,12 @@ class FeedPlan:
         out[first] = v[:-1]
         out[-1] = v[-1]
         return out
+
+    def rest_of_path(self, theta: float) -> "FeedPlan | None":
+        """The same plan (bounds, feeds, look-ahead) of the path from arc length theta on, from rest there: what
+        a control plans when it resumes after a feed hold; None where nothing is left."""
+        path = _PathFrom(getattr(self.curve, "path", self.curve), theta)      # the whole path, after a resume too
+        return FeedPlan(path, **self._arguments) if path.blocks else None
 
     def bounds_at(self, theta: float) -> tuple:
         """(acceleration, jerk) bounds along the path of the block at arc length theta."""

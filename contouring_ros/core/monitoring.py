@@ -22,7 +22,7 @@ import numpy as np
 
 from .interpolation import reference
 
-__all__ = ["Breach", "Monitor", "breach_at", "first_breach"]
+__all__ = ["Breach", "Monitor", "ControlledStop", "breach_at", "first_breach"]
 
 
 @dataclass(frozen=True)
@@ -74,10 +74,10 @@ def first_breach(result, contour_limit: float, following_limits, steps: int | No
 class Monitor:
     """The monitor of one run (see the module docstring).
 
-    Call :meth:`check` with each step's values once its estimate is known; before computing the reference of
-    step j ask :meth:`stopping` (j); while it is False compute the reference as usual and tell
-    :meth:`passed` (j, plan time); once True take :meth:`reference` (j). The in-process loop and the
-    interpolator node call them in this order, so both give the same references.
+    Call :meth:`check` with each step's values once its estimate is known; the reference of a step j for
+    which :meth:`stopping` (j) is True is a :class:`ControlledStop`'s
+    (:class:`~contouring_ros.core.feed_control.FeedControl` makes it). The in-process loop and the
+    interpolator node call them in the same order, so both give the same references.
     """
 
     def __init__(self, curve, schedule, contour_limit: float, following_limits, sample_time: float, delay: int):
@@ -86,8 +86,6 @@ class Monitor:
         self.following_limits = tuple(float(v) for v in following_limits)
         self.sample_time, self.delay = float(sample_time), int(delay)
         self.breach = None             # the Breach, once one happened
-        self._last = (-1, 0.0)         # (step, plan time) of the latest reference computed as usual
-        self._stop = None              # (first step of the stop, its start time, the stop's trajectory or None)
 
     def check(self, k: int, vector, reference_position, position, theta: float) -> Breach | None:
         """Step k's values (``theta``: its reference's curve parameter); returns the breach the first time one
@@ -104,50 +102,45 @@ class Monitor:
         """Whether the reference of step j is the stop's (it starts ``delay`` steps after the breach)."""
         return self.breach is not None and j >= self.breach.step + self.delay
 
-    def passed(self, j: int, t: float) -> None:
-        """The reference of step j was computed as usual, at plan time t."""
-        self._last = (j, float(t))
+
+class ControlledStop:
+    """The reference of a controlled stop on the path (module docstring), from the plan's state at time
+    ``t0`` of ``plan``, the reference of step ``first`` - 1; :meth:`reference` (j) for j >= first."""
+
+    def __init__(self, curve, plan, t0: float, first: int, sample_time: float):
+        self.curve, self.plan, self.t0, self.first = curve, plan, float(t0), int(first)
+        self.sample_time = float(sample_time)
+        self.start, v0, a0 = (float(x) for x in plan(self.t0))
+        acceleration, jerk = plan.bounds_at(self.start)
+        self.trajectory = None            # None: the plan runs on to its own next stop
+        # the feed keeps falling by a0^2 / (2 J) while the deceleration is brought back to zero
+        if v0 > 0.0 and not (a0 < 0.0 and v0 <= a0 * a0 / (2.0 * jerk) * (1.0 + 1e-9)):
+            from ruckig import ControlInterface, InputParameter, Result, Ruckig, Trajectory
+            inp = InputParameter(1)
+            inp.control_interface = ControlInterface.Velocity
+            inp.current_position, inp.current_velocity, inp.current_acceleration = [0.0], [v0], [a0]
+            inp.target_velocity, inp.target_acceleration = [0.0], [0.0]
+            inp.max_velocity, inp.max_acceleration, inp.max_jerk = [max(v0, 1e-12)], [acceleration], [jerk]
+            trajectory = Trajectory(1)
+            if Ruckig(1).calculate(inp, trajectory) in (Result.Working, Result.Finished):
+                self.trajectory = trajectory
+        stops = np.asarray(getattr(plan, "stops", np.zeros((0, 2))), dtype=float).reshape(-1, 2)
+        later = stops[stops[:, 0] >= self.t0, 0]
+        self._next_stop = float(later[0]) if later.size else float(plan.duration)
+        duration = self.trajectory.duration if self.trajectory is not None else self._next_stop - self.t0
+        #: the first step at which the reference rests
+        self.rest_step = self.first - 1 + max(1, math.ceil(duration / self.sample_time - 1e-9))
 
     def reference(self, j: int):
-        """The reference of step j during and after the stop."""
-        if self._stop is None:
-            self._stop = self._plan_stop()
-        first, s0, trajectory, t0 = self._stop
-        tau = (j - first + 1) * self.sample_time            # from the latest reference computed as usual
-        if trajectory is None:                  # the plan runs on to its own next stop
-            return reference(self.curve, self.schedule, min(t0 + tau, self._next_stop(t0)))
-        if tau >= trajectory.duration:
-            s = s0 + trajectory.at_time(trajectory.duration)[0][0]
+        """The reference of step j >= first: on the stop, then resting where it ended."""
+        tau = (j - self.first + 1) * self.sample_time            # from the plan time t0
+        if self.trajectory is None:
+            return reference(self.curve, self.plan, min(self.t0 + tau, self._next_stop))
+        if tau >= self.trajectory.duration:
+            s = self.start + self.trajectory.at_time(self.trajectory.duration)[0][0]
             return reference(self.curve, _Held(min(s, self.curve.domain[1])), 0.0)
-        p, v, a = trajectory.at_time(tau)
-        return reference(self.curve, _Held(min(s0 + p[0], self.curve.domain[1]), v[0], a[0]), 0.0)
-
-    def _plan_stop(self):
-        """(first step, arc length, trajectory or None, plan time) of the stop, from the plan's state at the
-        latest reference computed as usual."""
-        last, t0 = self._last
-        first = last + 1
-        s0, v0, a0 = (float(x) for x in self.schedule(t0))
-        acceleration, jerk = self.schedule.bounds_at(s0)
-        # the feed keeps falling by a0^2 / (2 J) while the deceleration is brought back to zero
-        if v0 <= 0.0 or (a0 < 0.0 and v0 <= a0 * a0 / (2.0 * jerk) * (1.0 + 1e-9)):
-            return first, s0, None, t0
-        from ruckig import ControlInterface, InputParameter, Result, Ruckig, Trajectory
-        inp = InputParameter(1)
-        inp.control_interface = ControlInterface.Velocity
-        inp.current_position, inp.current_velocity, inp.current_acceleration = [0.0], [v0], [a0]
-        inp.target_velocity, inp.target_acceleration = [0.0], [0.0]
-        inp.max_velocity, inp.max_acceleration, inp.max_jerk = [max(v0, 1e-12)], [acceleration], [jerk]
-        trajectory = Trajectory(1)
-        if Ruckig(1).calculate(inp, trajectory) not in (Result.Working, Result.Finished):
-            return first, s0, None, t0
-        return first, s0, trajectory, t0
-
-    def _next_stop(self, t0: float) -> float:
-        """The plan's time of its next zero feed after t0 (an exact stop, else the program's end)."""
-        stops = np.asarray(getattr(self.schedule, "stops", np.zeros((0, 2))), dtype=float).reshape(-1, 2)
-        later = stops[stops[:, 0] >= t0, 0]
-        return float(later[0]) if later.size else float(self.schedule.duration)
+        p, v, a = self.trajectory.at_time(tau)
+        return reference(self.curve, _Held(min(self.start + p[0], self.curve.domain[1]), v[0], a[0]), 0.0)
 
 
 class _Held:

@@ -11,6 +11,7 @@ import numpy as np
 
 from ..core import curves
 from ..core.interpolation import InPositionClock, ReferenceTable, reference
+from ..core.feed_control import FeedControl, parse_feed_events
 from ..core.monitoring import Monitor
 from ..core.simulation import ControlLoop
 from ..errors import ConfigError
@@ -23,7 +24,7 @@ from .model import Experiment
 
 __all__ = ["build_curve_from", "build_curve", "build_schedule_from", "build_schedule", "build_disturbance",
            "initial_state", "build_plant", "in_position_windows", "planned_tool_path", "monitoring_limits",
-           "interpolator_takes_state", "build_monitor", "build_clock", "build_servo", "build_estimator",
+           "interpolator_takes_state", "build_monitor", "build_feed_control", "build_clock", "build_servo", "build_estimator",
            "build_controller", "build_loop", "build_path", "servo_preview", "controller_preview", "reference_preview"]
 
 #: how many paths (curve, schedule, sample time) :func:`build_path` keeps
@@ -113,6 +114,23 @@ def build_monitor(experiment: Experiment, curve, schedule):
                           "run with a servo or controller that reads the reference ahead (its preview would not "
                           "follow the stop)")
     return Monitor(curve, schedule, limits[0], limits[1], experiment.sample_time, LOOKAHEAD)
+
+
+def build_feed_control(experiment: Experiment, curve, schedule, clock, monitor):
+    """The run's :class:`~contouring_ros.core.feed_control.FeedControl` where it has feed events or a
+    monitor; else None (the reference comes from the plan and the in-position clock alone)."""
+    holds = parse_feed_events(experiment.feed_events, experiment.sample_time)
+    if not holds and monitor is None:
+        return None
+    if holds and reference_preview(experiment):
+        raise ConfigError(f"{experiment.path}: feed_events: holds do not run with a servo or controller that reads "
+                          "the reference ahead (its preview would not follow the stop)")
+    windows = in_position_windows(experiment)
+
+    def clock_for(plan):
+        return InPositionClock(plan, curve, windows, experiment.sample_time,
+                               experiment.schedule["in_position_timeout"], LOOKAHEAD)
+    return FeedControl(curve, schedule, experiment.sample_time, clock, clock_for, monitor, holds, LOOKAHEAD)
 
 
 def in_position_windows(shared) -> list | None:
@@ -235,12 +253,14 @@ def build_loop(experiment: Experiment) -> ControlLoop:
     curve, schedule, table = build_path(experiment)
     positions, velocities, accelerations = initial_state(experiment, curve, schedule)
     axes = experiment.axes
+    clock, monitor = build_clock(experiment, curve, schedule), build_monitor(experiment, curve, schedule)
     return ControlLoop(
-        curve=curve, schedule=schedule, clock=build_clock(experiment, curve, schedule),
+        curve=curve, schedule=schedule, clock=clock,
         plants=[build_plant(experiment, a, positions[i], velocities[i]) for i, a in enumerate(axes)],
         servos=[build_servo(experiment, a, positions[i], velocities[i], accelerations[i])
                 for i, a in enumerate(axes)],
         estimator=build_estimator(experiment, curve), controller=build_controller(experiment, curve),
         sample_time=experiment.sample_time, n_steps=experiment.n_steps,
         divergence_factor=experiment.divergence_factor, preview=reference_preview(experiment),
-        reference_table=table, monitor=build_monitor(experiment, curve, schedule))
+        reference_table=table, monitor=monitor,
+        feed_control=build_feed_control(experiment, curve, schedule, clock, monitor))

@@ -32,6 +32,7 @@ class Experiment:
     namespaced_clock: bool = False
     contour_error_limit: float = 0.0               # m, 0: no contour monitoring
     following_error_limit: tuple = (0.0,)          # m, one or one per axis (0: not monitored)
+    feed_events: tuple = ()                        # "hold T" / "resume T" strings (core/feed_control.py)
     reference_preview: int = 0                     # steps of reference ahead the interpolator publishes
     plants: dict = field(default_factory=dict)     # axis -> plant section
     servos: dict = field(default_factory=dict)     # axis -> servo section

@@ -22,6 +22,7 @@ from .. import graph
 from ..errors import ConfigError
 from ..graph import graph_namespace
 from ..nodes import catalogue as nodes
+from ..core.feed_control import parse_feed_events
 from .build import build_curve_from, build_schedule_from, in_position_windows, planned_tool_path
 from .catalogue import CONTROLLERS, GLOBALS, OPTIONAL_NODES, ROLE_TYPES, SERVOS
 from .catalogue.curves import TOOL_PATH_TYPES
@@ -127,6 +128,13 @@ def _validate_globals(where, given: dict) -> dict:
     for key in ("in_position", "following_error_limit"):
         if len(out[key]) not in (1, len(axes)):
             _fail(where, key, f"expected 1 value or one per axis ({len(axes)}), got {len(out[key])}")
+    try:
+        parse_feed_events(out["feed_events"], out["sample_time"])
+    except ValueError as error:
+        _fail(where, "feed_events", str(error))
+    if out["feed_events"] and not planned_tool_path(out):
+        _fail(where, "feed_events", "a feed hold stops the run on the path, which needs a tool path planned by the "
+                                    "feed plan (a gcode curve, or a toolpath with a feedrate schedule with jerk)")
     if (out["contour_error_limit"] or any(out["following_error_limit"])) and not planned_tool_path(out):
         key = "contour_error_limit" if out["contour_error_limit"] else "following_error_limit"
         _fail(where, key, "monitoring stops the run on the path, which needs a tool path planned by the feed plan "
@@ -241,6 +249,7 @@ def _shared_fields(globals_: dict) -> dict:
     out["axes"] = tuple(out["axes"])
     out["in_position"] = tuple(out["in_position"])
     out["following_error_limit"] = tuple(out["following_error_limit"])
+    out["feed_events"] = tuple(out["feed_events"])
     return out
 
 

@@ -5,8 +5,8 @@ ahead (ZPETC), each /reference message carries after its point the positions of 
 from __future__ import annotations
 
 from .. import cdr, graph
-from ..experiment.build import (build_clock, build_curve, build_monitor, build_schedule, interpolator_takes_state,
-                                reference_preview)
+from ..experiment.build import (build_clock, build_curve, build_feed_control, build_monitor, build_schedule,
+                                interpolator_takes_state, reference_preview)
 from ..core.interpolation import reference, reference_ahead
 from ..blocks import breach_line
 from ..core.simulation import step_time
@@ -28,6 +28,7 @@ class InterpolatorNode(LockstepNode):
         self.schedule = build_schedule(self.experiment, self.curve)
         self.clock = build_clock(self.experiment, self.curve, self.schedule)
         self.monitor = build_monitor(self.experiment, self.curve, self.schedule)
+        self.control = build_feed_control(self.experiment, self.curve, self.schedule, self.clock, self.monitor)
         self.add_input(graph.CONTOUR_ERROR)
         self.state_topics = [graph.state_topic(a) for a in self.axes] \
             if interpolator_takes_state(self.experiment) else []
@@ -42,14 +43,13 @@ class InterpolatorNode(LockstepNode):
     def publish_reference(self, k: int, position=None, velocity=None):
         if k >= self.n_steps:
             return
-        if self.monitor is not None and self.monitor.stopping(k):
-            ref = self.monitor.reference(k)                 # the controlled stop after a breach
+        if self.control is not None:        # holds, resumes, the stop after a breach, in-position checks
+            ref = self.control.reference(k, position, velocity)
+            t = None
         else:
             t = step_time(k, self.experiment.sample_time) if self.clock is None else \
                 self.clock.time(k, position, velocity)
             ref = reference(self.curve, self.schedule, t)
-            if self.monitor is not None:
-                self.monitor.passed(k, t)
         if self.monitor is not None:
             self.published[k] = (ref.position, float(ref.theta))
         stamp = self.stamp(k)
@@ -79,7 +79,8 @@ class InterpolatorNode(LockstepNode):
                 self.node.get_logger().warning(f"{breach_line(breach, self.curve, self.axes, self.experiment.sample_time)}"
                                                "; stopping on the path")
         clock_states = (positions, [state.velocity[0] for state in states]) \
-            if positions is not None and self.clock is not None else (None, None)
+            if positions is not None and (self.clock if self.control is None else self.control.clock) is not None \
+            else (None, None)
         self.publish_reference(k + graph.LOOKAHEAD, *clock_states)
 
 
