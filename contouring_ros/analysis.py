@@ -24,7 +24,8 @@ from .core.curves import ToolPath
 from .core.geometry import ExactContourError
 from .core.interpolation import Reference
 from .errors import ConfigError, ContouringError, OutputError, write_atomically
-from .scoring import SCORE_ROWS, curve_of, format_scores, motion_steps
+from .core.feed_control import parse_feed_events
+from .scoring import SCORE_ROWS, breach_of, curve_of, format_scores, motion_steps
 
 __all__ = ["compare_table", "parse_estimator_spec", "EstimatorReplay", "replay_estimators", "run_names",
            "figures", "write_figures", "html_report"]
@@ -613,6 +614,19 @@ def _block_of(trace: _Trace) -> np.ndarray:
 LABELLED_BLOCKS = 40
 
 
+def _feed_events(trace) -> list:
+    """(step, label) of the run's feed holds (its experiment's ``feed_events``) and of a monitoring breach."""
+    experiment = trace.experiment
+    if experiment is None:
+        return []
+    ts = experiment.sample_time
+    out = [(hold, f"hold {hold * ts:g} s") for hold, _ in parse_feed_events(experiment.feed_events, ts)]
+    breach = breach_of(trace.run.result, experiment)
+    if breach is not None:
+        out.append((breach.step, f"breach {breach.step * ts:g} s"))
+    return out
+
+
 def draw_feed(traces):
     """Tool path runs: the feed along the path against each block's limit, in the program's unit per minute
     (:func:`contouring_ros.blocks.feed_unit`), and the largest contour error of each block (labelled by its
@@ -635,6 +649,11 @@ def draw_feed(traces):
         if len(blocks) <= LABELLED_BLOCKS:
             for edge in edges[1:-1]:
                 top.axvline(edge, color="0.85", lw=0.6, zorder=0)
+        for step, label in _feed_events(t):          # holds and a monitoring breach, where they happened
+            at = float(_finite(t.run.result.theta)[min(step, len(t.run.result.theta) - 1)]) / per_minute
+            top.axvline(at, color=t.colour, ls=":", lw=1.0)
+            top.annotate(label, (at, 1.0), xycoords=("data", "axes fraction"), rotation=90, fontsize=7,
+                         va="top", ha="right", color=t.colour)
         lines = list(dict.fromkeys(b.line for b in blocks))            # source blocks (a blend arc: its line's)
         source = np.searchsorted(lines, [b.line for b in blocks]) if lines == sorted(lines) else \
             np.array([lines.index(b.line) for b in blocks])

@@ -68,3 +68,14 @@ def test_the_graph_holds_and_resumes_as_the_simulation_does(tmp_path):
     path = tmp_path / "held.yaml"
     path.write_text(text.replace("file: parts/example_part.ngc", f"file: {CONFIG / 'parts/example_part.ngc'}"))
     assert_graph_equals_simulation(path, run_graph(path, tmp_path / "held.mcap"))
+
+
+def test_feed_png_marks_each_hold_where_it_came(runs, tmp_path):
+    from contouring_ros.analysis import figures
+    from contouring_ros.bag import write_simulation
+    from contouring_ros.scoring import read_run
+    _, held = runs
+    bag = write_simulation(tmp_path / "held.mcap", held.experiment, held.result)
+    top = figures([("held", read_run(bag))])["feed"].axes[0]
+    marks = [text for text in top.texts if text.get_text() == "hold 2.5 s"]
+    assert len(marks) == 1 and marks[0].xy[0] == pytest.approx(held.result.theta[2500] * 1e3)     # mm
