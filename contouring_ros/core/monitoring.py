@@ -80,11 +80,10 @@ class Monitor:
     interpolator node call them in the same order, so both give the same references.
     """
 
-    def __init__(self, curve, schedule, contour_limit: float, following_limits, sample_time: float, delay: int):
-        self.curve, self.schedule = curve, schedule
+    def __init__(self, contour_limit: float, following_limits, delay: int):
         self.contour_limit = float(contour_limit)
         self.following_limits = tuple(float(v) for v in following_limits)
-        self.sample_time, self.delay = float(sample_time), int(delay)
+        self.delay = int(delay)
         self.breach = None             # the Breach, once one happened
 
     def check(self, k: int, vector, reference_position, position, theta: float) -> Breach | None:

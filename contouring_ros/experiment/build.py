@@ -104,7 +104,7 @@ def interpolator_takes_state(shared) -> bool:
     return in_position_windows(shared) is not None or (limits is not None and any(limits[1]))
 
 
-def build_monitor(experiment: Experiment, curve, schedule):
+def build_monitor(experiment: Experiment):
     """The run's :class:`~contouring_ros.core.monitoring.Monitor`, or None without limits."""
     limits = monitoring_limits(experiment)
     if limits is None:
@@ -113,7 +113,7 @@ def build_monitor(experiment: Experiment, curve, schedule):
         raise ConfigError(f"{experiment.path}: contour_error_limit / following_error_limit: monitoring does not "
                           "run with a servo or controller that reads the reference ahead (its preview would not "
                           "follow the stop)")
-    return Monitor(curve, schedule, limits[0], limits[1], experiment.sample_time, LOOKAHEAD)
+    return Monitor(limits[0], limits[1], LOOKAHEAD)
 
 
 def build_feed_control(experiment: Experiment, curve, schedule, clock, monitor):
@@ -253,7 +253,7 @@ def build_loop(experiment: Experiment) -> ControlLoop:
     curve, schedule, table = build_path(experiment)
     positions, velocities, accelerations = initial_state(experiment, curve, schedule)
     axes = experiment.axes
-    clock, monitor = build_clock(experiment, curve, schedule), build_monitor(experiment, curve, schedule)
+    clock, monitor = build_clock(experiment, curve, schedule), build_monitor(experiment)
     return ControlLoop(
         curve=curve, schedule=schedule, clock=clock,
         plants=[build_plant(experiment, a, positions[i], velocities[i]) for i, a in enumerate(axes)],

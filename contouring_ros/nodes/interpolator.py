@@ -27,7 +27,7 @@ class InterpolatorNode(LockstepNode):
         self.curve = build_curve(self.experiment)
         self.schedule = build_schedule(self.experiment, self.curve)
         self.clock = build_clock(self.experiment, self.curve, self.schedule)
-        self.monitor = build_monitor(self.experiment, self.curve, self.schedule)
+        self.monitor = build_monitor(self.experiment)
         self.control = build_feed_control(self.experiment, self.curve, self.schedule, self.clock, self.monitor)
         self.add_input(graph.CONTOUR_ERROR)
         self.state_topics = [graph.state_topic(a) for a in self.axes] \
