@@ -2,6 +2,7 @@
 
     python bench/feed_plan_speed.py [N ...]      # default 1000 10000 100000
     python bench/feed_plan_speed.py --window      # the look-ahead window against the whole program's plan
+    python bench/feed_plan_speed.py --merge       # G64 Q: blocks and G1 time of a 720-chord circle
 
 Each N runs in a fresh process: a program of N chords of 5 um (circles of radius 10 mm at F1200, G64 P0.001,
 in mm as CAM systems write them) is parsed (core/gcode.py), made a tool path (blend arcs at every corner)
@@ -43,9 +44,10 @@ def measure(blocks: int) -> str:
             f"peak memory {peak:.0f} MiB; planned duration {plan.duration:.2f} s")
 
 
-def circle(chords: int, radius_mm: float = 10.0) -> str:
-    """A circle of ``chords`` G1 chords at F1200 under G64 P0.001, reached by a G0 from the origin."""
-    rows = [f"G21 G90 G0 X{radius_mm} Y0", "G64 P0.001"]
+def circle(chords: int, radius_mm: float = 10.0, q: str = "") -> str:
+    """A circle of ``chords`` G1 chords at F1200 under G64 P0.001 (and Q ``q``), reached by a G0 from the
+    origin."""
+    rows = [f"G21 G90 G0 X{radius_mm} Y0", "G64 P0.001" + (f" Q{q}" if q else "")]
     rows += [f"G1 X{radius_mm * math.cos(2 * math.pi * i / chords):.6f} "
              f"Y{radius_mm * math.sin(2 * math.pi * i / chords):.6f}" + (" F1200" if i == 1 else "")
              for i in range(1, chords + 1)]
@@ -75,9 +77,25 @@ def windows() -> None:
               + ", ".join(cells), flush=True)
 
 
+def merges() -> None:
+    """G64 Q (core/gcode.merge_collinear) on a 720-chord circle of R5 at F1200: its blocks and the planned
+    time of its G1 moves for Q = 0 (none), 0.001, 0.005 and 0.01 mm."""
+    from contouring_ros.core.curves import ToolPath
+    from contouring_ros.core.feed_planning import FeedPlan
+    from contouring_ros.core.gcode import parse_program
+    for q in ("", "0.001", "0.005", "0.01"):
+        program = parse_program(circle(720, 5.0, q))
+        plan = FeedPlan(ToolPath.from_program(program), 1.0, 10.0, rapid_feedrate=0.05)
+        print(f"Q{q or ' none'}: {len(program.blocks) - 1} G1 blocks, G1 time "
+              f"{plan.duration - plan.block_times[1]:.3f} s", flush=True)
+
+
 if __name__ == "__main__":
     if sys.argv[1:] == ["--window"]:
         windows()
+        raise SystemExit(0)
+    if sys.argv[1:] == ["--merge"]:
+        merges()
         raise SystemExit(0)
     if len(sys.argv) == 3 and sys.argv[1] == "--one":
         print(measure(int(sys.argv[2])), flush=True)
