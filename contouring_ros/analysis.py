@@ -16,7 +16,7 @@ import numpy as np
 from tqdm import tqdm
 
 from .bag import RecordedRun
-from .blocks import block_cells, block_headings, block_results, cutting_scores
+from .blocks import block_cells, block_codes, block_headings, block_results, cutting_scores, feed_unit
 from .experiment.build import build_curve, build_estimator, build_schedule
 from .experiment.catalogue import ESTIMATORS
 from .experiment.validate import validate_section
@@ -24,7 +24,8 @@ from .core.curves import ToolPath
 from .core.geometry import ExactContourError
 from .core.interpolation import Reference
 from .errors import ConfigError, ContouringError, OutputError, write_atomically
-from .scoring import SCORE_ROWS, curve_of, format_scores
+from .core.feed_control import parse_feed_events
+from .scoring import SCORE_ROWS, breach_of, curve_of, format_scores, motion_steps
 
 __all__ = ["compare_table", "parse_estimator_spec", "EstimatorReplay", "replay_estimators", "run_names",
            "figures", "write_figures", "html_report"]
@@ -590,9 +591,6 @@ def draw_effort(traces):
          lambda t, i: t.run.result.correction[:, i])])
 
 
-BLOCK_NAMES = {"line": "G1", "rapid": "G0", "arc": "G2/G3", "blend": "blend"}
-
-
 def _block_limits(trace: _Trace) -> np.ndarray:
     """The feed limit [m/s] of each block of a tool path run: the feed plan's (F, rapid rate, axes,
     centripetal or contour-tolerance bound), else the programmed F (nan where there is none)."""
@@ -612,34 +610,76 @@ def _block_of(trace: _Trace) -> np.ndarray:
     return np.clip(np.searchsorted(starts, np.nan_to_num(theta), side="right") - 1, 0, len(starts) - 1)
 
 
+#: feed.png labels every block up to this many, beyond it at most this many ticks along the blocks
+LABELLED_BLOCKS = 40
+
+
+def _feed_events(trace) -> list:
+    """(step, label) of the run's feed holds (its experiment's ``feed_events``) and of a monitoring breach."""
+    experiment = trace.experiment
+    if experiment is None:
+        return []
+    ts = experiment.sample_time
+    out = [(hold, f"hold {hold * ts:g} s") for hold, _ in parse_feed_events(experiment.feed_events, ts)]
+    breach = breach_of(trace.run.result, experiment)
+    if breach is not None:
+        out.append((breach.step, f"breach {breach.step * ts:g} s"))
+    return out
+
+
 def draw_feed(traces):
-    """Tool path runs: the feed along the path against each block's limit, and the largest contour error of
-    each block (labelled by its source line)."""
+    """Tool path runs: the feed along the path against each block's limit, in the program's unit per minute
+    (:func:`contouring_ros.blocks.feed_unit`), and the largest contour error of each block (labelled by its
+    source line; with more than :data:`LABELLED_BLOCKS` blocks, by some of them, drawn as a line)."""
+    from matplotlib.lines import Line2D
+    from matplotlib.ticker import MaxNLocator
     paths = [t for t in traces if isinstance(t.curve, ToolPath)]
     fig = _figure("Feed and contour error per block", 9.5, 7.6)
     top, bottom = fig.subplots(2, 1)
-    from matplotlib.lines import Line2D
     width = 0.8 / max(len(paths), 1)
-    labels = []
+    labels, unit = [], "mm/min"
     for k, t in enumerate(paths):
         blocks = t.curve.blocks
+        per_minute, unit = feed_unit(t.curve)          # metres per unit of the program
+        scale = 60.0 / per_minute
         feed = np.linalg.norm(_finite(t.run.result.reference_velocity), axis=1)
-        top.plot(_finite(t.run.result.theta) * 1e3, feed * 1e3, color=t.colour, lw=1.2)
-        edges = np.array([b.start for b in blocks] + [t.curve.domain[1]]) * 1e3
-        limits = _block_limits(t) * 1e3
-        top.stairs(limits, edges, color=t.colour, ls="--", lw=0.9, baseline=None)
-        for edge in edges[1:-1]:
-            top.axvline(edge, color="0.85", lw=0.6, zorder=0)
-        block = _block_of(t)
-        worst = np.array([np.nanmax(t.distance[block == i], initial=np.nan) if np.any(block == i) else np.nan
-                          for i in range(len(blocks))]) * 1e6
-        positions = np.arange(len(blocks)) + (k - (len(paths) - 1) / 2) * width
-        bottom.bar(positions, np.nan_to_num(worst), width=width, color=t.colour)
-        if len(blocks) > len(labels):
-            labels = [f"line {b.line}\n{BLOCK_NAMES.get(b.kind, b.kind)}" for b in blocks]
-    _style(top, "path length [mm]", "feed [mm/s]", "feed along the path (solid) and each block's limit (dashed)")
-    bottom.set_xticks(np.arange(len(labels)), labels, fontsize=8)
-    _style(bottom, "block", "largest contour error [um]", "contour error per block")
+        top.plot(_finite(t.run.result.theta) / per_minute, feed * scale, color=t.colour, lw=1.2)
+        edges = np.array([b.start for b in blocks] + [t.curve.domain[1]]) / per_minute
+        top.stairs(_block_limits(t) * scale, edges, color=t.colour, ls="--", lw=0.9, baseline=None)
+        if len(blocks) <= LABELLED_BLOCKS:
+            for edge in edges[1:-1]:
+                top.axvline(edge, color="0.85", lw=0.6, zorder=0)
+        for step, label in _feed_events(t):          # holds and a monitoring breach, where they happened
+            at = float(_finite(t.run.result.theta)[min(step, len(t.run.result.theta) - 1)]) / per_minute
+            top.axvline(at, color=t.colour, ls=":", lw=1.0)
+            top.annotate(label, (at, 1.0), xycoords=("data", "axes fraction"), rotation=90, fontsize=7,
+                         va="top", ha="right", color=t.colour)
+        lines = list(dict.fromkeys(b.line for b in blocks))            # source blocks (a blend arc: its line's)
+        source = np.searchsorted(lines, [b.line for b in blocks]) if lines == sorted(lines) else \
+            np.array([lines.index(b.line) for b in blocks])
+        of_step = source[_block_of(t)]
+        worst = np.array([np.nanmax(t.distance[of_step == i], initial=np.nan) if np.any(of_step == i) else np.nan
+                          for i in range(len(lines))]) * 1e6
+        if len(lines) <= LABELLED_BLOCKS:
+            positions = np.arange(len(lines)) + (k - (len(paths) - 1) / 2) * width
+            bottom.bar(positions, np.nan_to_num(worst), width=width, color=t.colour)
+        else:
+            bottom.step(np.arange(len(lines)), np.nan_to_num(worst), where="mid", color=t.colour, lw=0.9)
+        if len(lines) > len(labels):
+            codes = dict(zip([b.line for b in blocks], block_codes(t.curve)))
+            labels = [(line, codes[line]) for line in lines]
+    path_unit = "in" if unit == "in/min" else "mm"
+    _style(top, f"path length [{path_unit}]", f"feed [{unit}]",
+           "feed along the path (solid) and each block's limit (dashed)")
+    if len(labels) <= LABELLED_BLOCKS:
+        bottom.set_xticks(np.arange(len(labels)), [f"line {line}\n{code}" for line, code in labels],
+                          fontsize=8 if len(labels) <= 16 else 6, rotation=0 if len(labels) <= 16 else 90)
+    else:
+        bottom.xaxis.set_major_locator(MaxNLocator(12, integer=True))
+        bottom.set_xlim(-0.5, len(labels) - 0.5)
+        bottom.set_xticks([i for i in bottom.get_xticks() if 0 <= i < len(labels)])
+        bottom.set_xticklabels([f"line {labels[int(i)][0]}" for i in bottom.get_xticks()], fontsize=8)
+    _style(bottom, "block (by its source line)", "largest contour error [um]", "contour error per block")
     _run_legend(fig, paths, [Line2D([], [], color="0.3", label="feed"),
                              Line2D([], [], color="0.3", ls="--", label="feed limit")])
     return fig
@@ -836,11 +876,12 @@ def _html_blocks(traces) -> str:
         except ContouringError:
             schedule = None
         tolerance = t.experiment.schedule.get("contour_tolerance") or 0.0
-        rows = block_results(t.curve, t.run.result, schedule, tolerance)
-        cutting = cutting_scores(t.curve, t.run.result)
-        head = block_headings(t.axes)
-        body = "".join("<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in block_cells(r)) + "</tr>"
-                       for r in rows)
+        end = motion_steps(t.curve, t.run.result, t.experiment)
+        rows = block_results(t.curve, t.run.result, schedule, tolerance, end=end)
+        cutting = cutting_scores(t.curve, t.run.result, end)
+        head = block_headings(t.axes, t.curve)
+        body = "".join("<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in block_cells(
+            r, t.curve, t.experiment.sample_time)) + "</tr>" for r in rows)
         summary = "" if cutting is None else (
             f"<p>Cutting moves (G1/G2/G3; start-up and rapids left out, {cutting.steps} steps): MCE "
             f"{cutting.mce * 1e6:.4g} um, TACE {cutting.tace * 1e6:.4g} um, RMS {cutting.rms * 1e6:.4g} um.</p>")

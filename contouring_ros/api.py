@@ -71,8 +71,9 @@ class Run:
 
     def scores(self, from_time: float = 0.0):
         """The run's :class:`~contouring_ros.core.metrics.Scores` (lengths in metres), of the samples at
-        t >= ``from_time`` when given."""
-        return score_run(self.curve, self.result, from_time)
+        t >= ``from_time`` when given (on a tool path, of the steps of its motion:
+        :func:`contouring_ros.scoring.score_run`)."""
+        return score_run(self.curve, self.result, from_time, self.experiment)
 
     def exact_contour_error(self) -> np.ndarray:
         """Distance [m] from each step's position to the whole reference curve."""

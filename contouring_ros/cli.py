@@ -112,13 +112,23 @@ def _run_config(args, config: Path, experiment=None):
     print(f"bag: {bag}")
     print(format_scores([(config.stem, scores)], run.axes))
     from .scoring import curve_of, cutting_lines
-    for line in cutting_lines(curve_of(run), run.result, run.require_experiment().schedule):
+    for line in cutting_lines(curve_of(run), run.result, run.require_experiment()):
         print(line)
     from .bag import node_reports
     from .scoring import format_realtime
     realtime = format_realtime(node_reports(bag))
     if realtime:
         print(realtime)
+    _exit_on_breach(curve_of(run), run.result, run.require_experiment(), bag)
+
+
+def _exit_on_breach(curve, result, experiment, bag=None):
+    """A run that monitoring stopped ends in one line on stderr and exit status 1 (its bag, if any, whole)."""
+    from .scoring import breach_message
+    line = breach_message(curve, result, experiment)
+    if line is not None:
+        print(f"error: {line}" + (f" (bag {bag}, complete)" if bag is not None else ""), file=sys.stderr)
+        raise SystemExit(1)
 
 
 def _run_passes(config: Path, experiment, bag, run_one):
@@ -130,7 +140,7 @@ def _run_passes(config: Path, experiment, bag, run_one):
     rows = []
 
     def report(j, path, recorded):
-        scores = score_run(curve_of(recorded), recorded.result)
+        scores = score_run(curve_of(recorded), recorded.result, experiment=recorded.experiment)
         rows.append((f"pass {j}", scores))
         print(f"pass {j}: bag {path}: MCE {scores.mce * 1e6:.4g} um, TACE {scores.tace * 1e6:.4g} um", flush=True)
     run_passes(config, experiment, Path(bag) if bag else default_bag_path(experiment), run_one, report)
@@ -165,12 +175,14 @@ def _simulate(args):
         print(f"error: {error}", file=sys.stderr)
         if len(error.result.time):
             print(f"scores of the {len(error.result.time)} steps before it:")
-            print(format_scores([(experiment.name, score_run(loop.curve, error.result))], list(experiment.axes)))
+            print(format_scores([(experiment.name, score_run(loop.curve, error.result, experiment=experiment))],
+                                list(experiment.axes)))
         raise SystemExit(1)
-    scores = score_run(loop.curve, result, args.from_time)
+    scores = score_run(loop.curve, result, args.from_time, experiment)
     print(format_scores([(experiment.name, scores)], list(experiment.axes)))
-    for line in cutting_lines(loop.curve, result, experiment.schedule):
+    for line in cutting_lines(loop.curve, result, experiment):
         print(line)
+    _exit_on_breach(loop.curve, result, experiment)
 
 
 def _simulate_passes(experiment, from_time: float = 0.0):
@@ -181,7 +193,7 @@ def _simulate_passes(experiment, from_time: float = 0.0):
     rows = []
 
     def report(j, loop, result):
-        rows.append((f"pass {j}", score_run(loop.curve, result, from_time)))
+        rows.append((f"pass {j}", score_run(loop.curve, result, from_time, experiment)))
     try:
         simulate_passes(experiment, report)
     except Diverged as error:
@@ -242,7 +254,7 @@ def _blocks(args):
 
     from .blocks import block_results, format_blocks, write_blocks_csv
     from .experiment.build import build_schedule
-    from .scoring import curve_of, cutting_lines, read_run
+    from .scoring import curve_of, cutting_lines, motion_steps, read_run
     given = _given(args)
     for bag in args.bags:
         run = read_run(bag, progress=sys.stderr.isatty(), **given)
@@ -252,14 +264,16 @@ def _blocks(args):
             raise ConfigError(f"{bag}: not a tool path run (curve type gcode or toolpath): it has no blocks")
         experiment = replace(run.require_experiment(), path=str(bag))      # named after the bag in messages
         rows = block_results(curve, run.result, build_schedule(experiment, curve),
-                             experiment.schedule.get("contour_tolerance") or 0.0)
+                             experiment.schedule.get("contour_tolerance") or 0.0,
+                             end=motion_steps(curve, run.result, experiment))
         print(f"{bag}:")
-        for line in cutting_lines(curve, run.result, experiment.schedule):
+        for line in cutting_lines(curve, run.result, experiment):
             print(line)
-        print(format_blocks(rows, run.axes))
+        print(format_blocks(rows, run.axes, curve, experiment.sample_time))
         if args.csv:
             Path(args.csv).mkdir(parents=True, exist_ok=True)
-            print(write_blocks_csv(rows, run.axes, Path(args.csv) / f"{Path(bag).stem}_blocks.csv"))
+            print(write_blocks_csv(rows, run.axes, Path(args.csv) / f"{Path(bag).stem}_blocks.csv", curve,
+                                   experiment.sample_time))
 
 
 def _compare(args):
@@ -308,7 +322,7 @@ def _plot(args):
         _warn(run)
         try:
             with np.errstate(all="ignore"):
-                scores.append(score_run(curve_of(run), run.result))
+                scores.append(score_run(curve_of(run), run.result, experiment=run.experiment))
         except (ContouringError, ValueError, ArithmeticError) as error:
             print(f"warning: {bag}: not scored ({error})", file=sys.stderr)
             scores.append(None)

@@ -172,7 +172,8 @@ def topics(axes, ccc_takes_state: bool = True, interpolator_takes_state: bool = 
     each with its publisher and subscribers (those whose step reads it, those it only paces, then the
     recorder, which takes them all). The CCC takes /reference and the states only with ``ccc_takes_state``
     (the shared key of that name: its controller uses them); the interpolator takes the states only with
-    ``interpolator_takes_state`` (exact stops wait for the axes: ``experiment.build.in_position_windows``)."""
+    ``interpolator_takes_state`` (exact stops wait for the axes, or following-error monitoring:
+    ``experiment.build.interpolator_takes_state``)."""
     flags = {"ccc_takes_state": ccc_takes_state, "interpolator_takes_state": interpolator_takes_state}
     nodes = catalogue.instances(axes)
     out = []

@@ -2,6 +2,7 @@
 parsed once (:func:`read_run`)."""
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 from pathlib import Path
 
@@ -9,8 +10,9 @@ import numpy as np
 
 from . import bag
 from .bag import RecordedRun
-from .blocks import cutting_scores
-from .experiment.build import build_curve, build_schedule
+from .blocks import breach_line, cutting_scores, motion_end
+from .core.monitoring import first_breach
+from .experiment.build import build_curve, build_schedule, in_position_windows, monitoring_limits
 from .experiment.validate import parse_experiment
 from .core.geometry import ExactContourError
 from .core.metrics import Scores, score
@@ -18,7 +20,8 @@ from .core.simulation import path_bound
 from .errors import BagError, ConfigError, ContouringError, ScoreError
 
 __all__ = ["read_run", "score_run", "score_bag", "check_experiment_matches", "curve_of", "format_scores",
-           "format_realtime", "miss_rate", "tolerance_line", "cutting_lines", "SCORE_ROWS", "BAG_EXPERIMENT"]
+           "format_realtime", "miss_rate", "tolerance_line", "cutting_lines", "motion_steps", "breach_of", "breach_message", "SCORE_ROWS",
+           "BAG_EXPERIMENT"]
 
 #: the name a bag's experiment goes by in messages (its ``where``)
 BAG_EXPERIMENT = "the bag's experiment"
@@ -70,12 +73,45 @@ def _divergence_bound(experiment) -> float | None:
         return None
 
 
-def score_run(curve, run, from_time: float = 0.0) -> Scores:
+def motion_steps(curve, result, experiment=None) -> int:
+    """How many steps of ``result`` its motion takes (:func:`contouring_ros.blocks.motion_end`; every step for
+    a curve that is not a tool path), with the ``experiment``'s in-position windows and timeout where it has
+    them (without an experiment: up to the step at which the reference comes to rest at the path's end)."""
+    windows = in_position_windows(experiment) if experiment is not None else None
+    timeout = (experiment.schedule.get("in_position_timeout") or math.inf) if windows is not None else math.inf
+    stopped = experiment is not None and breach_of(result, experiment) is not None
+    return motion_end(curve, result, windows, timeout, stopped)
+
+
+def breach_of(result, experiment):
+    """The first monitoring breach of a run (:func:`contouring_ros.core.monitoring.first_breach` with the
+    experiment's ``contour_error_limit`` and ``following_error_limit``; the test the run applied as it ran, so
+    a bag tells what its interpolator did), or None."""
+    limits = monitoring_limits(experiment)
+    return None if limits is None else first_breach(result, *limits)
+
+
+def breach_message(curve, result, experiment) -> str | None:
+    """One line for a run that monitoring stopped: the breach (:func:`contouring_ros.blocks.breach_line`) and
+    where the reference came to rest; None for a run without a breach."""
+    breach = breach_of(result, experiment)
+    if breach is None:
+        return None
+    end = motion_steps(curve, result, experiment)
+    return (f"{breach_line(breach, curve, list(experiment.axes), experiment.sample_time)}; stopped on the path at "
+            f"{float(result.theta[end - 1]) * 1e3:.3f} mm of {curve.domain[1] * 1e3:.3f} mm, "
+            f"t = {float(result.time[end - 1]):g} s")
+
+
+def score_run(curve, run, from_time: float = 0.0, experiment=None) -> Scores:
     """Scores of a SimulationResult on ``curve``; with ``from_time`` only of its samples at t >= from_time
-    (steady state). A run with no such sample is refused with a ScoreError."""
+    (steady state). A run with no such sample is refused with a ScoreError. On a tool path only the steps
+    of the motion count (:func:`motion_steps` with the ``experiment``'s in-position check): the travel time
+    ends when the last motion has ended and its axes are in position, not with the reserve after it."""
+    end = motion_steps(curve, run, experiment)
     try:
-        return score(curve, run.time, run.position, run.reference_position, run.estimate_vector, run.command,
-                     theta=run.theta, from_time=from_time)[0]
+        return score(curve, run.time[:end], run.position[:end], run.reference_position[:end],
+                     run.estimate_vector[:end], run.command[:end], theta=run.theta[:end], from_time=from_time)[0]
     except ValueError as error:
         raise ScoreError(f"--from {from_time:g}: {error}") from None
 
@@ -91,11 +127,13 @@ def tolerance_line(schedule: dict, mce: float) -> str | None:
     return f"contour tolerance {tolerance * 1e6:.4g} um: {verdict} (MCE {mce * 1e6:.4g} um)"
 
 
-def cutting_lines(curve, result, schedule: dict) -> list:
-    """For a tool path run: one line with the scores of its cutting moves alone (G1 / G2 / G3, the start-up
-    and rapids left out: :mod:`contouring_ros.blocks`), then the contour-tolerance verdict on them (where the
-    schedule has a tolerance); for any other run the verdict on the whole run, if any."""
-    cutting = cutting_scores(curve, result)
+def cutting_lines(curve, result, experiment) -> list:
+    """For a tool path run: one line with the scores of its cutting moves alone (G1 / G2 / G3, the start-up,
+    rapids and the reserve after the motion left out: :mod:`contouring_ros.blocks`), then the
+    contour-tolerance verdict on them (where the ``experiment``'s schedule has a tolerance); for any other run
+    the verdict on the whole run, if any."""
+    schedule = experiment.schedule
+    cutting = cutting_scores(curve, result, motion_steps(curve, result, experiment))
     if cutting is None:
         held = tolerance_line(schedule, score_run(curve, result).mce) if schedule.get("contour_tolerance") else None
         return [held] if held else []
@@ -114,7 +152,7 @@ def score_bag(path, experiment_text: str | None = None, progress: bool = False,
     curve = curve_of(run)
     if experiment_text is not None:
         check_experiment_matches(run, curve, path)
-    return score_run(curve, run.result, from_time), run
+    return score_run(curve, run.result, from_time, run.experiment), run
 
 
 def check_experiment_matches(run: RecordedRun, curve, path) -> None:

@@ -158,13 +158,14 @@ def _finite(scores) -> bool:
     return all(math.isfinite(v) for v in (scores.mce, scores.tace, scores.rms))
 
 
-def score_one(loop, result, from_time: float):
-    """(scores, failure): a run's scores, or None and why when it diverged."""
+def score_one(loop, result, from_time: float, experiment=None):
+    """(scores, failure): a run's scores, or None and why when it diverged (``experiment``: the run's, for
+    the in-position check that ends a tool path's motion, :func:`contouring_ros.scoring.score_run`)."""
     diverged = first_divergence(result.time, result.position, result.reference_position)
     if diverged:
         return None, diverged[1]
     try:
-        scores = score_run(loop.curve, result, from_time)
+        scores = score_run(loop.curve, result, from_time, experiment)
     except (ScoreError, *RUN_FAILURES) as error:
         return None, f"cannot be scored: {error}"
     return (scores, "") if _finite(scores) else (None, "diverged: its contour error is not finite")
@@ -191,7 +192,7 @@ def _score_loops(experiments: list, from_time: float) -> tuple:
     scores = [None] * len(loops)
     for i, (loop, result) in enumerate(zip(loops, results)):
         if result is not None:
-            scores[i], failures[i] = score_one(loop, result, from_time)
+            scores[i], failures[i] = score_one(loop, result, from_time, experiments[i])
     return scores, alone, failures
 
 

@@ -96,10 +96,11 @@ def assert_graph_equals_simulation(experiment_path, bag):
     from contouring_ros.experiment.files import load_experiment
     from contouring_ros.core.simulation import simulate
     from contouring_ros.scoring import read_run, score_bag, score_run
-    loop = build_loop(load_experiment(experiment_path))
+    experiment = load_experiment(experiment_path)
+    loop = build_loop(experiment)
     expected = simulate(loop)
     recorded = read_run(bag)
     assert recorded.complete_steps == loop.n_steps
     for name in SIGNALS + ["time", "reference_acceleration"]:
         np.testing.assert_array_equal(getattr(recorded.result, name), getattr(expected, name), err_msg=name)
-    assert score_bag(bag)[0] == score_run(loop.curve, expected)
+    assert score_bag(bag)[0] == score_run(loop.curve, expected, experiment=experiment)

@@ -153,7 +153,11 @@ def _parts(loop: ControlLoop) -> tuple:
 
 
 def batch_problem(loops: list) -> str | None:
-    """Why ``loops`` cannot run as one batch (a class without a batch path, different structures), or None."""
+    """Why ``loops`` cannot run as one batch (a class without a batch path, different structures, monitoring
+    during the run), or None."""
+    if any(getattr(loop, "feed_control", None) is not None for loop in loops):
+        return "feed holds and monitoring (feed_events, contour_error_limit, following_error_limit) act on each run " \
+            "on its own"
     try:
         _stacked(loops)
     except NotBatchable as problem:

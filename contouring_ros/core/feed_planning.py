@@ -19,7 +19,10 @@ parameter is s itself: theta = s, theta_dot = v (the feed), theta_ddot = dv/dt.
    one span (a polygon of short chords at one F is one span), so the feed is not brought to zero
    acceleration at every short block; the look-ahead runs on spans: a forward and a backward pass lower
    each span boundary's speed to what a jerk-limited profile can reach from its neighbour within the span
-   (:func:`reach`, in closed form). Both passes are linear in the number of blocks.
+   (:func:`reach`, in closed form). Both passes are linear in the number of blocks. With a look-ahead of W
+   blocks (``lookahead_blocks``, a control's block queue) spans are at most W / 2 blocks and each span's
+   exit speed is fixed from the W blocks ahead of its start alone, the last taken to end in a stop
+   (:meth:`FeedPlan._windowed`): never faster than the whole program's plan.
 4. One time-optimal jerk-limited profile per span between its boundary speeds (zero acceleration at both
    ends, so acceleration is continuous across spans), computed by Ruckig (Berscheid and Kroeger,
    "Jerk-limited Real-time Trajectory Generation with Arbitrary Target States", RSS 2021), bounded by the
@@ -29,6 +32,7 @@ parameter is s itself: theta = s, theta_dot = v (the feed), theta_ddot = dv/dt.
 from __future__ import annotations
 
 import copy
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -207,6 +211,29 @@ def block_limits(path: ToolPath, acceleration: float, jerk: float, feedrate: flo
     return out
 
 
+class _PathFrom:
+    """The blocks of a tool path from arc length ``theta`` on (the block holding it cut there, its tangent
+    taken at theta), in the path's own arc length: what :meth:`FeedPlan.rest_of_path` plans."""
+
+    def __init__(self, path, theta: float):
+        self.path, self.dimension, self.dwell = path, path.dimension, 0.0
+        self.domain = (float(theta), path.domain[1])
+        blocks = []
+        for block in path.blocks:
+            end = block.start + block.length
+            if end <= theta + 1e-12:
+                continue
+            if block.start < theta:
+                tangent = np.asarray(path.columns(float(theta))[1], dtype=float)
+                block = dataclasses.replace(block, start=float(theta), length=end - float(theta),
+                                            tangent_in=tangent / np.linalg.norm(tangent))
+            blocks.append(block)
+        self.blocks = blocks
+
+    def point(self, theta):
+        return self.path.point(theta)
+
+
 #: a span's profile is planned over this fraction of its length less, so that none overshoots its end
 SPARE = 1e-9
 
@@ -238,6 +265,8 @@ class FeedPlan:
         the axes instead, :class:`~contouring_ros.core.interpolation.InPositionClock`).
     feed_override : float
         Scales every programmed feed (1: 100 %).
+    lookahead_blocks : int
+        Blocks the planner sees ahead (step 3 of the module docstring); 0: the whole program.
 
     Attributes
     ----------
@@ -259,7 +288,7 @@ class FeedPlan:
     def __init__(self, path: ToolPath, acceleration: float, jerk: float, feedrate: float | None = None,
                  rapid_feedrate: float | None = None, normal_acceleration: float = 0.0, axis_feedrate=None,
                  axis_acceleration=None, axis_jerk=None, contour_tolerance: float = 0.0, tracking_lag=None,
-                 dwell: float = 0.0, feed_override: float = 1.0):
+                 dwell: float = 0.0, feed_override: float = 1.0, lookahead_blocks: int = 0):
         if acceleration <= 0.0 or jerk <= 0.0:
             raise ValueError("acceleration and jerk must be positive")
         if feed_override <= 0.0:
@@ -267,6 +296,11 @@ class FeedPlan:
         if contour_tolerance > 0.0 and tracking_lag is None:
             raise ValueError("a contour_tolerance needs the axes' tracking_lag")
         self.curve = path
+        self._arguments = dict(acceleration=acceleration, jerk=jerk, feedrate=feedrate, rapid_feedrate=rapid_feedrate,
+                               normal_acceleration=normal_acceleration, axis_feedrate=axis_feedrate,
+                               axis_acceleration=axis_acceleration, axis_jerk=axis_jerk,
+                               contour_tolerance=contour_tolerance, tracking_lag=tracking_lag, dwell=dwell,
+                               feed_override=feed_override, lookahead_blocks=lookahead_blocks)
         self.contour_tolerance = float(contour_tolerance)
         self.theta_start, self.theta_end = path.domain
         blocks = path.blocks
@@ -297,6 +331,9 @@ class FeedPlan:
         joined = (feed[1:] == feed[:-1]) & (acc[1:] == acc[:-1]) & (jer[1:] == jer[:-1]) & \
             (corner[1:m] >= feed[1:]) & (hold[1:m] == 0.0)
         first = np.concatenate([[0], np.flatnonzero(~joined) + 1])           # each span's first block
+        window = int(lookahead_blocks) if 0 < lookahead_blocks < m else 0
+        if window:            # spans of at most half the window: at least half a window is seen beyond each
+            first = np.union1d(first, np.arange(0, m, max(1, window // 2)))
         starts = np.array([block.start for block in blocks] + [self.theta_end])
         span_start = starts[first]
         span_length = np.append(span_start[1:], self.theta_end) - span_start
@@ -304,10 +341,13 @@ class FeedPlan:
         v = corner[np.append(first, m)]
         k = len(first)
         room = span_length * (1.0 - SPARE)
-        for i in range(k):                       # forward: what span i can reach from its entry speed
-            v[i + 1] = min(v[i + 1], reach(v[i], room[i], max(v[i + 1], v[i]), span_acc[i], span_jerk[i]))
-        for i in range(k - 1, -1, -1):           # backward: what it can brake to its exit speed from
-            v[i] = min(v[i], reach(v[i + 1], room[i], max(v[i], v[i + 1]), span_acc[i], span_jerk[i]))
+        if window:
+            self._windowed(v, first, starts, span_start, room, span_acc, span_jerk, window)
+        else:
+            for i in range(k):                   # forward: what span i can reach from its entry speed
+                v[i + 1] = min(v[i + 1], reach(v[i], room[i], max(v[i + 1], v[i]), span_acc[i], span_jerk[i]))
+            for i in range(k - 1, -1, -1):       # backward: what it can brake to its exit speed from
+                v[i] = min(v[i], reach(v[i + 1], room[i], max(v[i], v[i + 1]), span_acc[i], span_jerk[i]))
         self._span = (first, span_start, span_length, cap, span_acc, span_jerk, v, hold[np.append(first, m)])
         durations = np.array([self._profile(i).duration for i in range(k)])
         span_hold = hold[first]
@@ -322,6 +362,28 @@ class FeedPlan:
         self._feed = feed
         self._table = None
         self._times = None
+
+    @staticmethod
+    def _windowed(v, first, starts, span_start, room, acc, jerk, window: int) -> None:
+        """Step 3's passes as a control with a look-ahead of ``window`` blocks makes them (in place on the
+        boundary speeds ``v``): span i's exit speed is fixed when its entry is, seeing only the blocks
+        first[i] .. first[i] + window - 1, the last of them taken to end in a stop (what is beyond is not
+        known yet). So the feed can only be lower than the whole program's plan, and each span can still
+        brake to a stop within what was seen (the next window sees more, so its limits are as high or
+        higher)."""
+        k, m = len(first), len(starts) - 1
+        for i in range(k):
+            v[i + 1] = min(v[i + 1], reach(v[i], room[i], max(v[i + 1], v[i]), acc[i], jerk[i]))
+            end = int(first[i]) + window                      # the first block beyond the window
+            if end >= m:                                       # the program's end is in sight
+                last, back = k, v[k]
+            else:
+                last, back = int(np.searchsorted(first, end, side="left")), 0.0
+            for j in range(last - 1, i, -1):                   # spans i + 1 .. last - 1, from the window's end
+                seen = room[j] if j + 1 < k and first[j + 1] <= end else (starts[min(end, m)] - span_start[j]) * \
+                    (1.0 - SPARE)
+                back = min(v[j], reach(back, seen, max(v[j], back), acc[j], jerk[j]))
+            v[i + 1] = min(v[i + 1], back)
 
     def _profile(self, i: int):
         """Span i's Ruckig trajectory (the last few asked for are kept: the reference walks the spans in order,
@@ -414,6 +476,17 @@ class FeedPlan:
         out[first] = v[:-1]
         out[-1] = v[-1]
         return out
+
+    def rest_of_path(self, theta: float) -> "FeedPlan | None":
+        """The same plan (bounds, feeds, look-ahead) of the path from arc length theta on, from rest there: what
+        a control plans when it resumes after a feed hold; None where nothing is left."""
+        path = _PathFrom(getattr(self.curve, "path", self.curve), theta)      # the whole path, after a resume too
+        return FeedPlan(path, **self._arguments) if path.blocks else None
+
+    def bounds_at(self, theta: float) -> tuple:
+        """(acceleration, jerk) bounds along the path of the block at arc length theta."""
+        i = int(np.clip(np.searchsorted(self._starts, theta, side="right") - 1, 0, len(self.limits) - 1))
+        return self.limits[i].acceleration, self.limits[i].jerk
 
     def feed_limit_at(self, theta):
         """The feed limit of the block at arc length(s) theta."""

@@ -15,13 +15,14 @@ The language is that of Kramer, Proctor and Messina, "The NIST RS274NGC Interpre
   ``%`` on the first and last lines; M2 / M30 program end; X Y Z (up to 3 axes);
 - path control (LinuxCNC's G-code reference, "G61, G61.1 Exact Path Mode", "G64 Path Blending", "G9",
   "G4 Dwell"): G61 and G61.1 exact stop at every corner (modal), G9 exact stop at the end of its own block,
-  G64 P p [Q q] blending within p of each corner (modal; G64 without P: within :data:`JUNCTION_DEVIATION`;
-  Q, LinuxCNC's naive CAM tolerance, is read and not applied), G4 P seconds dwell (the motion stops first).
+  G64 P p [Q q] blending within p of each corner (modal; G64 without P: within :data:`JUNCTION_DEVIATION`),
+  Q its naive CAM tolerance: consecutive G1 blocks whose end points lie within q of one straight line are
+  merged into one (:func:`merge_collinear`), G4 P seconds dwell (the motion stops first).
   A program that says none of them takes the experiment's ``blend_tolerance`` (0: exact stop, as G61);
 - setup words every post-processor writes at the top of a program (:data:`SETUP_WORDS`): G40, G49, G54-G59
   (zero work offsets: the program's coordinates are the machine's), G80, G94, M3 / M4 / M5 with S, T with M6,
-  M7 / M8 / M9 and O numbers are read and have no effect on the path; each kind is reported once, naming its
-  first line (``Program.warnings``). ``strict=True`` refuses them instead.
+  M7 / M8 / M9 and O numbers are read and have no effect on the path; they are reported in one line naming
+  each word once and the lines they span (``Program.warnings``). ``strict=True`` refuses them instead.
 
 Motion the project cannot do (cutter compensation G41 / G42, tool length offsets G43, inverse-time and
 per-revolution feed G93 / G95, canned cycles G73 G76 G81-G89) is refused in either mode, and so is every
@@ -35,7 +36,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-__all__ = ["Block", "Program", "ProgramError", "parse_program", "MM", "INCH", "JUNCTION_DEVIATION", "SETUP_WORDS"]
+__all__ = ["Block", "Program", "ProgramError", "parse_program", "merge_collinear", "MM", "INCH", "JUNCTION_DEVIATION",
+           "SETUP_WORDS", "MAX_MERGED"]
 
 MM, INCH = 1e-3, 25.4e-3          # metres per unit
 ARC_TOLERANCE = 2e-6              # m: an arc's end may lie this far off its circle (LinuxCNC's 0.002 mm)
@@ -101,6 +103,11 @@ class Block:
         [s] G4 dwell after the block.
     number : int or None
         Its N number, where the line gives one.
+    merge_tolerance : float
+        [m] G64 Q in force on a G1 block (0: none): :func:`merge_collinear` may merge it with its neighbours.
+    merged : int
+        How many G1 blocks of the program it stands for (1, or more where they were merged; ``line`` and
+        ``number`` are the first's).
     """
 
     kind: str
@@ -114,19 +121,24 @@ class Block:
     tolerance: float | None = None
     dwell: float = 0.0
     number: int | None = None
+    merge_tolerance: float = 0.0
+    merged: int = 1
 
 
 @dataclass(frozen=True)
 class Program:
     """A parsed part program: its motion blocks and its dimension: 3 where it moves Z, arcs outside the XY
-    plane or starts off z = 0, else 2; ``warnings``: one line per kind of setup word read; ``dwell``: [s] of
-    G4 before the first motion."""
+    plane or starts off z = 0, else 2; ``warnings``: one line naming the setup words read (none without);
+    ``dwell``: [s] of
+    G4 before the first motion; ``unit``: [m] per program unit (MM or INCH) of its first motion, in which
+    results per block are reported."""
 
     blocks: list
     dimension: int
     has_feed_words: bool
     warnings: tuple = ()
     dwell: float = 0.0
+    unit: float = MM
 
 
 def _strip_comments(text: str, number: int) -> str:
@@ -193,7 +205,9 @@ def parse_program(text: str, start=(0.0, 0.0, 0.0), strict: bool = False) -> Pro
     position = np.array(list(start) + [0.0] * (3 - len(start)), dtype=float)
     unit, absolute, plane, motion, feed = MM, True, _PLANES[17], None, None
     tolerance = None                            # the path control mode: None (the experiment's), 0 (G61), P
+    naive = 0.0                                 # G64 Q: the naive CAM tolerance [m] (0: no merging)
     blocks, has_feed, ended, warnings, first_dwell = [], False, None, {}, 0.0
+    first_unit = None                           # the unit of the first motion (results are reported in it)
     moved_z = bool(position[2] != 0.0)         # a start off the XY plane keeps Z
     lines = text.splitlines()
     for number, raw in enumerate(lines, start=1):
@@ -217,11 +231,11 @@ def parse_program(text: str, start=(0.0, 0.0, 0.0), strict: bool = False) -> Pro
                                    "the programmed path as it is, in either mode)")
             if name in _SETUP_KIND:
                 kind = _SETUP_KIND[name]
-                meaning, reading = SETUP_WORDS[kind]
+                meaning = SETUP_WORDS[kind][0]
                 if strict:
                     raise ProgramError(f"line {number}: {word} ({meaning}) is a setup word; strict: true refuses "
                                        "them (leave strict out to read and report them)")
-                warnings.setdefault(kind, f"line {number}: {word} ({meaning}) read: {reading}")
+                warnings.setdefault(name, (word, number))
                 continue
             if letter in "NPQ":
                 continue
@@ -238,7 +252,7 @@ def parse_program(text: str, start=(0.0, 0.0, 0.0), strict: bool = False) -> Pro
                 elif code in (90, 91):
                     absolute = code == 90
                 elif name in ("G61", "G61.1"):
-                    tolerance = 0.0
+                    tolerance, naive = 0.0, 0.0
                 elif code == 64:
                     blend = True
                 elif code == 9:
@@ -278,6 +292,10 @@ def parse_program(text: str, start=(0.0, 0.0, 0.0), strict: bool = False) -> Pro
             if p is not None and p < 0.0:
                 raise ProgramError(f"line {number}: {words['P'][1]}: the blending tolerance must not be negative")
             tolerance = JUNCTION_DEVIATION if p is None else p * unit
+            q = words.get("Q", (0.0,))[0]
+            if q < 0.0:
+                raise ProgramError(f"line {number}: {words['Q'][1]}: the naive CAM tolerance must not be negative")
+            naive = q * unit
         if dwell:
             if "P" not in words:
                 raise ProgramError(f"line {number}: G4 needs its dwell P (seconds)")
@@ -306,13 +324,16 @@ def parse_program(text: str, start=(0.0, 0.0, 0.0), strict: bool = False) -> Pro
         block_feed = None if motion == 0 or feed is None else feed * unit / 60.0
         block_tolerance = 0.0 if exact_once else tolerance
         label = _code(words["N"][0]) if "N" in words else None
+        if first_unit is None:
+            first_unit = unit
         if motion in (0, 1):
             if centre or radius is not None:
                 raise ProgramError(f"line {number}: {'I, J, K' if centre else 'R'} on a G{motion} line")
             if np.array_equal(end, position):
                 continue                                    # a move to where the tool is: no motion
             blocks.append(Block("rapid" if motion == 0 else "line", position, end, block_feed, number,
-                                tolerance=block_tolerance, number=label))
+                                tolerance=block_tolerance, number=label,
+                                merge_tolerance=naive if motion == 1 and block_tolerance else 0.0))
         else:
             blocks.append(replace(_arc(number, motion, plane, position, end, centre, radius, unit, block_feed),
                                   tolerance=block_tolerance, number=label))
@@ -323,7 +344,69 @@ def parse_program(text: str, start=(0.0, 0.0, 0.0), strict: bool = False) -> Pro
         if has_feed and block.kind != "rapid" and block.feed is None:
             code = "G1" if block.kind == "line" else "G2" if block.clockwise else "G3"
             raise ProgramError(f"line {block.line}: {code} before any feed rate (F)")
-    return Program(blocks, 3 if moved_z else 2, has_feed, tuple(warnings.values()), first_dwell)
+    return Program(merge_collinear(blocks), 3 if moved_z else 2, has_feed, _setup_summary(warnings), first_dwell,
+                   first_unit or MM)
+
+
+#: at most this many G1 blocks are merged into one (LinuxCNC's emccanon.cc: linkable, over 100 chained points)
+MAX_MERGED = 100
+
+
+def merge_collinear(blocks: list) -> list:
+    """``blocks`` with runs of consecutive G1 blocks under G64 Q q merged into one line, as LinuxCNC's canonical
+    layer does (src/emc/task/emccanon.cc: see_segment, linkable, flush_segments): a G1 block joins the run
+    when its feed, path tolerance and q are the run's, no exact stop or dwell ends the run before it, the
+    run has fewer than :data:`MAX_MERGED` blocks, and every end point of the run, its own included, lies
+    within q of the straight line from the run's start to its end (the distance to that segment, the
+    projection clamped to it). The merged line runs from the first block's start to the last's end, with the
+    first's line and N number, the last's tolerance and dwell. Anything else (G0, arcs, a feed change) ends a
+    run."""
+    out, run = [], []
+
+    def flush():
+        if run:
+            last = run[-1]
+            out.append(replace(run[0], end=last.end, tolerance=last.tolerance, dwell=last.dwell, merged=len(run))
+                       if len(run) > 1 else last)
+            run.clear()
+    for block in blocks:
+        if run and _linkable(run, block):
+            run.append(block)
+            continue
+        flush()
+        if block.kind == "line" and block.merge_tolerance > 0.0:
+            run.append(block)
+        else:
+            out.append(block)
+    flush()
+    return out
+
+
+def _linkable(run: list, block: Block) -> bool:
+    first, last = run[0], run[-1]
+    if block.kind != "line" or len(run) >= MAX_MERGED or last.dwell > 0.0 or not last.tolerance or \
+            (block.feed, block.tolerance, block.merge_tolerance) != (first.feed, first.tolerance,
+                                                                    first.merge_tolerance):
+        return False
+    start, chord = first.start, block.end - first.start
+    squared = float(np.dot(chord, chord))
+    if squared == 0.0:
+        return False
+    points = np.array([b.end for b in run] + [block.end])
+    along = np.clip((points - start) @ chord / squared, 0.0, 1.0)
+    distance = np.linalg.norm(points - (start + along[:, None] * chord), axis=1)
+    return bool(np.all(distance <= block.merge_tolerance))
+
+
+def _setup_summary(seen: dict) -> tuple:
+    """One line naming each setup word read (name -> (the word as first written, its line)), in the order
+    first read, with the lines they span: a CAM post-processor's header is one line, not one per kind."""
+    if not seen:
+        return ()
+    lines = sorted({line for _, line in seen.values()})
+    where = f"line {lines[0]}" if len(lines) == 1 else f"lines {lines[0]}-{lines[-1]}"
+    return (f"{where}: setup words {' '.join(word for word, _ in seen.values())} read, with no effect on the "
+            "path (zero work offsets; no spindle, tool or coolant is simulated; strict: true refuses them)",)
 
 
 def _arc(number, motion, plane, start, end, centre_words, radius, unit, feed) -> Block:

@@ -63,6 +63,8 @@ class ControlLoop:
     clock: object = None                # InPositionClock (exact stops wait for the axes), or None: t_k
     preview: int = 0                    # steps of reference beyond step k the servos read (reference_ahead)
     reference_table: object = None      # ReferenceTable of the path, shared by the runs along it, or None
+    monitor: object = None              # Monitor (contour / following-error limits: core/monitoring.py), or None
+    feed_control: object = None         # FeedControl (holds, resumes, monitoring's stop: core/feed_control.py)
 
 
 @dataclass
@@ -158,8 +160,8 @@ def simulate(loop: ControlLoop, stop_on_divergence: bool = True, progress: bool 
         np.empty((m, n)) for _ in range(8))
     curve, schedule, estimator, controller = loop.curve, loop.schedule, loop.estimator, loop.controller
     axes = list(zip(range(n), loop.plants, loop.servos))
-    clock = loop.clock
-    table = loop.reference_table if clock is None else None
+    clock, monitor, control = loop.clock, loop.monitor, loop.feed_control
+    table = loop.reference_table if clock is None and control is None else None
     previewing = [(i, plant, servo) for i, plant, servo in axes if getattr(servo, "preview", 0)]
     controller_preview = getattr(controller, "preview", 0)
     steps = range(m)
@@ -171,13 +173,18 @@ def simulate(loop: ControlLoop, stop_on_divergence: bool = True, progress: bool 
         for i, plant, _ in axes:
             positions[k, i], velocities[k, i] = plant.measure()
         position, velocity = positions[k].copy(), velocities[k].copy()
-        if clock is None:
-            ref_time = t
-        else:         # the reference of step k sees the positions of step k - delay, as in the graph
-            seen = (positions[k - clock.delay].copy(), velocities[k - clock.delay].copy()) \
-                if k >= clock.delay else (None, None)
-            ref_time = clock.time(k, *seen)
-        ref = table.at(k) if table is not None else reference(curve, schedule, ref_time)
+        if control is not None:       # holds, resumes, the stop after a breach, in-position checks
+            seen = (positions[k - control.delay].copy(), velocities[k - control.delay].copy()) \
+                if control.clock is not None and k >= control.delay else (None, None)
+            ref_time, ref = math.nan, control.reference(k, *seen)
+        else:
+            if clock is None:
+                ref_time = t
+            else:         # the reference of step k sees the positions of step k - delay, as in the graph
+                seen = (positions[k - clock.delay].copy(), velocities[k - clock.delay].copy()) \
+                    if k >= clock.delay else (None, None)
+                ref_time = clock.time(k, *seen)
+            ref = table.at(k) if table is not None else reference(curve, schedule, ref_time)
         for i in range(n if stop_on_divergence else 0):
             distance = abs(position[i] - ref.position[i])
             if not distance <= bound:        # also when not finite
@@ -188,6 +195,8 @@ def simulate(loop: ControlLoop, stop_on_divergence: bool = True, progress: bool 
                                            correction=corrections, command=commands)
                 raise Diverged(diverged_message(t, k, distance, bound), k, t, _cut(partial, k))
         estimate = estimator.step(ref, position)
+        if monitor is not None:
+            monitor.check(k, estimate.vector, ref.position, position, ref.theta)
         if loop.preview:
             ahead = table.ahead(k, loop.preview) if table is not None else \
                 reference_ahead(curve, schedule, k, ref_time, loop.preview, loop.sample_time, clock).position

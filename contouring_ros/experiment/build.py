@@ -11,6 +11,8 @@ import numpy as np
 
 from ..core import curves
 from ..core.interpolation import InPositionClock, ReferenceTable, reference
+from ..core.feed_control import FeedControl, parse_feed_events
+from ..core.monitoring import Monitor
 from ..core.simulation import ControlLoop
 from ..errors import ConfigError
 from ..graph import LOOKAHEAD
@@ -21,7 +23,8 @@ from .catalogue.disturbances import build_disturbance
 from .model import Experiment
 
 __all__ = ["build_curve_from", "build_curve", "build_schedule_from", "build_schedule", "build_disturbance",
-           "initial_state", "build_plant", "in_position_windows", "build_clock", "build_servo", "build_estimator",
+           "initial_state", "build_plant", "in_position_windows", "planned_tool_path", "monitoring_limits",
+           "interpolator_takes_state", "build_monitor", "build_feed_control", "build_clock", "build_servo", "build_estimator",
            "build_controller", "build_loop", "build_path", "servo_preview", "controller_preview", "reference_preview"]
 
 #: how many paths (curve, schedule, sample time) :func:`build_path` keeps
@@ -71,17 +74,73 @@ def build_plant(experiment: Experiment, axis: str, position: float, velocity: fl
                                                               velocity=velocity, where=experiment.path))
 
 
+def _getter(shared):
+    return shared.get if isinstance(shared, dict) else lambda key: getattr(shared, key)
+
+
+def planned_tool_path(shared) -> bool:
+    """Whether the experiment (an Experiment or the shared section) runs a tool path planned by the
+    jerk-limited feed plan: a gcode curve, or a toolpath with a feedrate schedule with jerk."""
+    get = _getter(shared)
+    curve, schedule = get("curve"), get("schedule")
+    return curve["type"] == "gcode" or bool(curve["type"] == "toolpath" and schedule["type"] == "feedrate"
+                                            and schedule.get("jerk"))
+
+
+def monitoring_limits(shared) -> tuple | None:
+    """(contour limit, per-axis following limits) [m] of the shared keys ``contour_error_limit`` and
+    ``following_error_limit`` where either is on (validation allows them on planned tool paths only); else None."""
+    get = _getter(shared)
+    contour, following = float(get("contour_error_limit")), [float(v) for v in get("following_error_limit")]
+    if not contour and not any(following):
+        return None
+    return contour, following * len(get("axes")) if len(following) == 1 else following
+
+
+def interpolator_takes_state(shared) -> bool:
+    """Whether the interpolator subscribes to every axis state: for the in-position check at exact stops or
+    for following-error monitoring (decided from the shared keys alone, so every node agrees)."""
+    limits = monitoring_limits(shared)
+    return in_position_windows(shared) is not None or (limits is not None and any(limits[1]))
+
+
+def build_monitor(experiment: Experiment):
+    """The run's :class:`~contouring_ros.core.monitoring.Monitor`, or None without limits."""
+    limits = monitoring_limits(experiment)
+    if limits is None:
+        return None
+    if reference_preview(experiment):
+        raise ConfigError(f"{experiment.path}: contour_error_limit / following_error_limit: monitoring does not "
+                          "run with a servo or controller that reads the reference ahead (its preview would not "
+                          "follow the stop)")
+    return Monitor(limits[0], limits[1], LOOKAHEAD)
+
+
+def build_feed_control(experiment: Experiment, curve, schedule, clock, monitor):
+    """The run's :class:`~contouring_ros.core.feed_control.FeedControl` where it has feed events or a
+    monitor; else None (the reference comes from the plan and the in-position clock alone)."""
+    holds = parse_feed_events(experiment.feed_events, experiment.sample_time)
+    if not holds and monitor is None:
+        return None
+    if holds and reference_preview(experiment):
+        raise ConfigError(f"{experiment.path}: feed_events: holds do not run with a servo or controller that reads "
+                          "the reference ahead (its preview would not follow the stop)")
+    windows = in_position_windows(experiment)
+
+    def clock_for(plan):
+        return InPositionClock(plan, curve, windows, experiment.sample_time,
+                               experiment.schedule["in_position_timeout"], LOOKAHEAD)
+    return FeedControl(curve, schedule, experiment.sample_time, clock, clock_for, monitor, holds, LOOKAHEAD)
+
+
 def in_position_windows(shared) -> list | None:
     """Each axis' in-position window [m] (the shared key ``in_position``, an Experiment or the shared
     section) where the reference waits at exact stops for the axes: a tool path planned by the jerk-limited
     feed plan with a window > 0; else None (the reference runs on the plan's own time and the interpolator
     takes no axis state)."""
-    get = shared.get if isinstance(shared, dict) else lambda key: getattr(shared, key)
-    curve, schedule = get("curve"), get("schedule")
-    planned = curve["type"] == "gcode" or (curve["type"] == "toolpath" and schedule["type"] == "feedrate"
-                                           and schedule.get("jerk"))
+    get = _getter(shared)
     windows = [float(w) for w in get("in_position")]
-    if not planned or not any(windows):
+    if not planned_tool_path(shared) or not any(windows):
         return None
     return windows * len(get("axes")) if len(windows) == 1 else windows
 
@@ -194,12 +253,14 @@ def build_loop(experiment: Experiment) -> ControlLoop:
     curve, schedule, table = build_path(experiment)
     positions, velocities, accelerations = initial_state(experiment, curve, schedule)
     axes = experiment.axes
+    clock, monitor = build_clock(experiment, curve, schedule), build_monitor(experiment)
     return ControlLoop(
-        curve=curve, schedule=schedule, clock=build_clock(experiment, curve, schedule),
+        curve=curve, schedule=schedule, clock=clock,
         plants=[build_plant(experiment, a, positions[i], velocities[i]) for i, a in enumerate(axes)],
         servos=[build_servo(experiment, a, positions[i], velocities[i], accelerations[i])
                 for i, a in enumerate(axes)],
         estimator=build_estimator(experiment, curve), controller=build_controller(experiment, curve),
         sample_time=experiment.sample_time, n_steps=experiment.n_steps,
         divergence_factor=experiment.divergence_factor, preview=reference_preview(experiment),
-        reference_table=table)
+        reference_table=table, monitor=monitor,
+        feed_control=build_feed_control(experiment, curve, schedule, clock, monitor))

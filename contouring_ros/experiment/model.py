@@ -30,6 +30,9 @@ class Experiment:
     ccc_takes_state: bool = True
     in_position: tuple = (1e-5,)                   # m, one or one per axis (0: exact stops do not wait)
     namespaced_clock: bool = False
+    contour_error_limit: float = 0.0               # m, 0: no contour monitoring
+    following_error_limit: tuple = (0.0,)          # m, one or one per axis (0: not monitored)
+    feed_events: tuple = ()                        # "hold T" / "resume T" strings (core/feed_control.py)
     reference_preview: int = 0                     # steps of reference ahead the interpolator publishes
     plants: dict = field(default_factory=dict)     # axis -> plant section
     servos: dict = field(default_factory=dict)     # axis -> servo section

@@ -22,7 +22,8 @@ from .. import graph
 from ..errors import ConfigError
 from ..graph import graph_namespace
 from ..nodes import catalogue as nodes
-from .build import build_curve_from, build_schedule_from, in_position_windows
+from ..core.feed_control import parse_feed_events
+from .build import build_curve_from, build_schedule_from, in_position_windows, planned_tool_path
 from .catalogue import CONTROLLERS, GLOBALS, OPTIONAL_NODES, ROLE_TYPES, SERVOS
 from .catalogue.curves import TOOL_PATH_TYPES
 from .model import Experiment
@@ -124,8 +125,20 @@ def _validate_globals(where, given: dict) -> dict:
     if dimension != len(axes):
         _fail(where, "axes", f"{len(axes)} axes given but the {out['curve']['type']} curve has {dimension} "
                              "coordinates")
-    if len(out["in_position"]) not in (1, len(axes)):
-        _fail(where, "in_position", f"expected 1 value or one per axis ({len(axes)}), got {len(out['in_position'])}")
+    for key in ("in_position", "following_error_limit"):
+        if len(out[key]) not in (1, len(axes)):
+            _fail(where, key, f"expected 1 value or one per axis ({len(axes)}), got {len(out[key])}")
+    try:
+        parse_feed_events(out["feed_events"], out["sample_time"])
+    except ValueError as error:
+        _fail(where, "feed_events", str(error))
+    if out["feed_events"] and not planned_tool_path(out):
+        _fail(where, "feed_events", "a feed hold stops the run on the path, which needs a tool path planned by the "
+                                    "feed plan (a gcode curve, or a toolpath with a feedrate schedule with jerk)")
+    if (out["contour_error_limit"] or any(out["following_error_limit"])) and not planned_tool_path(out):
+        key = "contour_error_limit" if out["contour_error_limit"] else "following_error_limit"
+        _fail(where, key, "monitoring stops the run on the path, which needs a tool path planned by the feed plan "
+                          "(a gcode curve, or a toolpath with a feedrate schedule with jerk)")
     if out["duration"] == 0.0:
         try:
             schedule = build_schedule_from(out["schedule"], curve, where)
@@ -235,6 +248,8 @@ def _shared_fields(globals_: dict) -> dict:
     out = {f.name: globals_[f.name] for f in fields(Experiment) if f.name in GLOBALS}
     out["axes"] = tuple(out["axes"])
     out["in_position"] = tuple(out["in_position"])
+    out["following_error_limit"] = tuple(out["following_error_limit"])
+    out["feed_events"] = tuple(out["feed_events"])
     return out
 
 

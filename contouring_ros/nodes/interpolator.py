@@ -5,8 +5,10 @@ ahead (ZPETC), each /reference message carries after its point the positions of 
 from __future__ import annotations
 
 from .. import cdr, graph
-from ..experiment.build import build_clock, build_curve, build_schedule, reference_preview
+from ..experiment.build import (build_clock, build_curve, build_feed_control, build_monitor, build_schedule,
+                                interpolator_takes_state, reference_preview)
 from ..core.interpolation import reference, reference_ahead
+from ..blocks import breach_line
 from ..core.simulation import step_time
 from .lockstep import LockstepNode, run_node
 
@@ -25,8 +27,12 @@ class InterpolatorNode(LockstepNode):
         self.curve = build_curve(self.experiment)
         self.schedule = build_schedule(self.experiment, self.curve)
         self.clock = build_clock(self.experiment, self.curve, self.schedule)
+        self.monitor = build_monitor(self.experiment)
+        self.control = build_feed_control(self.experiment, self.curve, self.schedule, self.clock, self.monitor)
         self.add_input(graph.CONTOUR_ERROR)
-        self.state_topics = [graph.state_topic(a) for a in self.axes] if self.clock is not None else []
+        self.state_topics = [graph.state_topic(a) for a in self.axes] \
+            if interpolator_takes_state(self.experiment) else []
+        self.published = {}          # step -> (reference positions, theta) of the steps the monitor reads
         for topic in self.state_topics:
             self.add_input(topic)
         self.reference_pub = self.add_output(graph.REFERENCE)
@@ -37,9 +43,15 @@ class InterpolatorNode(LockstepNode):
     def publish_reference(self, k: int, position=None, velocity=None):
         if k >= self.n_steps:
             return
-        t = step_time(k, self.experiment.sample_time) if self.clock is None else \
-            self.clock.time(k, position, velocity)
-        ref = reference(self.curve, self.schedule, t)
+        if self.control is not None:        # holds, resumes, the stop after a breach, in-position checks
+            ref = self.control.reference(k, position, velocity)
+            t = None
+        else:
+            t = step_time(k, self.experiment.sample_time) if self.clock is None else \
+                self.clock.time(k, position, velocity)
+            ref = reference(self.curve, self.schedule, t)
+        if self.monitor is not None:
+            self.published[k] = (ref.position, float(ref.theta))
         stamp = self.stamp(k)
         preview = cdr.preview_points(reference_ahead(self.curve, self.schedule, k, t, self.preview,
                                                      self.experiment.sample_time, self.clock),
@@ -57,11 +69,19 @@ class InterpolatorNode(LockstepNode):
         if k > 0:
             self.clock_pub.publish(cdr.encode_clock(*self.stamp(k)))
         states = [inputs.get(topic) for topic in self.state_topics]
-        if states and None not in states:
-            self.publish_reference(k + graph.LOOKAHEAD, [state.position[0] for state in states],
-                                   [state.velocity[0] for state in states])
-        else:
-            self.publish_reference(k + graph.LOOKAHEAD)
+        positions = [state.position[0] for state in states] if states and None not in states else None
+        if self.monitor is not None:        # step k's estimate and states against step k's reference
+            estimate = inputs[graph.CONTOUR_ERROR]
+            reference_position, theta = self.published.pop(k)
+            breach = self.monitor.check(k, estimate.position[:len(self.axes)], reference_position,
+                                        positions if positions is not None else reference_position, theta)
+            if breach is not None:
+                self.node.get_logger().warning(f"{breach_line(breach, self.curve, self.axes, self.experiment.sample_time)}"
+                                               "; stopping on the path")
+        clock_states = (positions, [state.velocity[0] for state in states]) \
+            if positions is not None and (self.clock if self.control is None else self.control.clock) is not None \
+            else (None, None)
+        self.publish_reference(k + graph.LOOKAHEAD, *clock_states)
 
 
 def main(args=None):

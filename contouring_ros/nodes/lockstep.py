@@ -28,7 +28,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 
 from .. import cdr, graph
 from ..rclpy_adapter import SubscriptionWaitSet, take_request, taker
-from ..experiment.build import in_position_windows
+from ..experiment.build import interpolator_takes_state
 from ..experiment.validate import experiment_for_node
 from ..parameters import descriptor, node_parameters
 from ..errors import ConfigError, ContouringError, RunError
@@ -102,7 +102,7 @@ class LockstepNode:
         self.n_steps = self.experiment.n_steps
         self.axes = list(self.experiment.axes)
         self._topics = {t.name: t for t in graph.recorded_topics(
-            self.axes, self.experiment.ccc_takes_state, in_position_windows(self.experiment) is not None)}
+            self.axes, self.experiment.ccc_takes_state, interpolator_takes_state(self.experiment))}
         self._inputs = []          # (topic name, subscription, msg class, decoder)
         self._takers = []          # (topic name, the subscription's take: rclpy_adapter.taker)
         self._decoded_keys = {}    # input topic -> its key in _DECODED

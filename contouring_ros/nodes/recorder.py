@@ -21,7 +21,7 @@ from rclpy.serialization import deserialize_message
 
 from .. import __version__, cdr, graph
 from ..bag import EXPERIMENT_METADATA, RUN_METADATA, BagWriter
-from ..experiment.build import in_position_windows
+from ..experiment.build import interpolator_takes_state
 from ..experiment.files import recorded_text
 from ..errors import ConfigError
 from .lockstep import DIAGNOSTICS_QOS, GRAPH_QOS, LockstepNode, run_node
@@ -40,7 +40,7 @@ class RecorderNode(LockstepNode):
             raise ConfigError(f"{self.name}: parameter 'bag' (the .mcap file to write) is required")
         text = recorded_text(options["experiment_file"]) if options["experiment_file"] else ""
         self.topic_list = graph.recorded_topics(
-            self.axes, self.experiment.ccc_takes_state, in_position_windows(self.experiment) is not None)
+            self.axes, self.experiment.ccc_takes_state, interpolator_takes_state(self.experiment))
         for topic in self.topic_list:
             self.add_input(topic.name, GRAPH_QOS if topic.name != graph.DIAGNOSTICS else DIAGNOSTICS_QOS)
         self.counts = {topic.name: 0 for topic in self.topic_list}

@@ -133,16 +133,15 @@ M30
 """
 
 
-def test_setup_words_are_read_and_reported_once_per_kind_naming_a_line():
+def test_setup_words_are_read_and_reported_in_one_line():
     program = parse_program(POST_PROCESSOR_HEADER)
     assert [b.kind for b in program.blocks] == ["line", "line"]          # G0 X0 Y0 is where the tool is
-    kinds = ["program numbers", "cutter compensation off", "tool length offset off", "canned cycle off",
-             "feed per minute", "work offsets", "tool change", "spindle", "coolant"]
-    assert len(program.warnings) == len(kinds)
-    for kind, warning in zip(kinds, program.warnings):
-        assert kind in warning and warning.startswith("line ") and "\n" not in warning
-    assert program.warnings[0].startswith("line 2: O1000")
-    assert program.warnings[7].startswith("line 6: S12000")               # S and M3, M5 later: one warning
+    assert len(program.warnings) == 1
+    line = program.warnings[0]
+    assert line.startswith("lines 2-12: setup words O1000 G40 G49 G80 G94 G54 T1 M6 S12000 M3 M8 M9 M5 read,")
+    assert "no effect on the path" in line and "strict: true" in line and "\n" not in line
+    assert parse_program("G54\nG1 X1 F60").warnings[0].startswith("line 1: setup words G54 read")
+    assert parse_program("G1 X1 F60").warnings == ()
 
 
 @pytest.mark.parametrize("word, line", [("O1000", 2), ("G40", 3), ("G54", 4), ("T1", 5), ("S12000", 6),
@@ -275,3 +274,54 @@ def test_a_move_whose_length_or_radius_is_not_finite_is_refused_naming_its_line(
 def test_inline_moves_take_only_finite_numbers(move):
     with pytest.raises(ValueError, match=r"^move 1 .*finite"):
         ToolPath([0.0, 0.0], [move])
+
+
+def _chords(points, header="G21 G90 G64 P0.01 Q0.001", feed=" F600"):
+    lines = [header] + [f"G1 X{x:.6f} Y{y:.6f}" + (feed if i == 0 else "") for i, (x, y) in enumerate(points)]
+    return "\n".join(lines)
+
+
+def test_g64_q_merges_g1_blocks_within_q_of_a_line_as_linuxcnc_does():
+    from contouring_ros.core.gcode import MAX_MERGED
+    # ten steps along X, each end point 0.4 um off the line alternately: within Q = 1 um, one block
+    wiggle = [(i, 0.0004 * (-1) ** i if i < 10 else 0.0) for i in range(1, 11)]
+    program = parse_program(_chords(wiggle))
+    assert len(program.blocks) == 1
+    merged = program.blocks[0]
+    assert merged.merged == 10 and merged.line == 2 and np.allclose(merged.end, [0.010, 0.0, 0.0])
+    assert np.allclose(merged.start, 0.0) and merged.feed == pytest.approx(0.01)
+    # 2 um off: beyond Q, nothing merges
+    assert len(parse_program(_chords([(i, 0.002 * (-1) ** i) for i in range(1, 11)])).blocks) == 10
+    # without Q (or under G61) every block stays
+    assert len(parse_program(_chords(wiggle, "G21 G90 G64 P0.01")).blocks) == 10
+    assert len(parse_program(_chords(wiggle, "G21 G90 G64 P0.01 Q0.001\nG61")).blocks) == 10
+    # a turn of 90 degrees ends the run: two lines
+    corner = [(i, 0.0) for i in range(1, 6)] + [(5, i) for i in range(1, 6)]
+    assert [b.merged for b in parse_program(_chords(corner)).blocks] == [5, 5]
+    # at most MAX_MERGED blocks each
+    long = parse_program(_chords([(0.01 * i, 0.0) for i in range(1, 2 * MAX_MERGED + 2)]))
+    assert [b.merged for b in long.blocks] == [MAX_MERGED, MAX_MERGED, 1]
+
+
+def test_g64_q_does_not_merge_across_a_feed_change_a_dwell_or_a_rapid():
+    text = "G21 G90 G64 P0.01 Q0.001\nG1 X1 F600\nX2\nX3 F900\nX4\nG4 P0.1\nX5\nG0 X6\nG1 X7\nX8"
+    program = parse_program(text)
+    assert [(b.kind, b.merged, b.line) for b in program.blocks] == [
+        ("line", 2, 2), ("line", 2, 4), ("line", 1, 7), ("rapid", 1, 8), ("line", 2, 9)]
+    assert program.blocks[1].dwell == pytest.approx(0.1)          # the dwell after the merged run's last block
+    with pytest.raises(ProgramError, match="Q-1"):
+        parse_program("G64 P0.01 Q-1\nG1 X1 F60")
+
+
+def test_a_chord_circle_merges_only_where_its_chords_stay_within_q():
+    import math
+    circle = [(5 * math.cos(2 * math.pi * i / 720), 5 * math.sin(2 * math.pi * i / 720)) for i in range(1, 721)]
+    header = "G21 G90 G0 X5 Y0\nG64 P0.01 Q{q}"
+    blocks = {q: parse_program(_chords(circle, header.format(q=q))).blocks[1:] for q in (0.0001, 0.01)}
+    # a run of n chords of 0.5 degree on R5 has its middle end point R (1 - cos(n / 4 degree)) off its chord:
+    # 2 chords 0.19 um (over Q0.0001), 14 chords 9.3 um and 15 chords 10.7 um (Q0.01: runs of 14)
+    assert len(blocks[0.0001]) == 720
+    assert [b.merged for b in blocks[0.01]] == [14] * 51 + [720 - 14 * 51]
+    path = ToolPath.from_program(parse_program(_chords(circle, header.format(q=0.01))))
+    radius = np.linalg.norm(path.point(np.linspace(path.blocks[1].start, path.domain[1], 5000))[:, :2], axis=1)
+    assert radius.min() > 5e-3 - 1e-5 - 1e-9            # within Q (10 um) of the circle

@@ -15,10 +15,12 @@ __all__ = ["SCHEDULES"]
 SCHEDULES = Role("schedule", description="schedule type")
 
 _THETA_RANGE = (-1e6, 1e6)
+#: blocks the feed plan looks ahead by default (a block of the tool path: a program's block or a blend arc)
+LOOKAHEAD_BLOCKS = 1000
 _S = "[s]"
 #: the keys of the jerk-limited feed plan of a tool path (core/feed_planning.py)
 _PLAN_KEYS = ("rapid_feedrate", "axis_feedrate", "axis_acceleration", "axis_jerk", "contour_tolerance", "tracking_lag",
-              "exact_stop_dwell", "feed_override", "in_position_timeout")
+              "exact_stop_dwell", "feed_override", "in_position_timeout", "lookahead_blocks")
 
 
 def _feedrate_schedule(section, context):
@@ -33,7 +35,8 @@ def _feedrate_schedule(section, context):
         plan.pop("in_position_timeout")      # the reference's, not the plan's (build.build_clock)
         return _feed_plan(where, context.curve, program, jerk, arguments, plan)
     for key, value in plan.items():
-        if value not in (None, 0.0) and (key, value) not in (("feed_override", 100.0), ("in_position_timeout", 0.5)):
+        if value not in (None, 0.0) and (key, value) not in (("feed_override", 100.0), ("in_position_timeout", 0.5),
+                                                             ("lookahead_blocks", LOOKAHEAD_BLOCKS)):
             _fail(where, f"schedule.{key}", "applies to the jerk-limited feed plan of a tool path: give jerk too")
     if arguments["feedrate"] is None:
         _fail(where, "schedule.feedrate", "missing required key")
@@ -72,7 +75,7 @@ def _feed_plan(where, curve, program, jerk, arguments, plan):
             return FeedPlan(curve, arguments["acceleration"], jerk, arguments["feedrate"], plan["rapid_feedrate"] or None,
                             arguments["normal_acceleration"], plan["axis_feedrate"], plan["axis_acceleration"],
                             plan["axis_jerk"], plan["contour_tolerance"], plan["tracking_lag"],
-                            plan["exact_stop_dwell"], plan["feed_override"] / 100.0)
+                            plan["exact_stop_dwell"], plan["feed_override"] / 100.0, plan["lookahead_blocks"])
     except ValueError as error:
         raise ConfigError(f"{_printable(where)}: schedule: {_printable(error, 400)}") from None
 
@@ -108,6 +111,9 @@ SCHEDULES.add(Entry("feedrate", {
                               bounds=(0.0, 60.0)),
     "feed_override": Param("float", 100.0, "positive", help="feed override [percent of every programmed feed, rapids "
                                                             "included]", bounds=(1.0, 1000.0)),
+    # LinuxCNC's queue holds 2000 segments, TwinCAT 120 to 500 blocks, Heidenhain up to 5000
+    "lookahead_blocks": Param("int", LOOKAHEAD_BLOCKS, "nonnegative", help="blocks of the tool path the feed plan "
+                              "sees ahead of the one it plans (0: the whole program)", bounds=(0, 10_000_000)),
     "in_position_timeout": Param("float", 0.5, "positive", help="the longest the reference waits at one exact stop "
                                                                 f"for the axes {_S}", bounds=(1e-3, 60.0)),
 }, _feedrate_schedule))

@@ -64,6 +64,15 @@ GLOBALS = {
     # on a tool path an exact stop waits until every axis' following error is within it
     "in_position": Param("floats", [1e-5], help="drives' in-position window, one or one per axis: exact stops wait "
                          "for it, 0: no wait [m]", bounds=(0.0, 1e-2)),
+    # monitoring during the run (core/monitoring.py): a breach stops the reference on the path and fails the run
+    "contour_error_limit": Param("float", 0.0, "nonnegative", help="contour monitoring: the run stops on the path "
+                                 "once the estimated contour error passes it, 0: off [m]", bounds=(0.0, 1.0)),
+    "following_error_limit": Param("floats", [0.0], help="following-error monitoring, one or one per axis: the run "
+                                   "stops on the path once an axis' |reference - position| passes it, 0: off [m]",
+                                   bounds=(0.0, 1.0)),
+    # feed hold and resume at given times (core/feed_control.py), e.g. ["hold 1.2", "resume 1.8"]
+    "feed_events": Param("strings", [], help="feed holds and resumes of the run: 'hold T' and 'resume T' [s], "
+                         "alternating, a hold first"),
     # false: what use_sim_time nodes and diagnostic aggregators listen to; true: several graphs sharing a
     # domain, each its clock
     "namespaced_clock": Param("bool", False, help="under a namespace, /clock and /diagnostics take it too (else they "
