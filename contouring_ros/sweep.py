@@ -31,7 +31,8 @@ from .errors import ConfigError, Diverged, ScoreError, write_atomically
 from .executors import pool as executor
 from .scoring import score_run
 
-__all__ = ["parse_grid", "apply_settings", "settings_file", "written_settings", "experiments_for", "combinations",
+__all__ = ["parse_grid", "apply_settings", "grid_keys", "differences", "settings_name", "name_settings",
+           "settings_file", "written_settings", "experiments_for", "combinations",
            "SweepRow", "score_one", "score_experiments", "simulate_experiments",
            "simulate_loops", "run_sweep", "format_sweep",
            "write_sweep_csv"]
@@ -81,6 +82,59 @@ def apply_settings(data: dict, settings: dict) -> dict:
     return data
 
 
+def grid_keys(data: dict) -> dict:
+    """Every leaf of an experiment file's ``data`` by its grid key (the inverse of :func:`apply_settings`):
+    ``curve.h`` for a shared key, ``ccc.kp`` or ``x/servo.a`` for a node's; lists are leaves."""
+    out = {}
+
+    def walk(prefix, value):
+        if isinstance(value, dict) and value:
+            for key, inner in value.items():
+                walk(f"{prefix}.{key}" if prefix else str(key), inner)
+        else:
+            out[prefix] = value
+    for section, content in data.items():
+        parameters = content.get(ROS_PARAMETERS, {}) if isinstance(content, dict) else {}
+        walk("" if section == GLOBAL_SECTION else str(section).strip("/"), parameters)
+    return out
+
+
+def differences(datas: list) -> dict:
+    """Grid key -> each file's value (None where a file lacks it) for every key whose value is not the same in
+    all of ``datas`` (experiment files' data), in the first file's key order."""
+    flat = [grid_keys(data) for data in datas]
+    keys = list(dict.fromkeys(key for one in flat for key in one))
+    return {key: [one.get(key) for one in flat] for key in keys if len({repr(one.get(key)) for one in flat}) > 1}
+
+
+def settings_name(name: str, settings: dict) -> str:
+    """An experiment's name with what ``settings`` change (grid key -> value) added, as run names, bags,
+    legends and reports show it: ``paper000_b_ismc_h50_newton`` with ccc.kp = 2.0 is
+    ``paper000_b_ismc_h50_newton_ccc.kp-2.0`` (letters, digits, '_', '-' and '.', as the name's check asks;
+    cut at 100 characters, then with a digest of the settings so that different settings keep different names)."""
+    import hashlib
+    import re
+    parts = [f"{key.strip('/').replace('/', '-')}-{value}" for key, value in settings.items()]
+    text = re.sub(r"[^A-Za-z0-9_.-]+", "_", "_".join([name, *parts])).replace("..", ".")
+    if len(text) > 100:
+        digest = hashlib.sha256(repr(sorted(settings.items(), key=str)).encode()).hexdigest()[:8]
+        text = f"{text[:90].rstrip('_.-')}_{digest}"
+    return text
+
+
+def name_settings(data: dict, settings: dict, base: str) -> dict:
+    """``data`` (an experiment file's, settings applied) named after ``settings`` (:func:`settings_name` of
+    its own name, else ``base``), unless the settings name it themselves (``experiment.name``)."""
+    if not settings or "experiment.name" in settings:
+        return data
+    shared = data.setdefault(GLOBAL_SECTION, {}).setdefault(ROS_PARAMETERS, {})
+    experiment = shared.get("experiment")
+    if not isinstance(experiment, dict):
+        experiment = shared["experiment"] = {}
+    experiment["name"] = settings_name(str(experiment.get("name") or base), settings)
+    return data
+
+
 def settings_file(path, specs: list, directory) -> Path:
     """The experiment file ``path`` with ``specs`` (``['x/servo.kp=10', 'curve.h=80']``, the grid's key syntax,
     one value each) applied, written as ``directory``/<same name> for the nodes to read; validated like any
@@ -90,7 +144,8 @@ def settings_file(path, specs: list, directory) -> Path:
 
 def written_settings(path, specs: list, directory) -> tuple:
     """(file, Experiment): the file :func:`settings_file` writes, and the Experiment its validation read from
-    it (so that the caller does not read the file again)."""
+    it (so that the caller does not read the file again). The experiment is named after the settings
+    (:func:`name_settings`): its bag, legends and reports tell it from the file's own runs."""
     import yaml
 
     class _Quoted(yaml.SafeDumper):
@@ -107,7 +162,7 @@ def written_settings(path, specs: list, directory) -> tuple:
         settings[key.strip()] = read_yaml(value, f"--set {key}")
     data = read_yaml(recorded_text(path), str(path))
     try:
-        apply_settings(data, settings)
+        name_settings(apply_settings(data, settings), settings, path.stem)
         experiment_from_data(copy.deepcopy(data), f"{path} with --set {', '.join(specs)}")
     except ConfigError as error:
         raise ConfigError(f"--set {', '.join(specs)}: {error}") from None

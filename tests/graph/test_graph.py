@@ -240,3 +240,23 @@ def test_wait_until_returns_at_the_deadline_when_spinning():
             assert 0.0 <= time.time() - deadline < 0.005 * machine_pace()     # a busy machine wakes it later
     finally:
         rclpy.shutdown(context=context)
+
+
+def test_simulate_bag_holds_the_graph_s_payloads(default_runs, tmp_path, capsys):
+    """`contouring-ros simulate CONFIG --bag PATH` writes the bag the node graph records (every topic's
+    payloads equal to the graph's bag of the same experiment), so plot, export and blocks work without the
+    graph; an existing file is never overwritten."""
+    from contouring_ros import cli
+    path, bags = default_runs
+    out = tmp_path / "simulated.mcap"
+    assert cli.main(["simulate", str(path), "--bag", str(out)]) == 0
+    assert f"bag: {out}" in capsys.readouterr().out
+    graph_payloads, simulated = (read_run(bag, keep_payloads=True).payloads for bag in (bags[0], out))
+    assert set(graph_payloads) == set(simulated) and len(simulated) >= 7
+    for topic in graph_payloads:
+        assert graph_payloads[topic] == simulated[topic], topic
+    assert score_bag(out)[0] == score_bag(bags[0])[0]
+    before = out.read_bytes()
+    assert cli.main(["simulate", str(path), "--bag", str(out)]) == 2
+    error = capsys.readouterr().err
+    assert error.count("\n") == 1 and "exists" in error and out.read_bytes() == before
