@@ -383,22 +383,22 @@ def _export(args):
 def _sweep(args):
     from datetime import datetime
     from .experiment.files import load_experiment
-    from .sweep import BATCH, format_sweep, parse_grid, run_sweep, write_sweep_csv
+    import time
+
+    from .sweep import BATCH, format_sweep, parse_grid, run_sweep, sweep_summary, write_sweep_csv
     experiment = load_experiment(_experiment_path(args.config))
     if args.batch is not None and args.batch < 1:
         raise ConfigError(f"--batch {args.batch}: expected a positive number of combinations")
-    rows = run_sweep(experiment.text, parse_grid(args.grid), args.workers, progress=sys.stderr.isatty(),
+    started = time.monotonic()
+    rows = run_sweep(experiment.text, parse_grid(args.grid), args.workers, progress=None,
                      batch=args.batch or BATCH, from_time=args.from_time, scheduler=args.scheduler)
     if args.from_time:
         print(f"scores of the samples at t >= {args.from_time:g} s (steady state)")
     print(format_sweep(rows))
-    vectorised = sum(row.vectorised for row in rows)
-    reasons = sorted({row.alone for row in rows if row.alone})
-    print(f"{len(rows)} combinations: {vectorised} ran vectorised in batches, {len(rows) - vectorised} one by one"
-          + (f" ({'; '.join(reasons)})" if reasons else ""))
-    failed = [row for row in rows if row.scores is None]
-    if failed:
-        print(f"{len(failed)} without scores (diverged), listed last with the reason")
+    workers = args.workers or os.cpu_count() or 1
+    print(sweep_summary(rows, time.monotonic() - started, workers) if not args.scheduler else
+          sweep_summary(rows, time.monotonic() - started, workers).replace(
+              f"on {workers} process{'es' if workers != 1 else ''}", f"on the cluster at {args.scheduler}"))
     out = Path(args.out or f"bags/{experiment.name}_sweep_{datetime.now():%Y%m%d_%H%M%S}.csv")
     out.parent.mkdir(parents=True, exist_ok=True)
     write_sweep_csv(rows, out, experiment.axes)

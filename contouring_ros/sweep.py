@@ -10,6 +10,7 @@ one (``curve.h``, ``schedule.duration``). Every combination is validated like a 
 """
 from __future__ import annotations
 
+import contextlib
 import copy
 import csv
 import itertools
@@ -26,6 +27,7 @@ from .experiment.ros_yaml import read_yaml
 from .experiment.schema import GLOBAL_SECTION, ROS_PARAMETERS
 from .experiment.validate import experiment_from_data
 from .core.batch import batch_minimum, batch_problem, simulate_batch, structure
+from .core import progress
 from .core.simulation import first_divergence, simulate
 from .errors import ConfigError, Diverged, ScoreError, write_atomically
 from .executors import pool as executor
@@ -34,7 +36,7 @@ from .scoring import score_run
 __all__ = ["parse_grid", "apply_settings", "grid_keys", "differences", "settings_name", "name_settings",
            "settings_file", "written_settings", "experiments_for", "combinations",
            "SweepRow", "score_one", "score_experiments", "simulate_experiments",
-           "simulate_loops", "run_sweep", "format_sweep",
+           "simulate_loops", "run_sweep", "sweep_summary", "format_sweep",
            "write_sweep_csv"]
 
 
@@ -237,8 +239,12 @@ def _simulate_alone(loop):
 def _score_chunk(experiments: list, from_time: float = 0.0) -> tuple:
     """Scores of each experiment (None where the run diverged), why each ran alone ("" for those in a
     vectorised batch, one batch per structure) and why each has no scores ("" where it has)."""
+    before = progress.added()
     with np.errstate(all="ignore"):         # a diverging run overflows; it is reported, not warned about
-        return _score_loops(experiments, from_time)
+        out = _score_loops(experiments, from_time)
+    # the steps a diverged run did not take: the progress bar counts every combination's steps once
+    progress.add(sum(e.n_steps for e in experiments) - (progress.added() - before))
+    return out
 
 
 def _score_loops(experiments: list, from_time: float) -> tuple:
@@ -271,11 +277,11 @@ def simulate_loops(loops: list) -> tuple:
         group = pending.pop()
         members = [loops[i] for i in group]
         why = batch_problem(members if len(members) > 1 else members * 2) \
-            or ("" if len(members) > 1 else "too few combinations of one structure to batch")
+            or ("" if len(members) > 1 else "no other combination of its kind to share a batch with")
         smallest, setter = batch_minimum(members[0])
         if not why and len(members) < smallest:
-            why = (f"{len(members)} combinations of one structure run faster one by one: a batch with the "
-                   f"{setter} pays off from {smallest}")
+            why = (f"runs faster one by one: a batch with the {setter} pays off from {smallest} "
+                   "combinations of one kind")
         batch = None
         if not why:
             try:
@@ -317,22 +323,42 @@ def _chunks(experiments: list, workers: int, batch: int) -> list:
     return [group[i:i + size] for group in groups.values() for i in range(0, len(group), size)]
 
 
-def score_experiments(experiments: list, workers: int | None = None, progress: bool = False, batch: int = BATCH,
-                      from_time: float = 0.0, desc: str = "sweep", scheduler: str | None = None) -> list:
+def score_experiments(experiments: list, workers: int | None = None, progress_bar: bool | None = False,
+                      batch: int = BATCH, from_time: float = 0.0, desc: str = "sweep",
+                      scheduler: str | None = None) -> list:
     """(scores or None, why it ran alone, why it has no scores) for each experiment, in order: the
     in-process simulation on a process pool (or the Dask cluster at ``scheduler``,
-    :func:`contouring_ros.executors.pool`), vectorised where it can be."""
-    from tqdm import tqdm
+    :func:`contouring_ros.executors.pool`), vectorised where it can be. ``progress_bar``: a bar on stderr
+    that moves with the simulated steps of every worker (False: none; None: a bar on a terminal, a line now
+    and then otherwise, :class:`contouring_ros.notices.progress_of`)."""
+    import multiprocessing
+    from concurrent.futures import FIRST_COMPLETED, wait
+
+    from .notices import progress_of
     out = [None] * len(experiments)
-    with executor(workers, scheduler) as (pool, workers), \
-            tqdm(total=len(experiments), desc=desc, disable=not progress, leave=False) as bar:
+    steps = [e.n_steps for e in experiments]
+    counted = None          # every worker's simulated steps (core/progress.py), where a bar shows them
+    if progress_bar is not False and not scheduler:
+        try:
+            counted = multiprocessing.Value("q", 0)
+        except OSError:     # no shared memory to be had (a full /dev/shm): the bar moves chunk by chunk
+            counted = None
+    shown = progress_of(len(experiments), desc, "combination", terminal=progress_bar) \
+        if progress_bar is not False else contextlib.nullcontext(lambda done: None)
+    with executor(workers, scheduler, progress.attach, (counted,)) as (pool, workers), shown as show:
         chunks = _chunks(experiments, workers, batch)
-        jobs = pool.map(_score_chunk, [[experiments[i] for i in chunk] for chunk in chunks],
-                        [from_time] * len(chunks))
-        for chunk, (scores, alone, failures) in zip(chunks, jobs, strict=True):
-            for i, s, why, failure in zip(chunk, scores, alone, failures):
-                out[i] = (s, why, failure)
-            bar.update(len(chunk))
+        jobs = {pool.submit(_score_chunk, [experiments[i] for i in chunk], from_time): chunk for chunk in chunks}
+        finished, pending = 0, set(jobs)
+        while pending:
+            done, pending = wait(pending, timeout=0.25, return_when=FIRST_COMPLETED)
+            for job in done:
+                chunk = jobs[job]
+                for i, s, why, failure in zip(chunk, *job.result(), strict=True):
+                    out[i] = (s, why, failure)
+                finished += sum(steps[i] for i in chunk)
+            # combinations done, in fractions as their steps go by (a cluster's workers count none: by chunk)
+            counts = counted.value if counted is not None else 0
+            show(round(len(experiments) * max(counts, finished) / max(1, sum(steps)), 2))
     return out
 
 
@@ -350,6 +376,29 @@ def run_sweep(text: str, grid: dict, workers: int | None = None, progress: bool 
     results = score_experiments([e for _, e in combos], workers, progress, batch, from_time, scheduler=scheduler)
     rows = [SweepRow(settings, *result) for (settings, _), result in zip(combos, results)]
     return sorted(rows, key=_rank)
+
+
+def sweep_summary(rows: list, seconds: float, workers: int) -> str:
+    """What a sweep did, in the user's terms: how many combinations in how long on how many processes, how
+    many ran together in vectorised batches and how many one by one, and why (each reason once, with how
+    many it held for), and how many diverged."""
+    together = sum(row.vectorised for row in rows)
+    reasons = {}
+    for row in rows:
+        if row.alone:
+            reasons[row.alone] = reasons.get(row.alone, 0) + 1
+    if not rows:
+        return "no combinations"
+    how = ("all run together in vectorised batches" if together == len(rows) else
+           "all run one by one" if not together else
+           f"{together} run together in vectorised batches, {len(rows) - together} one by one")
+    why = "; ".join(f"{why} ({count})" if len(reasons) > 1 else why for why, count in reasons.items())
+    line = (f"{len(rows)} combination{'s' if len(rows) != 1 else ''} in {seconds:.1f} s on {workers} "
+            f"process{'es' if workers != 1 else ''}: {how}" + (f" ({why})" if why else ""))
+    failed = sum(row.scores is None for row in rows)
+    if failed:
+        line += f"\n{failed} without scores (diverged), listed last with the reason"
+    return line
 
 
 def format_sweep(rows: list, limit: int = 20) -> str:
