@@ -107,7 +107,8 @@ class EstimatorReplay:
 
 
 def replay_estimators(run: RecordedRun, specs: list, progress: bool = False) -> tuple[np.ndarray, list]:
-    """Run each estimator of ``specs`` over the recorded reference and positions.
+    """Run each estimator of ``specs`` over the recorded reference and positions (a spec of the recorded
+    estimator's type changes only the keys it names of the recorded section).
 
     Returns the exact contour error per step and, first for the recorded estimate and then for each spec,
     an :class:`EstimatorReplay`.
@@ -120,8 +121,12 @@ def replay_estimators(run: RecordedRun, specs: list, progress: bool = False) -> 
     replays = [_replay("recorded (" + experiment.estimator.get("type", "?") + ")", recorded, exact)]
     n = len(run.axes)
     for spec in specs:
+        # of the recorded estimator's type, the recorded section with the spec's keys changed
+        # (newton:k_prime=800 on a Newton run keeps its c_prime); of another type, the spec alone
+        recorded_keys = {k: v for k, v in experiment.estimator.items() if v is not None}    # None: left to default
+        given = {**recorded_keys, **spec} if spec["type"] == experiment.estimator.get("type") else spec
         # the estimator registry (built-in and plugin types alike): its keys, its constraints, its factory
-        section = validate_section("--estimator", spec["type"], ESTIMATORS, spec, experiment.axes)
+        section = validate_section("--estimator", spec["type"], ESTIMATORS, given, experiment.axes)
         estimator = build_estimator(_with_estimator(experiment, section), curve)
         norms = np.empty(len(result.time))
         for k in tqdm(range(len(result.time)), desc=f"replaying {spec['type']}", disable=not progress,

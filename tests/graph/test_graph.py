@@ -260,3 +260,25 @@ def test_simulate_bag_holds_the_graph_s_payloads(default_runs, tmp_path, capsys)
     assert cli.main(["simulate", str(path), "--bag", str(out)]) == 2
     error = capsys.readouterr().err
     assert error.count("\n") == 1 and "exists" in error and out.read_bytes() == before
+
+
+def test_run_shows_its_progress_and_scores_from_a_time(tmp_path, capsys, monkeypatch):
+    """`contouring-ros run` off a terminal prints progress lines with the steps the recorder holds in full, up
+    to the last; `--from T` prints the scores of the samples at t >= T as `simulate --from T` does, and a run
+    changed with --set is named after its settings."""
+    from contouring_ros import cli, notices
+    path = tmp_path / "short.yaml"
+    path.write_text(shortened(DEFAULT, 0.3))
+    monkeypatch.setattr(notices, "SLOW_NOTE_AFTER", 0.0)          # a line at every poll, not every 10 s
+    monkeypatch.setattr(notices, "PROGRESS_LINE_EVERY", 0.0)
+    bag = tmp_path / "run.mcap"
+    assert cli.main(["run", str(path), "--composed", "--set", "ccc.kp=2.0", "--from", "0.1", "--bag", str(bag)]) == 0
+    out, err = capsys.readouterr()
+    counts = [int(line.split()[1]) for line in err.splitlines() if line.startswith("run: ") and " of 301 steps" in line]
+    assert counts and counts == sorted(counts) and counts[-1] == 301, err
+    assert cli.main(["simulate", str(path), "--set", "ccc.kp=2.0", "--from", "0.1"]) == 0
+    simulated = capsys.readouterr().out
+    table = out[out.index("scores of the samples at t >= 0.1 s"):]
+    assert table.splitlines()[:15] == simulated.splitlines()[:15] and len(simulated.splitlines()) == 15
+    assert "paper000_b_ismc_h50_newton_ccc.kp-2.0" in table.splitlines()[1]
+    assert score_bag(bag)[0].steps == 301                          # the bag holds the whole run
