@@ -19,12 +19,14 @@ from .bag import RecordedRun
 from .blocks import block_cells, block_headings, block_results, cutting_scores
 from .experiment.build import build_curve, build_estimator, build_schedule
 from .experiment.catalogue import ESTIMATORS
+from .experiment.ros_yaml import read_yaml
 from .experiment.validate import validate_section
 from .core.curves import ToolPath
 from .core.geometry import ExactContourError
 from .core.interpolation import Reference
 from .errors import ConfigError, ContouringError, OutputError, write_atomically
 from .scoring import SCORE_ROWS, curve_of, format_scores
+from .sweep import differences
 
 __all__ = ["compare_table", "experiment_differences", "format_differences",
            "parse_estimator_spec", "EstimatorReplay", "replay_estimators", "run_names",
@@ -52,8 +54,6 @@ def experiment_differences(runs: list) -> dict:
     (label, RecordedRun) ``runs`` whose value is not the same in all (:func:`contouring_ros.sweep.differences`;
     the experiment's name left out: the runs are named by it anyway). Empty for one run, or where a run's
     bag holds no experiment it can read."""
-    from .experiment.ros_yaml import read_yaml
-    from .sweep import differences
     if len(runs) < 2:
         return {}
     try:

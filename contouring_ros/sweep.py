@@ -31,6 +31,7 @@ from .core import progress
 from .core.simulation import first_divergence, simulate
 from .errors import ConfigError, Diverged, ScoreError, write_atomically
 from .executors import pool as executor
+from .notices import progress_of
 from .scoring import score_run
 
 __all__ = ["parse_grid", "apply_settings", "grid_keys", "differences", "settings_name", "name_settings",
@@ -334,7 +335,6 @@ def score_experiments(experiments: list, workers: int | None = None, progress_ba
     import multiprocessing
     from concurrent.futures import FIRST_COMPLETED, wait
 
-    from .notices import progress_of
     out = [None] * len(experiments)
     steps = [e.n_steps for e in experiments]
     counted = None          # every worker's simulated steps (core/progress.py), where a bar shows them

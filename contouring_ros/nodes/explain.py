@@ -9,6 +9,9 @@ from __future__ import annotations
 
 import sys
 
+from ..errors import ContouringError
+from ..experiment.ros_yaml import read_yaml
+from ..experiment.schema import GLOBAL_SECTION, ROS_PARAMETERS
 from . import catalogue
 
 __all__ = ["wants_help", "help_text", "parameter_files", "explain"]
@@ -64,14 +67,12 @@ def parameter_files(argv) -> list:
 def _sections(files) -> tuple:
     """(every section name of ``files``, the axes their /** names or None); nothing for a file it cannot
     read (the node's own error then stands)."""
-    from ..experiment.ros_yaml import read_yaml
-    from ..experiment.schema import GLOBAL_SECTION, ROS_PARAMETERS
     sections, axes = [], None
     for path in files:
         try:
             with open(path, encoding="utf-8") as stream:
                 data = read_yaml(stream.read(1 << 20), str(path))
-        except (OSError, UnicodeDecodeError, Exception):        # any unreadable file: say nothing of it
+        except (OSError, UnicodeDecodeError, ContouringError):    # an unreadable file: say nothing of it
             continue
         if not isinstance(data, dict):
             continue
