@@ -84,7 +84,7 @@ def _run_config(args, config: Path, experiment=None):
             experiment = load_experiment(config)       # the one parse of the file in this process
         for warning in program_warnings(build_curve(experiment)):
             print(f"warning: {warning}", file=sys.stderr)
-        from .learning import passes
+        from .learning import pass_bag, passes
 
         def run_one(path, bag, parsed):
             from .notices import progress_of
@@ -93,6 +93,10 @@ def _run_config(args, config: Path, experiment=None):
                                  layout=layout, groups=args.group, experiment=parsed, on_step=on_step,
                                  namespace=args.namespace, domain_id=args.domain,
                                  shared_domain=args.domain is not None)
+        if args.bag is not None:          # a user's file is never overwritten: refused before any node starts
+            for target in ([pass_bag(Path(args.bag), j) for j in range(1, passes(experiment) + 1)]
+                           if passes(experiment) > 1 else [args.bag]):
+                _bag_target(str(target), experiment)
         if passes(experiment) > 1:
             _run_passes(config, experiment, args.bag, run_one, args.from_time)
             return

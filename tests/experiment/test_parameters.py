@@ -274,3 +274,15 @@ def test_compare_names_runs_by_their_settings_and_says_how_they_differ(tmp_path)
     rows = {line.split()[0]: line.split(None, 1)[1] for line in differ}     # in the file's order
     assert rows == {"ccc.kp": f"{name}: 1.0; {name}_ccc.kp-2.0_x-servo.a-13.0: 2.0",
                     "x/servo.a": f"{name}: 12.5; {name}_ccc.kp-2.0_x-servo.a-13.0: 13.0"}
+
+
+def test_run_never_overwrites_a_file_at_its_bag_path(tmp_path):
+    """`contouring-ros run CONFIG --bag PATH` with something at PATH is refused in one line before any node
+    starts, and the file is left as it was (was: deleted, then the bag written in its place)."""
+    from conftest import ROOT
+    mine = tmp_path / "mine.mcap"
+    mine.write_text("a user's file\n")
+    done = subprocess.run([sys.executable, "-m", "contouring_ros.cli", "run", str(DEFAULT), "--bag", str(mine)],
+                          capture_output=True, text=True, cwd=ROOT, timeout=120)
+    assert done.returncode == 2 and done.stderr.count("\n") == 1 and "exists" in done.stderr, done.stderr
+    assert "starting" not in done.stdout and mine.read_text() == "a user's file\n"
