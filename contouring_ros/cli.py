@@ -88,7 +88,7 @@ def _run_config(args, config: Path, experiment=None):
 
         def run_one(path, bag, parsed):
             from .notices import progress_of
-            with progress_of(parsed.n_steps, "run", waiting="starting the nodes") as on_step:
+            with progress_of(parsed.n_steps, "run", waiting="no step recorded yet") as on_step:
                 return run_graph(path, bag, progress=lambda m: print(m, flush=True),
                                  layout=layout, groups=args.group, experiment=parsed, on_step=on_step,
                                  namespace=args.namespace, domain_id=args.domain,
