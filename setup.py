@@ -1,4 +1,5 @@
 import runpy
+import sys
 from glob import glob
 from pathlib import Path
 
@@ -6,7 +7,7 @@ from setuptools import find_packages, setup
 
 package_name = "contouring_ros"
 # the node catalogue, read by path: building the package imports neither it nor numpy or rclpy
-NODES = runpy.run_path(str(Path(__file__).resolve().parent / package_name / "nodes" / "catalogue.py"))["NODES"]
+CATALOGUE = runpy.run_path(str(Path(__file__).resolve().parent / package_name / "nodes" / "catalogue.py"))
 
 setup(
     name=package_name,
@@ -32,7 +33,7 @@ setup(
     description="Multi-axis contouring control of CNC feed drives as a graph of rclpy nodes",
     license="Apache-2.0",
     entry_points={
-        "console_scripts": [node.entry_point for node in NODES]
-        + [f"contouring-ros = {package_name}.cli:main"],
+        # colcon: plant, servo ... in lib/contouring_ros for `ros2 run`; pip: contouring-ros-plant ... on the PATH
+        "console_scripts": CATALOGUE["console_scripts"](sys.argv),
     },
 )

@@ -14,3 +14,8 @@ def __getattr__(name):
         from . import api
         return getattr(api, name)
     raise AttributeError(f"module 'contouring_ros' has no attribute {name!r}")
+
+
+def __dir__():
+    """The API's names beside the module's own, for ``dir()`` and completion (before the API is imported)."""
+    return sorted(set(globals()) | set(_API))

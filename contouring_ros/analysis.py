@@ -19,6 +19,7 @@ from .bag import RecordedRun
 from .blocks import block_cells, block_codes, block_headings, block_results, cutting_scores, feed_unit
 from .experiment.build import build_curve, build_estimator, build_schedule
 from .experiment.catalogue import ESTIMATORS
+from .experiment.ros_yaml import read_yaml
 from .experiment.validate import validate_section
 from .core.curves import ToolPath
 from .core.geometry import ExactContourError
@@ -26,8 +27,10 @@ from .core.interpolation import Reference
 from .errors import ConfigError, ContouringError, OutputError, write_atomically
 from .core.feed_control import parse_feed_events
 from .scoring import SCORE_ROWS, breach_of, curve_of, format_scores, motion_steps
+from .sweep import differences
 
-__all__ = ["compare_table", "parse_estimator_spec", "EstimatorReplay", "replay_estimators", "run_names",
+__all__ = ["compare_table", "experiment_differences", "format_differences",
+           "parse_estimator_spec", "EstimatorReplay", "replay_estimators", "run_names",
            "figures", "write_figures", "html_report"]
 
 
@@ -44,6 +47,34 @@ def compare_table(named: list, baseline: int = 0, axes=None) -> str:
         cells = [(f"{get(scores) / reference:.3g}" if reference else "-").rjust(w)
                  for (_, scores), w in zip(named, columns)]
         lines.append("  ".join([label.split(" [")[0].ljust(width)] + cells))
+    return "\n".join(lines)
+
+
+def experiment_differences(runs: list) -> dict:
+    """Grid key (``ccc.kp``, ``curve.h``) -> each run's value, for every key of the experiment files stored in
+    (label, RecordedRun) ``runs`` whose value is not the same in all (:func:`contouring_ros.sweep.differences`;
+    the experiment's name left out: the runs are named by it anyway). Empty for one run, or where a run's
+    bag holds no experiment it can read."""
+    if len(runs) < 2:
+        return {}
+    try:
+        datas = [read_yaml(run.experiment_text, label) for label, run in runs]
+    except ContouringError:
+        return {}
+    if not all(isinstance(data, dict) for data in datas):
+        return {}
+    return {key: values for key, values in differences(datas).items() if key != "experiment.name"}
+
+
+def format_differences(names: list, changed: dict) -> str:
+    """The lines of a text report saying how compared experiments differ (:func:`experiment_differences`)."""
+    if not changed:
+        return "the experiments differ in nothing but their names" if len(names) > 1 else ""
+    width = max(len(key) for key in changed)
+    lines = ["how the experiments differ:"]
+    for key, values in changed.items():
+        lines.append(f"  {key.ljust(width)}  " + "; ".join(f"{name}: {'-' if value is None else value}"
+                                                         for name, value in zip(names, values)))
     return "\n".join(lines)
 
 
@@ -77,7 +108,8 @@ class EstimatorReplay:
 
 
 def replay_estimators(run: RecordedRun, specs: list, progress: bool = False) -> tuple[np.ndarray, list]:
-    """Run each estimator of ``specs`` over the recorded reference and positions.
+    """Run each estimator of ``specs`` over the recorded reference and positions (a spec of the recorded
+    estimator's type changes only the keys it names of the recorded section).
 
     Returns the exact contour error per step and, first for the recorded estimate and then for each spec,
     an :class:`EstimatorReplay`.
@@ -90,8 +122,12 @@ def replay_estimators(run: RecordedRun, specs: list, progress: bool = False) -> 
     replays = [_replay("recorded (" + experiment.estimator.get("type", "?") + ")", recorded, exact)]
     n = len(run.axes)
     for spec in specs:
+        # of the recorded estimator's type, the recorded section with the spec's keys changed
+        # (newton:k_prime=800 on a Newton run keeps its c_prime); of another type, the spec alone
+        recorded_keys = {k: v for k, v in experiment.estimator.items() if v is not None}    # None: left to default
+        given = {**recorded_keys, **spec} if spec["type"] == experiment.estimator.get("type") else spec
         # the estimator registry (built-in and plugin types alike): its keys, its constraints, its factory
-        section = validate_section("--estimator", spec["type"], ESTIMATORS, spec, experiment.axes)
+        section = validate_section("--estimator", spec["type"], ESTIMATORS, given, experiment.axes)
         estimator = build_estimator(_with_estimator(experiment, section), curve)
         norms = np.empty(len(result.time))
         for k in tqdm(range(len(result.time)), desc=f"replaying {spec['type']}", disable=not progress,
@@ -456,15 +492,20 @@ def draw_path(traces, magnification: float | None = None):
 
 
 def _error_norms(traces) -> list:
-    """The colour scale of each run's error map [um]: one shared scale, unless the runs' largest errors
-    differ more than tenfold (a diverged run beside good ones), then one each."""
-    from matplotlib.colors import Normalize
-    worst = [float(np.nanmax(t.distance)) * 1e6 if np.isfinite(t.distance).any() else 0.0 for t in traces]
-    top = [w if w > 0.0 else 1.0 for w in worst]
+    """The colour scale of the runs' error maps [um], one for all of them so that one colour is one error in
+    every panel (ILC passes, runs of a comparison): linear from 0 to the largest error where the runs' largest
+    errors are within tenfold of each other, else logarithmic from a tenth of the smallest of the runs'
+    largest errors (smaller errors take the lowest colour) to the largest (learning passes that improve a
+    hundredfold, or a diverged run beside good ones, stay readable in every panel)."""
+    from matplotlib.colors import LogNorm, Normalize
+    finite = [t.distance[np.isfinite(t.distance)] for t in traces]
+    worst = [float(np.max(d)) * 1e6 if len(d) else 0.0 for d in finite]
+    top = [w for w in worst if w > 0.0] or [1.0]
     if max(top) <= 10.0 * min(top):
         shared = Normalize(0.0, max(top))
-        return [shared] * len(traces)
-    return [Normalize(0.0, w) for w in top]
+    else:
+        shared = LogNorm(min(top) / 10.0, max(top), clip=True)
+    return [shared] * len(traces)
 
 
 def _coloured_segments(ax, points, values, norm):
@@ -515,9 +556,8 @@ def draw_error_map(traces):
         ax = _new_view(fig, (rows, columns, k + 1), view)
         _error_map_panel(ax, t, view, norm)
         panels.append(ax)
-    shared = all(norm is norms[0] for norm in norms)
-    for norm, where in ([(norms[0], panels)] if shared else list(zip(norms, panels))):
-        fig.colorbar(ScalarMappable(norm, ERROR_MAP), ax=where, label="contour error [um]", shrink=0.8)
+    log = " (logarithmic)" if type(norms[0]).__name__ == "LogNorm" else ""
+    fig.colorbar(ScalarMappable(norms[0], ERROR_MAP), ax=panels, label=f"contour error [um]{log}", shrink=0.8)
     return fig
 
 
@@ -858,6 +898,22 @@ def _html_figures(drawn: dict) -> str:
         f"<figcaption>{html.escape(CAPTIONS.get(name, name))}</figcaption></figure>" for name, fig in drawn.items())
 
 
+def _html_differences(traces, runs) -> str:
+    """A table of the experiment keys whose values differ between the compared runs (nothing for one run)."""
+    if len(runs) < 2:
+        return ""
+    changed = experiment_differences(runs)
+    if not changed:
+        return "<h2>Differences</h2><p>The experiments differ in nothing but their names.</p>"
+    rows = "".join(f"<tr><td><code>{html.escape(key)}</code></td>"
+                   + "".join(f"<td>{html.escape('-' if value is None else str(value))}</td>" for value in values)
+                   + "</tr>" for key, values in changed.items())
+    return ('<h2>Differences</h2><p>The experiment keys whose values differ between the runs (grid keys, as '
+            '<code>--set</code> and sweeps name them).</p><div class="scroll"><table><tr><th>key</th>'
+            + "".join(f'<th><span class="swatch" style="background:{t.colour}"></span>{html.escape(t.name)}</th>'
+                      for t in traces) + f"</tr>{rows}</table></div>")
+
+
 def _html_experiments(traces) -> str:
     return "<h2>Experiments</h2>" + "".join(
         f"<details><summary>{html.escape(t.name)}: experiment YAML</summary>"
@@ -895,7 +951,8 @@ def html_report(runs: list, scores: list, path, magnification: float | None = No
     """A self-contained HTML page of one run or a comparison: the runs, their scores and the ratios to the
     ``baseline`` run as tables, for tool path runs the scores of the cutting moves and the results per
     block, every figure (embedded PNG; ``drawn``: the :func:`figures` of these runs, when already drawn)
-    and each run's experiment YAML (collapsible). ``scores`` holds a Scores or None
+    and each run's experiment YAML (collapsible); for a comparison, the experiment keys whose values
+    differ between the runs. ``scores`` holds a Scores or None
     (not scored) per run."""
     traces = _traces(runs)
     drawn = drawn if drawn is not None else _draw_all(traces, magnification)
@@ -903,6 +960,7 @@ def html_report(runs: list, scores: list, path, magnification: float | None = No
                                       f"{traces[0].name} and {len(traces) - 1} other runs")
     page = (f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>"
             f"<style>{_STYLE}</style></head><body><h1>{html.escape(title)}</h1>"
-            f"{_html_runs(traces, runs)}{_html_scores(traces, scores)}{_html_ratios(traces, scores, baseline)}"
+            f"{_html_runs(traces, runs)}{_html_differences(traces, runs)}"
+            f"{_html_scores(traces, scores)}{_html_ratios(traces, scores, baseline)}"
             f"{_html_blocks(traces)}{_html_figures(drawn)}{_html_experiments(traces)}</body></html>")
     return write_atomically(path, lambda tmp: tmp.write_text(page))

@@ -34,7 +34,7 @@ from .export import run_table
 from .scoring import check_experiment_matches, curve_of, read_run, score_run
 from .learning import pass_experiment
 from .learning import simulate_passes as run_passes_in_process
-from .sweep import apply_settings, run_sweep
+from .sweep import apply_settings, name_settings, run_sweep
 
 __all__ = ["Run", "load_experiment", "simulate", "simulate_passes", "read_bag", "sweep_grid"]
 
@@ -92,13 +92,15 @@ def load_experiment(experiment):
 
 
 def _with_settings(experiment, settings: dict | None):
-    """The experiment with ``settings`` applied; its ``text`` is the changed file (so a bag keeps it)."""
+    """The experiment with ``settings`` applied and named after them (``<name>_ccc.kp-2.0``); its ``text`` is the
+    changed file (so a bag keeps it)."""
     if not settings:
         return experiment
     import copy
 
     import yaml
-    data = apply_settings(copy.deepcopy(read_yaml(experiment.text, experiment.name)), settings)
+    data = name_settings(apply_settings(copy.deepcopy(read_yaml(experiment.text, experiment.name)), settings),
+                         settings, experiment.name)
     try:
         return experiment_from_data(data, f"{experiment.name} with {settings}",
                                     text=yaml.safe_dump(data, sort_keys=False))

@@ -84,14 +84,21 @@ def _run_config(args, config: Path, experiment=None):
             experiment = load_experiment(config)       # the one parse of the file in this process
         for warning in program_warnings(build_curve(experiment)):
             print(f"warning: {warning}", file=sys.stderr)
-        from .learning import passes
+        from .learning import pass_bag, passes
 
         def run_one(path, bag, parsed):
-            return run_graph(path, bag, progress=lambda m: print(m, flush=True),
-                             layout=layout, groups=args.group, experiment=parsed,
-                             namespace=args.namespace, domain_id=args.domain, shared_domain=args.domain is not None)
+            from .notices import progress_of
+            with progress_of(parsed.n_steps, "run", waiting="no step recorded yet") as on_step:
+                return run_graph(path, bag, progress=lambda m: print(m, flush=True),
+                                 layout=layout, groups=args.group, experiment=parsed, on_step=on_step,
+                                 namespace=args.namespace, domain_id=args.domain,
+                                 shared_domain=args.domain is not None)
+        if args.bag is not None:          # a user's file is never overwritten: refused before any node starts
+            for target in ([pass_bag(Path(args.bag), j) for j in range(1, passes(experiment) + 1)]
+                           if passes(experiment) > 1 else [args.bag]):
+                _bag_target(str(target), experiment)
         if passes(experiment) > 1:
-            _run_passes(config, experiment, args.bag, run_one)
+            _run_passes(config, experiment, args.bag, run_one, args.from_time)
             return
         bag = run_one(config, args.bag, experiment)
     except RunError as error:
@@ -105,12 +112,14 @@ def _run_config(args, config: Path, experiment=None):
             else:
                 _warn(run)
                 print(f"partial bag: {error.bag} ({run.complete_steps} complete steps)")
-                print(format_scores([(config.stem, scores)], run.axes))
+                print(format_scores([(experiment.name, scores)], run.axes))
         raise SystemExit(error.code if interrupted else 1)
-    scores, run = score_bag(bag, parsed=experiment)     # the bag holds the text just parsed: not parsed again
+    scores, run = score_bag(bag, parsed=experiment, from_time=args.from_time)   # the text just parsed: not again
     _warn(run)
     print(f"bag: {bag}")
-    print(format_scores([(config.stem, scores)], run.axes))
+    if args.from_time:
+        print(f"scores of the samples at t >= {args.from_time:g} s")
+    print(format_scores([(experiment.name, scores)], run.axes))
     from .scoring import curve_of, cutting_lines
     for line in cutting_lines(curve_of(run), run.result, run.require_experiment()):
         print(line)
@@ -131,7 +140,7 @@ def _exit_on_breach(curve, result, experiment, bag=None):
         raise SystemExit(1)
 
 
-def _run_passes(config: Path, experiment, bag, run_one):
+def _run_passes(config: Path, experiment, bag, run_one, from_time: float = 0.0):
     """Every pass of a learning experiment through the graph, each pass's scores as it ends, then all side by
     side (:mod:`contouring_ros.learning`)."""
     from .learning import run_passes
@@ -140,13 +149,14 @@ def _run_passes(config: Path, experiment, bag, run_one):
     rows = []
 
     def report(j, path, recorded):
-        scores = score_run(curve_of(recorded), recorded.result, experiment=recorded.experiment)
+        scores = score_run(curve_of(recorded), recorded.result, from_time, experiment=recorded.experiment)
         rows.append((f"pass {j}", scores))
         print(f"pass {j}: bag {path}: MCE {scores.mce * 1e6:.4g} um, TACE {scores.tace * 1e6:.4g} um", flush=True)
     run_passes(config, experiment, Path(bag) if bag else default_bag_path(experiment), run_one, report)
     print(format_scores(rows, list(experiment.axes)))
 
 
+_DEFAULT_BAG = "<default>"     # simulate --bag without a path
 LONG_RUN_STEPS = 20_000       # simulate shows a progress bar beyond this many steps (about 20 s of run)
 
 
@@ -162,8 +172,10 @@ def _simulate(args):
             experiment = load_experiment(config)
     from .learning import passes
     if passes(experiment) > 1:
-        _simulate_passes(experiment, args.from_time)
+        _simulate_passes(experiment, args.from_time, args.bag)
         return
+    if args.bag is not None:
+        _bag_target(args.bag, experiment)        # refused before the run, not after it
     loop = build_loop(experiment)
     for warning in program_warnings(loop.curve):
         print(f"warning: {warning}", file=sys.stderr)
@@ -179,21 +191,53 @@ def _simulate(args):
                                 list(experiment.axes)))
         raise SystemExit(1)
     scores = score_run(loop.curve, result, args.from_time, experiment)
+    if args.bag is not None:
+        print(f"bag: {_write_simulation_bag(args.bag, experiment, result)}")
+    if args.from_time:
+        print(f"scores of the samples at t >= {args.from_time:g} s")
     print(format_scores([(experiment.name, scores)], list(experiment.axes)))
     for line in cutting_lines(loop.curve, result, experiment):
         print(line)
     _exit_on_breach(loop.curve, result, experiment)
 
 
-def _simulate_passes(experiment, from_time: float = 0.0):
+def _bag_target(given: str, experiment) -> Path:
+    """Where ``simulate --bag`` writes: the path given (refused if something is there: a user's file is never
+    overwritten), or bags/<experiment>_<time>.mcap for ``--bag`` alone, as ``run`` names its bags."""
+    from .runner import default_bag_path
+    path = default_bag_path(experiment) if given == _DEFAULT_BAG else Path(given)
+    if path.exists() or path.is_symlink():
+        raise ConfigError(f"--bag {path}: a file of that name exists (name another, or remove it)")
+    if path.parent.exists() and not path.parent.is_dir():
+        raise ConfigError(f"--bag {path}: {path.parent} is not a folder")
+    return path
+
+
+def _write_simulation_bag(given: str, experiment, result) -> Path:
+    """The in-process run's bag, as the node graph's recorder would have written it (the same topics, types
+    and payloads: :func:`contouring_ros.bag.write_simulation`)."""
+    from .bag import write_simulation
+    from .errors import write_atomically
+    path = _bag_target(given, experiment)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    return write_atomically(path, lambda tmp: write_simulation(tmp, experiment, result))
+
+
+def _simulate_passes(experiment, from_time: float = 0.0, bag: str | None = None):
     """Every pass of a learning experiment in-process, then their scores side by side (of the samples at
-    t >= ``from_time``)."""
-    from .learning import simulate_passes
+    t >= ``from_time``); with ``bag``, each pass's bag as ``run`` names them (``<bag>_pass<j>.mcap``)."""
+    from .learning import pass_bag, pass_experiment, passes as passes_of, simulate_passes
     from .scoring import format_scores, score_run
     rows = []
+    base = _bag_target(bag, experiment) if bag is not None else None
+    if base is not None:
+        for j in range(1, passes_of(experiment) + 1):
+            _bag_target(str(pass_bag(base, j)), experiment)
 
     def report(j, loop, result):
         rows.append((f"pass {j}", score_run(loop.curve, result, from_time, experiment)))
+        if base is not None:
+            print(f"pass {j}: bag {_write_simulation_bag(str(pass_bag(base, j)), pass_experiment(experiment, j), result)}")
     try:
         simulate_passes(experiment, report)
     except Diverged as error:
@@ -277,11 +321,17 @@ def _blocks(args):
 
 
 def _compare(args):
-    from .analysis import compare_table
+    from .analysis import compare_table, experiment_differences, format_differences, run_names
     if args.baseline:
         args.bags = [args.baseline] + [bag for bag in args.bags if bag != args.baseline]
     results = _scored(args)
-    print(compare_table([(name, scores) for name, scores, _ in results], 0, results[0][2].axes))
+    runs = [(label, run) for label, _, run in results]
+    names = run_names(runs)       # the experiment's name (with what --set changed), the bag's time where needed
+    print(compare_table([(name, scores) for name, (_, scores, _) in zip(names, results)], 0, results[0][2].axes))
+    differ = format_differences(names, experiment_differences(runs))
+    if differ:
+        print()
+        print(differ)
 
 
 def _replay(args):
@@ -351,22 +401,22 @@ def _export(args):
 def _sweep(args):
     from datetime import datetime
     from .experiment.files import load_experiment
-    from .sweep import BATCH, format_sweep, parse_grid, run_sweep, write_sweep_csv
+    import time
+
+    from .sweep import BATCH, format_sweep, parse_grid, run_sweep, sweep_summary, write_sweep_csv
     experiment = load_experiment(_experiment_path(args.config))
     if args.batch is not None and args.batch < 1:
         raise ConfigError(f"--batch {args.batch}: expected a positive number of combinations")
-    rows = run_sweep(experiment.text, parse_grid(args.grid), args.workers, progress=sys.stderr.isatty(),
+    started = time.monotonic()
+    rows = run_sweep(experiment.text, parse_grid(args.grid), args.workers, progress=None,
                      batch=args.batch or BATCH, from_time=args.from_time, scheduler=args.scheduler)
     if args.from_time:
         print(f"scores of the samples at t >= {args.from_time:g} s (steady state)")
     print(format_sweep(rows))
-    vectorised = sum(row.vectorised for row in rows)
-    reasons = sorted({row.alone for row in rows if row.alone})
-    print(f"{len(rows)} combinations: {vectorised} ran vectorised in batches, {len(rows) - vectorised} one by one"
-          + (f" ({'; '.join(reasons)})" if reasons else ""))
-    failed = [row for row in rows if row.scores is None]
-    if failed:
-        print(f"{len(failed)} without scores (diverged), listed last with the reason")
+    workers = args.workers or os.cpu_count() or 1
+    print(sweep_summary(rows, time.monotonic() - started, workers) if not args.scheduler else
+          sweep_summary(rows, time.monotonic() - started, workers).replace(
+              f"on {workers} process{'es' if workers != 1 else ''}", f"on the cluster at {args.scheduler}"))
     out = Path(args.out or f"bags/{experiment.name}_sweep_{datetime.now():%Y%m%d_%H%M%S}.csv")
     out.parent.mkdir(parents=True, exist_ok=True)
     write_sweep_csv(rows, out, experiment.axes)
@@ -454,12 +504,18 @@ def main(argv=None):
     p.add_argument("--set", action="append", metavar="KEY=VALUE",
                    help="change one key of the experiment for this run, with the sweep's key syntax (x/servo.kp=10, "
                         "ccc.kp=2, curve.h=80); repeatable")
+    p.add_argument("--from", dest="from_time", type=_seconds, default=0.0, metavar="T",
+                   help="print the scores of the samples at t >= T s (steady state), as score --from T; the bag "
+                        "holds the whole run")
     p.add_argument("--domain", type=_domain_id, metavar="ID",
                    help="run on this ROS domain, shared with ROS tools and other runs there (give each graph its "
                         "own --namespace) instead of a private one")
     p.set_defaults(func=_run)
     p = sub.add_parser("simulate", help="run an experiment in-process (no ROS) and print its scores")
     p.add_argument("config")
+    p.add_argument("--bag", nargs="?", const=_DEFAULT_BAG, metavar="PATH",
+                   help="also write the run's bag, the MCAP the node graph would record (the same payloads), to "
+                        "PATH (never over an existing file); --bag alone: bags/<experiment>_<time>.mcap")
     p.add_argument("--set", action="append", metavar="KEY=VALUE",
                    help="change one key of the experiment for this run, as `run --set` does; repeatable")
     p.add_argument("--from", dest="from_time", type=_seconds, default=0.0, metavar="T",

@@ -86,10 +86,11 @@ class _Cluster:
 
 
 @contextmanager
-def pool(workers: int | None = None, scheduler: str | None = None):
-    """(executor, workers): local processes (``workers``, default one per core), or the Dask cluster whose
-    scheduler is at ``scheduler`` (then ``workers`` is the cluster's thread count and the argument is
-    ignored). Refused in one line (:class:`ConfigError`) when the cluster cannot be used."""
+def pool(workers: int | None = None, scheduler: str | None = None, initializer=None, initargs: tuple = ()):
+    """(executor, workers): local processes (``workers``, default one per core; each runs ``initializer(*initargs)``
+    first where given), or the Dask cluster whose scheduler is at ``scheduler`` (then ``workers`` is the
+    cluster's thread count, the argument and the initializer are ignored). Refused in one line
+    (:class:`ConfigError`) when the cluster cannot be used."""
     if scheduler:
         cluster = _Cluster(scheduler)
         try:
@@ -98,5 +99,5 @@ def pool(workers: int | None = None, scheduler: str | None = None):
             cluster.close()
         return
     workers = workers or os.cpu_count() or 1
-    with ProcessPoolExecutor(max_workers=workers) as local:
+    with ProcessPoolExecutor(max_workers=workers, initializer=initializer, initargs=initargs) as local:
         yield local, workers

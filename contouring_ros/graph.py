@@ -35,7 +35,31 @@ __all__ = ["Topic", "topics", "node_names", "NodeSpec", "node_specs", "CONTOUR_E
            "LOOKAHEAD", "step_to_stamp", "reference_from_msg",
            "estimate_from_msg", "estimate_names", "estimate_values", "state_topic", "command_topic",
            "message_problem", "recorded_topics", "normalize_namespace", "resolve", "GLOBAL_TOPICS", "graph_namespace",
-           "namespace_of_topics"]
+           "namespace_of_topics", "PROGRESS_ENV", "write_progress", "read_progress"]
+
+#: the environment variable naming the file where a run's recorder keeps its progress (the steps recorded in
+#: full) for the runner's progress bar; set by the runner, absent for nodes started by hand
+PROGRESS_ENV = "CONTOURING_ROS_PROGRESS_FILE"
+PROGRESS_WIDTH = 20      # the file holds one right-aligned number of this width and a newline, rewritten in place
+
+
+def write_progress(fd: int, steps: int) -> None:
+    """Record ``steps`` (recorded in full) in the progress file open as ``fd``: one write at offset 0."""
+    import os
+    os.pwrite(fd, f"{steps:>{PROGRESS_WIDTH}}\n".encode(), 0)
+
+
+def read_progress(path) -> int | None:
+    """The steps the progress file at ``path`` says are recorded, or None before the recorder wrote any."""
+    try:
+        with open(path, "rb") as stream:
+            text = stream.read(PROGRESS_WIDTH + 1)
+    except OSError:
+        return None
+    try:
+        return int(text) if len(text) == PROGRESS_WIDTH + 1 else None
+    except ValueError:
+        return None
 
 THETA_NAME = "theta"
 CONTOUR_ERROR_NAME = "contour_error"

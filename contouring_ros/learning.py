@@ -147,6 +147,7 @@ def run_passes(config: Path, experiment: Experiment, bag: Path, run, progress=No
                 np.save(learned, table)
                 specs.append(f"ccc.learned_file={learned}")
             if specs:
+                specs.append(f'experiment.name="{experiment.name}"')   # each pass keeps the experiment's name
                 folder = Path(directory) / f"pass{j}"
                 folder.mkdir()
                 path, this_pass = written_settings(config, specs, folder)

@@ -392,7 +392,7 @@ def grouped_commands(experiment_path, experiment: Experiment, bag: Path, groups,
 
 def run_graph(experiment_path, bag=None, *, timeout: float | None = None, domain_id: int | None = None,
               progress=None, on_started=None, layout: str | None = None, groups=None, namespace: str = "/",
-              shared_domain: bool = False, experiment: Experiment | None = None) -> Path:
+              shared_domain: bool = False, experiment: Experiment | None = None, on_step=None) -> Path:
     """Run the experiment through the process graph and return the bag's path.
 
     On any failure (a node dying, a stall, a timeout, SIGINT or SIGTERM) every node is stopped, the
@@ -413,6 +413,9 @@ def run_graph(experiment_path, bag=None, *, timeout: float | None = None, domain
         ``namespace``) and with whatever else listens there (ROS tools), instead of holding it alone.
     progress : callable(str), optional
         Receives one-line status messages.
+    on_step : callable(int), optional
+        Called 20 times a second while the nodes run with the steps the recorder has recorded in full (0
+        until the graph is up), for a progress bar: :class:`contouring_ros.notices.progress_of`.
     on_started : callable(list of NodeProcess), optional
         Called once every node process has been started.
     layout : str, optional
@@ -465,6 +468,9 @@ def run_graph(experiment_path, bag=None, *, timeout: float | None = None, domain
     try:
         with DomainLease(domain_id, shared=shared_domain) as lease:
             env = private_environment(lease.domain_id, network=experiment.network)
+            progress_file = Path(parameter_directory.name) / "progress"
+            progress_file.write_bytes(b"")
+            env[graph.PROGRESS_ENV] = str(progress_file)
             count = len(graph.node_names(experiment.axes))
             processes = "" if len(nodes) == count else " in one process" if len(nodes) == 1 else f" in {len(nodes)} processes"
             under = f" under {namespace}" if namespace != "/" else ""
@@ -483,7 +489,8 @@ def run_graph(experiment_path, bag=None, *, timeout: float | None = None, domain
                     _raise_pending_termination()
                 if on_started is not None:
                     on_started(nodes)
-                _watch(nodes, timeout, started, say)
+                _watch(nodes, timeout, started, say,
+                       (lambda: on_step(graph.read_progress(progress_file) or 0)) if on_step else None)
             except (KeyboardInterrupt, _Terminated) as interrupt:
                 terminated = getattr(interrupt, "signum", signal.SIGINT) == signal.SIGTERM
                 _stop(nodes)          # every node gone (the recorder has closed the bag) before we say what exists
@@ -517,11 +524,14 @@ def run_graph(experiment_path, bag=None, *, timeout: float | None = None, domain
     return bag
 
 
-def _watch(nodes, timeout, started, say):
-    """Poll the node processes until the run completes; raise RunError naming the cause of a failure."""
+def _watch(nodes, timeout, started, say, poll_progress=None):
+    """Poll the node processes until the run completes (and ``poll_progress()`` at each poll); raise RunError
+    naming the cause of a failure."""
     recorder_done = None
     while True:
         _raise_pending_termination()
+        if poll_progress is not None:
+            poll_progress()
         codes = {node.name: node.process.poll() for node in nodes}
         early = [node for node in nodes if codes[node.name] == 0 and node.exited_early()]
         if early:           # the others would stall for want of its messages: name it, not them

@@ -10,6 +10,7 @@ one (``curve.h``, ``schedule.duration``). Every combination is validated like a 
 """
 from __future__ import annotations
 
+import contextlib
 import copy
 import csv
 import itertools
@@ -26,14 +27,17 @@ from .experiment.ros_yaml import read_yaml
 from .experiment.schema import GLOBAL_SECTION, ROS_PARAMETERS
 from .experiment.validate import experiment_from_data
 from .core.batch import batch_minimum, batch_problem, simulate_batch, structure
+from .core import progress
 from .core.simulation import first_divergence, simulate
 from .errors import ConfigError, Diverged, ScoreError, write_atomically
 from .executors import pool as executor
+from .notices import progress_of
 from .scoring import score_run
 
-__all__ = ["parse_grid", "apply_settings", "settings_file", "written_settings", "experiments_for", "combinations",
+__all__ = ["parse_grid", "apply_settings", "grid_keys", "differences", "settings_name", "name_settings",
+           "settings_file", "written_settings", "experiments_for", "combinations",
            "SweepRow", "score_one", "score_experiments", "simulate_experiments",
-           "simulate_loops", "run_sweep", "format_sweep",
+           "simulate_loops", "run_sweep", "sweep_summary", "format_sweep",
            "write_sweep_csv"]
 
 
@@ -81,6 +85,59 @@ def apply_settings(data: dict, settings: dict) -> dict:
     return data
 
 
+def grid_keys(data: dict) -> dict:
+    """Every leaf of an experiment file's ``data`` by its grid key (the inverse of :func:`apply_settings`):
+    ``curve.h`` for a shared key, ``ccc.kp`` or ``x/servo.a`` for a node's; lists are leaves."""
+    out = {}
+
+    def walk(prefix, value):
+        if isinstance(value, dict) and value:
+            for key, inner in value.items():
+                walk(f"{prefix}.{key}" if prefix else str(key), inner)
+        else:
+            out[prefix] = value
+    for section, content in data.items():
+        parameters = content.get(ROS_PARAMETERS, {}) if isinstance(content, dict) else {}
+        walk("" if section == GLOBAL_SECTION else str(section).strip("/"), parameters)
+    return out
+
+
+def differences(datas: list) -> dict:
+    """Grid key -> each file's value (None where a file lacks it) for every key whose value is not the same in
+    all of ``datas`` (experiment files' data), in the first file's key order."""
+    flat = [grid_keys(data) for data in datas]
+    keys = list(dict.fromkeys(key for one in flat for key in one))
+    return {key: [one.get(key) for one in flat] for key in keys if len({repr(one.get(key)) for one in flat}) > 1}
+
+
+def settings_name(name: str, settings: dict) -> str:
+    """An experiment's name with what ``settings`` change (grid key -> value) added, as run names, bags,
+    legends and reports show it: ``paper000_b_ismc_h50_newton`` with ccc.kp = 2.0 is
+    ``paper000_b_ismc_h50_newton_ccc.kp-2.0`` (letters, digits, '_', '-' and '.', as the name's check asks;
+    cut at 100 characters, then with a digest of the settings so that different settings keep different names)."""
+    import hashlib
+    import re
+    parts = [f"{key.strip('/').replace('/', '-')}-{value}" for key, value in settings.items()]
+    text = re.sub(r"[^A-Za-z0-9_.-]+", "_", "_".join([name, *parts])).replace("..", ".")
+    if len(text) > 100:
+        digest = hashlib.sha256(repr(sorted(settings.items(), key=str)).encode()).hexdigest()[:8]
+        text = f"{text[:90].rstrip('_.-')}_{digest}"
+    return text
+
+
+def name_settings(data: dict, settings: dict, base: str) -> dict:
+    """``data`` (an experiment file's, settings applied) named after ``settings`` (:func:`settings_name` of
+    its own name, else ``base``), unless the settings name it themselves (``experiment.name``)."""
+    if not settings or "experiment.name" in settings:
+        return data
+    shared = data.setdefault(GLOBAL_SECTION, {}).setdefault(ROS_PARAMETERS, {})
+    experiment = shared.get("experiment")
+    if not isinstance(experiment, dict):
+        experiment = shared["experiment"] = {}
+    experiment["name"] = settings_name(str(experiment.get("name") or base), settings)
+    return data
+
+
 def settings_file(path, specs: list, directory) -> Path:
     """The experiment file ``path`` with ``specs`` (``['x/servo.kp=10', 'curve.h=80']``, the grid's key syntax,
     one value each) applied, written as ``directory``/<same name> for the nodes to read; validated like any
@@ -90,7 +147,8 @@ def settings_file(path, specs: list, directory) -> Path:
 
 def written_settings(path, specs: list, directory) -> tuple:
     """(file, Experiment): the file :func:`settings_file` writes, and the Experiment its validation read from
-    it (so that the caller does not read the file again)."""
+    it (so that the caller does not read the file again). The experiment is named after the settings
+    (:func:`name_settings`): its bag, legends and reports tell it from the file's own runs."""
     import yaml
 
     class _Quoted(yaml.SafeDumper):
@@ -107,7 +165,7 @@ def written_settings(path, specs: list, directory) -> tuple:
         settings[key.strip()] = read_yaml(value, f"--set {key}")
     data = read_yaml(recorded_text(path), str(path))
     try:
-        apply_settings(data, settings)
+        name_settings(apply_settings(data, settings), settings, path.stem)
         experiment_from_data(copy.deepcopy(data), f"{path} with --set {', '.join(specs)}")
     except ConfigError as error:
         raise ConfigError(f"--set {', '.join(specs)}: {error}") from None
@@ -183,8 +241,12 @@ def _simulate_alone(loop):
 def _score_chunk(experiments: list, from_time: float = 0.0) -> tuple:
     """Scores of each experiment (None where the run diverged), why each ran alone ("" for those in a
     vectorised batch, one batch per structure) and why each has no scores ("" where it has)."""
+    before = progress.added()
     with np.errstate(all="ignore"):         # a diverging run overflows; it is reported, not warned about
-        return _score_loops(experiments, from_time)
+        out = _score_loops(experiments, from_time)
+    # the steps a diverged run did not take: the progress bar counts every combination's steps once
+    progress.add(sum(e.n_steps for e in experiments) - (progress.added() - before))
+    return out
 
 
 def _score_loops(experiments: list, from_time: float) -> tuple:
@@ -217,11 +279,11 @@ def simulate_loops(loops: list) -> tuple:
         group = pending.pop()
         members = [loops[i] for i in group]
         why = batch_problem(members if len(members) > 1 else members * 2) \
-            or ("" if len(members) > 1 else "too few combinations of one structure to batch")
+            or ("" if len(members) > 1 else "no other combination of its kind to share a batch with")
         smallest, setter = batch_minimum(members[0])
         if not why and len(members) < smallest:
-            why = (f"{len(members)} combinations of one structure run faster one by one: a batch with the "
-                   f"{setter} pays off from {smallest}")
+            why = (f"runs faster one by one: a batch with the {setter} pays off from {smallest} "
+                   "combinations of one kind")
         batch = None
         if not why:
             try:
@@ -263,22 +325,41 @@ def _chunks(experiments: list, workers: int, batch: int) -> list:
     return [group[i:i + size] for group in groups.values() for i in range(0, len(group), size)]
 
 
-def score_experiments(experiments: list, workers: int | None = None, progress: bool = False, batch: int = BATCH,
-                      from_time: float = 0.0, desc: str = "sweep", scheduler: str | None = None) -> list:
+def score_experiments(experiments: list, workers: int | None = None, progress_bar: bool | None = False,
+                      batch: int = BATCH, from_time: float = 0.0, desc: str = "sweep",
+                      scheduler: str | None = None) -> list:
     """(scores or None, why it ran alone, why it has no scores) for each experiment, in order: the
     in-process simulation on a process pool (or the Dask cluster at ``scheduler``,
-    :func:`contouring_ros.executors.pool`), vectorised where it can be."""
-    from tqdm import tqdm
+    :func:`contouring_ros.executors.pool`), vectorised where it can be. ``progress_bar``: a bar on stderr
+    that moves with the simulated steps of every worker (False: none; None: a bar on a terminal, a line now
+    and then otherwise, :class:`contouring_ros.notices.progress_of`)."""
+    import multiprocessing
+    from concurrent.futures import FIRST_COMPLETED, wait
+
     out = [None] * len(experiments)
-    with executor(workers, scheduler) as (pool, workers), \
-            tqdm(total=len(experiments), desc=desc, disable=not progress, leave=False) as bar:
+    steps = [e.n_steps for e in experiments]
+    counted = None          # every worker's simulated steps (core/progress.py), where a bar shows them
+    if progress_bar is not False and not scheduler:
+        try:
+            counted = multiprocessing.Value("q", 0)
+        except OSError:     # no shared memory to be had (a full /dev/shm): the bar moves chunk by chunk
+            counted = None
+    shown = progress_of(len(experiments), desc, "combination", terminal=progress_bar) \
+        if progress_bar is not False else contextlib.nullcontext(lambda done: None)
+    with executor(workers, scheduler, progress.attach, (counted,)) as (pool, workers), shown as show:
         chunks = _chunks(experiments, workers, batch)
-        jobs = pool.map(_score_chunk, [[experiments[i] for i in chunk] for chunk in chunks],
-                        [from_time] * len(chunks))
-        for chunk, (scores, alone, failures) in zip(chunks, jobs, strict=True):
-            for i, s, why, failure in zip(chunk, scores, alone, failures):
-                out[i] = (s, why, failure)
-            bar.update(len(chunk))
+        jobs = {pool.submit(_score_chunk, [experiments[i] for i in chunk], from_time): chunk for chunk in chunks}
+        finished, pending = 0, set(jobs)
+        while pending:
+            done, pending = wait(pending, timeout=0.25, return_when=FIRST_COMPLETED)
+            for job in done:
+                chunk = jobs[job]
+                for i, s, why, failure in zip(chunk, *job.result(), strict=True):
+                    out[i] = (s, why, failure)
+                finished += sum(steps[i] for i in chunk)
+            # combinations done, in fractions as their steps go by (a cluster's workers count none: by chunk)
+            counts = counted.value if counted is not None else 0
+            show(round(len(experiments) * max(counts, finished) / max(1, sum(steps)), 2))
     return out
 
 
@@ -296,6 +377,29 @@ def run_sweep(text: str, grid: dict, workers: int | None = None, progress: bool 
     results = score_experiments([e for _, e in combos], workers, progress, batch, from_time, scheduler=scheduler)
     rows = [SweepRow(settings, *result) for (settings, _), result in zip(combos, results)]
     return sorted(rows, key=_rank)
+
+
+def sweep_summary(rows: list, seconds: float, workers: int) -> str:
+    """What a sweep did, in the user's terms: how many combinations in how long on how many processes, how
+    many ran together in vectorised batches and how many one by one, and why (each reason once, with how
+    many it held for), and how many diverged."""
+    together = sum(row.vectorised for row in rows)
+    reasons = {}
+    for row in rows:
+        if row.alone:
+            reasons[row.alone] = reasons.get(row.alone, 0) + 1
+    if not rows:
+        return "no combinations"
+    how = ("all run together in vectorised batches" if together == len(rows) else
+           "all run one by one" if not together else
+           f"{together} run together in vectorised batches, {len(rows) - together} one by one")
+    why = "; ".join(f"{why} ({count})" if len(reasons) > 1 else why for why, count in reasons.items())
+    line = (f"{len(rows)} combination{'s' if len(rows) != 1 else ''} in {seconds:.1f} s on {workers} "
+            f"process{'es' if workers != 1 else ''}: {how}" + (f" ({why})" if why else ""))
+    failed = sum(row.scores is None for row in rows)
+    if failed:
+        line += f"\n{failed} without scores (diverged), listed last with the reason"
+    return line
 
 
 def format_sweep(rows: list, limit: int = 20) -> str:

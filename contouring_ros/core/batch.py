@@ -21,6 +21,7 @@ import numpy as np
 
 from .interpolation import Reference, ahead_times, reference, reference_rows
 from .simulation import ControlLoop, SimulationResult, step_time
+from .progress import EVERY, add as count_steps
 
 __all__ = ["NotBatchable", "stack", "batch_problem", "batchable", "batch_minimum", "structure", "simulate_batch"]
 
@@ -269,6 +270,8 @@ def simulate_batch(loops: list[ControlLoop]) -> list[SimulationResult]:
     previewing = [(i, servo) for i, servo in enumerate(servos) if getattr(servo, "preview", 0)]
     controller_preview = getattr(controller, "preview", 0)
     for k in range(m):
+        if k % EVERY == EVERY - 1:
+            count_steps(EVERY * b)
         t = step_time(k, ts)
         for column, plant, _ in axes:
             positions[k, :, column], velocities[k, :, column] = plant.measure()

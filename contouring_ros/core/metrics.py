@@ -44,7 +44,8 @@ def score(curve, time, position, reference_position, estimate_vector, command,
     """Score a run and return (scores, exact contour error per step [m]).
 
     With ``from_time`` > 0 only the samples with t >= from_time count (steady-state scores: the start-up
-    transient left out); the keys stay the same and ``travel_time`` is the time those samples span.
+    transient left out); the keys stay the same, ``steps`` counts the samples scored, and ``travel_time``
+    stays the whole run's (the path's travel time does not depend on where the scores start).
 
     Parameters
     ----------
@@ -61,6 +62,8 @@ def score(curve, time, position, reference_position, estimate_vector, command,
     from_time : float
         Score only the samples at t >= from_time [s]; a ValueError when there are none.
     """
+    # the path's travel time is the whole run's, whatever part of it is scored
+    travel = float(time[-1] - time[0]) if len(time) > 1 else 0.0
     if from_time > 0.0:
         kept = np.asarray(time) >= from_time - 1e-9 * max(1.0, abs(from_time))
         if not kept.any():
@@ -73,7 +76,6 @@ def score(curve, time, position, reference_position, estimate_vector, command,
     estimated = np.linalg.norm(estimate_vector, axis=1)
     deviation = np.abs(estimated - errors)
     tracking = np.abs(reference_position - position)
-    travel = float(time[-1] - time[0]) if len(time) > 1 else 0.0
     scores = Scores(mce=float(np.max(errors)), tace=float(np.mean(errors)), rms=float(_rms(errors)),
                     estimation_max=float(np.max(deviation)), estimation_rms=float(_rms(deviation)),
                     tracking_max=tuple(float(v) for v in tracking.max(axis=0)),

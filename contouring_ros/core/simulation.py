@@ -15,6 +15,7 @@ import numpy as np
 
 from ..errors import Diverged
 from .interpolation import reference, reference_ahead, step_time
+from .progress import EVERY, add as count_steps
 
 __all__ = ["ControlLoop", "SimulationResult", "step_time", "simulate", "divergence_bound", "path_bound", "first_divergence",
            "diverged_message",
@@ -169,6 +170,8 @@ def simulate(loop: ControlLoop, stop_on_divergence: bool = True, progress: bool 
         from tqdm import tqdm
         steps = tqdm(steps, unit="step", unit_scale=True, mininterval=0.5, leave=False)
     for k in steps:
+        if k % EVERY == EVERY - 1:
+            count_steps(EVERY)
         t = step_time(k, loop.sample_time)
         for i, plant, _ in axes:
             positions[k, i], velocities[k, i] = plant.measure()

@@ -30,6 +30,8 @@ CORRECTION = "/ccc/correction"
 COMMAND = f"/{AXIS}/command"
 DIAGNOSTICS = "/diagnostics"
 EVERY_TOPIC = "*"       # an input of every topic of the graph (the recorder's)
+#: what a pip install's node commands start with (see :attr:`Node.pip_script`)
+PIP_SCRIPT_PREFIX = "contouring-ros-"
 
 #: topic -> its ROS message type
 TOPIC_TYPES = {
@@ -74,10 +76,19 @@ class Node:
         return self.node_class.split(":")[0]
 
     @property
-    def entry_point(self) -> str:
-        """Its console_scripts entry point, as setup.py writes it (contouring_ros.nodes.scripts imports the
-        node's module when the script runs, so that a failed import is one line, not a traceback)."""
-        return f"{self.console_script} = contouring_ros.nodes.scripts:{self.console_script}"
+    def pip_script(self) -> str:
+        """The command a pip install puts on the PATH for this node: ``contouring-ros-`` and the executable's
+        name with dashes (plant -> contouring-ros-plant, contour_estimator -> contouring-ros-contour-estimator),
+        a name no other package's command takes."""
+        return PIP_SCRIPT_PREFIX + self.console_script.replace("_", "-")
+
+    def entry_point(self, ros_layout: bool = True) -> str:
+        """Its console_scripts entry point, as setup.py writes it: the ``ros2 run`` executable name for a
+        colcon build (``ros_layout``; installed in lib/contouring_ros, off the PATH), else :attr:`pip_script`
+        (a wheel's scripts go to the environment's bin/, on the PATH). contouring_ros.nodes.scripts imports
+        the node's module when the script runs, so that a failed import is one line, not a traceback."""
+        return f"{self.console_script if ros_layout else self.pip_script} = " \
+               f"contouring_ros.nodes.scripts:{self.console_script}"
 
     def full_names(self, axes) -> list:
         """Fully qualified names of this concern's nodes in the graph of ``axes``."""
@@ -156,3 +167,16 @@ def topic_rows() -> list:
     published by every node."""
     rows = [(topic, TOPIC_TYPES[topic], doc_name(node)) for node in NODES for topic in node.outputs]
     return rows + [(DIAGNOSTICS, TOPIC_TYPES[DIAGNOSTICS], "every node")]
+
+
+#: setup.py commands that build a wheel (pip's PEP 517/660 builds): their console scripts land on the PATH
+WHEEL_COMMANDS = ("bdist_wheel", "editable_wheel", "dist_info")
+
+
+def console_scripts(argv) -> list:
+    """setup.py's console_scripts for a build run as ``argv``: under colcon (``setup.py install`` or
+    ``develop``, scripts into lib/contouring_ros where ``ros2 run`` looks, off the PATH) each node's
+    executable name; in a wheel (pip) the ``contouring-ros-<node>`` names, which cannot clash on the PATH
+    with other packages' ``plant`` or ``servo``. The ``contouring-ros`` command line either way."""
+    ros_layout = not any(command in argv for command in WHEEL_COMMANDS)
+    return [node.entry_point(ros_layout) for node in NODES] + ["contouring-ros = contouring_ros.cli:main"]

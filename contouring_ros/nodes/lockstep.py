@@ -31,6 +31,7 @@ from ..rclpy_adapter import SubscriptionWaitSet, take_request, taker
 from ..experiment.build import interpolator_takes_state
 from ..experiment.validate import experiment_for_node
 from ..parameters import descriptor, node_parameters
+from .explain import explain, help_text, wants_help
 from ..errors import ConfigError, ContouringError, RunError
 from ..experiment.schema import GLOBAL_SECTION
 
@@ -96,7 +97,14 @@ class LockstepNode:
         #: the namespace of the graph this node belongs to: every topic is resolved under it
         self.graph_namespace = graph.graph_namespace(self.name, self.per_axis)
         parameters = {name: p.value for name, p in self.node.get_parameters_by_prefix("").items()}
-        self.experiment = experiment_for_node(parameters, self.name, self.role)
+        try:
+            self.experiment = experiment_for_node(parameters, self.name, self.role)
+        except ConfigError as error:      # said in the user's terms where the file or namespace is why
+            why = explain(self.name, self.role, args if args is not None else sys.argv) \
+                if "missing required key" in str(error) else None
+            if why is None:
+                raise
+            raise ConfigError(why) from None
         self.declare_described(parameters)
         self.sample_time_ns = int(round(self.experiment.sample_time * 1e9))
         self.n_steps = self.experiment.n_steps
@@ -765,6 +773,9 @@ def run_node(node_class, args=None) -> int:
     interrupted by SIGINT and 143 by SIGTERM, in any state (waiting for the graph, stepping, finishing),
     without a traceback.
     """
+    if wants_help(sys.argv if args is None else args):
+        print(help_text(node_class.role))
+        return 0
     received = track_signals()
     node = None
     code = 0

@@ -14,6 +14,7 @@ whose bag would be polluted never exits 0; with ``hold`` it is left out of the b
 """
 from __future__ import annotations
 
+import os
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray
@@ -29,6 +30,7 @@ from .lockstep import DIAGNOSTICS_QOS, GRAPH_QOS, LockstepNode, run_node
 DIAGNOSTICS_LINGER = 0.3   # s the recorder keeps taking /diagnostics after the last lockstep message
 REALTIME_GRACE = 2.0       # s after the last realtime tick the recorder waits for steps that never came
 DIAGNOSTICS_LIMIT = 10_000  # /diagnostics messages recorded at most (each node sends a few per run)
+PROGRESS_PERIOD = 0.2       # s between two writes of the progress file (graph.PROGRESS_ENV) while recording
 
 class RecorderNode(LockstepNode):
     role = "recorder"
@@ -51,6 +53,9 @@ class RecorderNode(LockstepNode):
         self._skip, self.foreign = False, 0       # other programs' /diagnostics messages, not recorded
         # channels carry the names on the wire (under the graph's namespace, as `ros2 bag record` would)
         self.channel_names = {t.name: self.wire_name(t.name) for t in self.topic_list}
+        progress = os.environ.get(graph.PROGRESS_ENV)      # the runner's progress bar reads it
+        self._progress_fd = os.open(progress, os.O_WRONLY) if progress and os.path.isfile(progress) else None
+        self._progress_due = 0.0
         self.writer = BagWriter(options["bag"], [(self.channel_names[t.name], t.type) for t in self.topic_list],
                                 background=True, metadata={
             EXPERIMENT_METADATA: {"yaml": text, "axes": ",".join(self.axes), "steps": str(self.n_steps),
@@ -138,6 +143,9 @@ class RecorderNode(LockstepNode):
             self.first_receive = self.last_receive
         if not self.finished and self.complete():
             self.finished = True
+        if self._progress_fd is not None and (self.last_receive >= self._progress_due or self.finished):
+            self._progress_due = self.last_receive + PROGRESS_PERIOD
+            graph.write_progress(self._progress_fd, self.current_step())
 
     def complete(self) -> bool:
         return self._incomplete <= 0
@@ -170,6 +178,9 @@ class RecorderNode(LockstepNode):
                 "messages": str(sum(self.counts.values())), "messages refused": str(self.strangers),
                 "complete": str(self.complete()).lower()})
         self.writer.close()
+        if getattr(self, "_progress_fd", None) is not None:
+            os.close(self._progress_fd)
+            self._progress_fd = None
         super().destroy()
 
 

@@ -122,3 +122,21 @@ def test_replayed_newton_tracks_exact_error_better_than_recorded_tangent_line(tm
     assert newton.deviation_max < 0.2 * recorded.deviation_max
     assert newton.deviation_rms < recorded.deviation_rms
 
+
+
+def test_replaying_the_recorded_estimator_s_type_changes_only_the_keys_given(tmp_path):
+    """`replay BAG --estimator newton:k_prime=800` (the command's own example) on a Newton run takes the
+    recorded section with k_prime changed (was: 'newton.c_prime: missing required key'); the same gains as
+    recorded replay the recorded estimate."""
+    from contouring_ros.analysis import parse_estimator_spec
+    from contouring_ros.bag import write_simulation
+    from contouring_ros.config import build_loop, parse_experiment
+    from contouring_ros.core.simulation import simulate
+    experiment = parse_experiment(shortened(DEFAULT, 0.2), "default")
+    bag = write_simulation(tmp_path / "newton.mcap", experiment, simulate(build_loop(experiment)))
+    run = read_run(bag)
+    _, (recorded, same, stiffer) = replay_estimators(run, [parse_estimator_spec("newton"),
+                                                           parse_estimator_spec("newton:k_prime=800")])
+    assert same.name == "newton" and stiffer.name == "newton k_prime=800"
+    np.testing.assert_allclose(same.estimate, recorded.estimate, rtol=1e-9, atol=1e-15)
+    assert not np.allclose(stiffer.estimate, recorded.estimate, rtol=1e-9, atol=1e-15)

@@ -34,3 +34,18 @@ def test_simulate_and_read_bag_agree_with_the_core(tmp_path):
     assert recorded.axes == ["x", "y"] and recorded.scores().mce == run.scores().mce
     assert recorded.exact_contour_error().max() == pytest.approx(run.scores().mce, rel=1e-12)
     assert set(recorded.table()) >= {"time_s", "exact_contour_error_m", "command_y"}
+
+
+def test_dir_shows_the_api_before_it_is_imported():
+    """dir(contouring_ros) (what completion lists) names the API's functions in a fresh interpreter, and
+    asking for it imports nothing of the API (the nodes start without numpy's API stack)."""
+    import subprocess
+    import sys
+    script = ("import sys, contouring_ros as cr; names = dir(cr)\n"
+              "assert 'contouring_ros.api' not in sys.modules\n"
+              "print(' '.join(names))\n")
+    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=60, cwd=ROOT)
+    assert result.returncode == 0, result.stderr
+    names = result.stdout.split()
+    assert {"simulate", "load_experiment", "read_bag", "sweep_grid", "simulate_passes", "Run"} <= set(names)
+    assert names == sorted(names)

@@ -209,6 +209,7 @@ def test_scores_from_a_time_cover_only_the_later_samples():
     assert later.tace == pytest.approx(errors[kept].mean(), rel=1e-12)
     assert later.rms == pytest.approx(np.sqrt(np.mean(errors[kept] ** 2)), rel=1e-12)
     assert later.mce < whole.mce          # the start-up spike is left out
+    assert later.travel_time == whole.travel_time == pytest.approx(0.6)   # the path's time, not the part scored
     with pytest.raises(ScoreError, match="no samples at t >= 5"):
         score_run(loop.curve, run, from_time=5.0)
 
@@ -223,6 +224,7 @@ def test_score_command_from_keeps_the_json_keys(tmp_path):
     assert set(later) == set(whole) and later["from_time"] == 0.3 and whole["from_time"] == 0.0
     assert later["mce"] == pytest.approx(score_run(loop.curve, run, 0.3).mce, rel=1e-12)
     assert later["tracking_max_by_axis"].keys() == {"x", "y"} and later["units"]["mce"] == "m"
+    assert later["travel_time"] == whole["travel_time"] == pytest.approx(0.6)
     bad = subprocess.run(cli + ["--from", "9"], capture_output=True, text=True, cwd=ROOT)
     assert bad.returncode == 2 and bad.stderr.count("\n") == 1 and "no samples at t >= 9" in bad.stderr
 

@@ -61,6 +61,10 @@ def test_plot_writes_every_figure_and_a_report_with_ratios_and_experiments(bags,
         text = read_run(path).experiment_text
         assert f"<pre>{html.escape(text)}</pre>" in page
     assert page.count("<details>") == 2
+    differences = page.split("<h2>Differences</h2>")[1].split("</table>")[0]     # how the experiments differ
+    assert (f"<td><code>axes</code></td><td>{html.escape(str(['x', 'y', 'z']))}</td>"      # the baseline first
+            f"<td>{html.escape(str(['x', 'y']))}</td>") in differences
+    assert "<code>sample_time</code>" not in differences                       # the same in both
 
 
 def test_three_axis_run_gets_a_3d_path_beside_the_planar_one(drawn):
@@ -131,3 +135,28 @@ def test_runs_with_no_steps_one_step_or_huge_values_still_plot(bags, tmp_path):
     x_tracking = figs["tracking"].axes[0]                          # the good run is not flattened by it
     assert x_tracking.get_ylim()[1] < 100.0
     assert [text.get_text() for text in x_tracking.texts] == [f"off scale: {PLANAR} (blown)"]
+
+
+def test_error_maps_of_compared_runs_share_one_colour_scale(bags):
+    """Every panel of the error map has the same colour scale (one colour bar), so runs and ILC passes are
+    compared by eye: linear where the runs' largest errors are within tenfold, else logarithmic down to a
+    tenth of the smallest of them."""
+    from matplotlib.colors import LogNorm
+    (path, _), _ = bags
+    run = read_run(path)
+    worse = _cut(run, len(run.result.time))
+    worse.result.position[:] = worse.result.reference_position + 3e-6 * (worse.result.position
+                                                                         - worse.result.reference_position) / 1e-7
+    for pair, logarithmic in (([("a", run), ("b", run)], False), ([("a", run), ("worse", worse)], True)):
+        fig = figures(pair)["error_map"]
+        maps = [c for ax in fig.axes if ax.get_label() != "<colorbar>" for c in ax.collections
+                if c.get_array() is not None]
+        assert len(maps) == 2 and maps[0].norm is maps[1].norm
+        bars = [ax for ax in fig.axes if ax.get_label() == "<colorbar>"]
+        assert len(bars) == 1
+        norm = maps[0].norm
+        assert isinstance(norm, LogNorm) == logarithmic
+        largest = [float(np.nanmax(c.get_array())) for c in maps]
+        assert norm.vmax == pytest.approx(max(largest), rel=0.05)
+        if logarithmic:
+            assert norm.vmin == pytest.approx(min(largest) / 10.0, rel=0.05)

@@ -89,3 +89,40 @@ def test_a_class_without_a_batch_minimum_batches_from_two_members():
     _, experiment = experiments_for(shortened(DEFAULT.parent / "paper000_mech_lag_tangent_uv.yaml", 0.1), [{}])[0]
     assert experiment.estimator["type"] == "tangent_line"
     assert batch_minimum(build_loop(experiment)) == (2, None)
+
+
+def test_the_sweep_s_progress_counts_every_simulated_step():
+    """The progress bar moves with the steps the workers simulate (every 256 steps of a run, every 256 steps
+    times the members of a batch), and a chunk tops up what its diverged runs did not take, so that the count
+    ends at every combination's steps exactly."""
+    import multiprocessing
+
+    from contouring_ros.core import progress
+    from contouring_ros.core.batch import simulate_batch
+    from contouring_ros.core.simulation import simulate
+    from contouring_ros.sweep import _score_chunk, experiments_for
+    experiments = [e for _, e in experiments_for(shortened(DEFAULT, 0.6), [{"ccc.kp": kp} for kp in (1.0, 2.0, 1e9)])]
+    counter = multiprocessing.Value("q", 0)
+    progress.attach(counter)
+    try:
+        simulate(build_loop(experiments[0]))                       # 601 steps: two additions of 256
+        assert counter.value == 512
+        simulate_batch([build_loop(e) for e in experiments[:2]])   # two members
+        assert counter.value == 512 + 2 * 512
+        counter.value = 0
+        scores, _, failures = _score_chunk(experiments)            # kp = 1e9 diverges at once
+        assert scores[2] is None and failures[2]
+        assert counter.value == sum(e.n_steps for e in experiments) == 3 * 601
+    finally:
+        progress.attach(None)
+
+
+def test_the_sweep_s_summary_speaks_of_combinations_not_chunks():
+    from contouring_ros.sweep import SweepRow, sweep_summary
+    why = "runs faster one by one: a batch with the NewtonEstimator pays off from 12 combinations of one kind"
+    rows = [SweepRow({"ccc.kp": k}, object(), why) for k in range(6)]
+    assert sweep_summary(rows, 4.24, 2) == f"6 combinations in 4.2 s on 2 processes: all run one by one ({why})"
+    mixed = [SweepRow({}, object()), SweepRow({}, object()), SweepRow({}, None, "no batch path", "diverged at ...")]
+    assert sweep_summary(mixed, 1.0, 1) == ("3 combinations in 1.0 s on 1 process: 2 run together in vectorised "
+                                            "batches, 1 one by one (no batch path)\n"
+                                            "1 without scores (diverged), listed last with the reason")

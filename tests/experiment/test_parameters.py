@@ -229,3 +229,60 @@ def test_run_with_set_records_the_changed_experiment(tmp_path):
     assert experiment.controller["kp"] == 2.0
     expected = simulate(build_loop(experiment))
     assert (run.result.position == expected.position).all() and (run.result.command == expected.command).all()
+
+
+def test_set_names_the_run_after_what_it_changed(tmp_path):
+    """A run changed with --set is named after its settings (its bag, legends, compare columns and report
+    then tell it from the file's own runs); different settings keep different names even past 100
+    characters; a name the settings give themselves wins; the API names its runs the same way."""
+    from contouring_ros import api
+    from contouring_ros.runner import default_bag_path
+    from contouring_ros.sweep import settings_name, written_settings
+    _, plain = written_settings(DEFAULT, ["ccc.kp=1.0"], tmp_path)
+    assert plain.name == "paper000_b_ismc_h50_newton_ccc.kp-1.0"
+    (tmp_path / "two").mkdir()
+    _, changed = written_settings(DEFAULT, ["ccc.kp=2.0", "x/servo.a=13.0"], tmp_path / "two")
+    assert changed.name == "paper000_b_ismc_h50_newton_ccc.kp-2.0_x-servo.a-13.0"
+    assert default_bag_path(changed).name.startswith("paper000_b_ismc_h50_newton_ccc.kp-2.0_x-servo.a-13.0_")
+    (tmp_path / "named").mkdir()
+    _, named = written_settings(DEFAULT, ["ccc.kp=2.0", "experiment.name=stiff"], tmp_path / "named")
+    assert named.name == "stiff"
+    long = [settings_name("a" * 90, {"ccc.kp": value}) for value in (1.0, 2.0)]
+    assert all(len(name) <= 100 for name in long) and long[0] != long[1]
+    assert api.simulate(DEFAULT, {"duration": 0.01, "ccc.kp": 2.0}).experiment.name == \
+        "paper000_b_ismc_h50_newton_duration-0.01_ccc.kp-2.0"
+
+
+def test_compare_names_runs_by_their_settings_and_says_how_they_differ(tmp_path):
+    """compare's columns carry what --set changed, and a last block lists the keys whose values differ
+    between the runs' experiments with each run's value."""
+    from conftest import ROOT, shortened
+    path = tmp_path / "short.yaml"
+    path.write_text(shortened(DEFAULT, 0.2))
+    cli = [sys.executable, "-m", "contouring_ros.cli"]
+    for bag, extra in (("plain.mcap", []), ("stiff.mcap", ["--set", "ccc.kp=2.0", "--set", "x/servo.a=13.0"])):
+        done = subprocess.run(cli + ["simulate", str(path), "--bag", str(tmp_path / bag)] + extra,
+                              capture_output=True, text=True, cwd=ROOT, timeout=300)
+        assert done.returncode == 0, done.stderr
+    out = subprocess.run(cli + ["compare", str(tmp_path / "plain.mcap"), str(tmp_path / "stiff.mcap")],
+                         capture_output=True, text=True, cwd=ROOT, timeout=300)
+    assert out.returncode == 0, out.stderr
+    header = out.stdout.splitlines()[0].split()
+    name = "paper000_b_ismc_h50_newton"          # the file's experiment.name
+    assert header == [name, f"{name}_ccc.kp-2.0_x-servo.a-13.0"]
+    differ = out.stdout[out.stdout.index("how the experiments differ:"):].splitlines()[1:]
+    rows = {line.split()[0]: line.split(None, 1)[1] for line in differ}     # in the file's order
+    assert rows == {"ccc.kp": f"{name}: 1.0; {name}_ccc.kp-2.0_x-servo.a-13.0: 2.0",
+                    "x/servo.a": f"{name}: 12.5; {name}_ccc.kp-2.0_x-servo.a-13.0: 13.0"}
+
+
+def test_run_never_overwrites_a_file_at_its_bag_path(tmp_path):
+    """`contouring-ros run CONFIG --bag PATH` with something at PATH is refused in one line before any node
+    starts, and the file is left as it was (was: deleted, then the bag written in its place)."""
+    from conftest import ROOT
+    mine = tmp_path / "mine.mcap"
+    mine.write_text("a user's file\n")
+    done = subprocess.run([sys.executable, "-m", "contouring_ros.cli", "run", str(DEFAULT), "--bag", str(mine)],
+                          capture_output=True, text=True, cwd=ROOT, timeout=120)
+    assert done.returncode == 2 and done.stderr.count("\n") == 1 and "exists" in done.stderr, done.stderr
+    assert "starting" not in done.stdout and mine.read_text() == "a user's file\n"

@@ -240,3 +240,45 @@ def test_wait_until_returns_at_the_deadline_when_spinning():
             assert 0.0 <= time.time() - deadline < 0.005 * machine_pace()     # a busy machine wakes it later
     finally:
         rclpy.shutdown(context=context)
+
+
+def test_simulate_bag_holds_the_graph_s_payloads(default_runs, tmp_path, capsys):
+    """`contouring-ros simulate CONFIG --bag PATH` writes the bag the node graph records (every topic's
+    payloads equal to the graph's bag of the same experiment), so plot, export and blocks work without the
+    graph; an existing file is never overwritten."""
+    from contouring_ros import cli
+    path, bags = default_runs
+    out = tmp_path / "simulated.mcap"
+    assert cli.main(["simulate", str(path), "--bag", str(out)]) == 0
+    assert f"bag: {out}" in capsys.readouterr().out
+    graph_payloads, simulated = (read_run(bag, keep_payloads=True).payloads for bag in (bags[0], out))
+    assert set(graph_payloads) == set(simulated) and len(simulated) >= 7
+    for topic in graph_payloads:
+        assert graph_payloads[topic] == simulated[topic], topic
+    assert score_bag(out)[0] == score_bag(bags[0])[0]
+    before = out.read_bytes()
+    assert cli.main(["simulate", str(path), "--bag", str(out)]) == 2
+    error = capsys.readouterr().err
+    assert error.count("\n") == 1 and "exists" in error and out.read_bytes() == before
+
+
+def test_run_shows_its_progress_and_scores_from_a_time(tmp_path, capsys, monkeypatch):
+    """`contouring-ros run` off a terminal prints progress lines with the steps the recorder holds in full, up
+    to the last; `--from T` prints the scores of the samples at t >= T as `simulate --from T` does, and a run
+    changed with --set is named after its settings."""
+    from contouring_ros import cli, notices
+    path = tmp_path / "short.yaml"
+    path.write_text(shortened(DEFAULT, 0.3))
+    monkeypatch.setattr(notices, "SLOW_NOTE_AFTER", 0.0)          # a line at every poll, not every 10 s
+    monkeypatch.setattr(notices, "PROGRESS_LINE_EVERY", 0.0)
+    bag = tmp_path / "run.mcap"
+    assert cli.main(["run", str(path), "--composed", "--set", "ccc.kp=2.0", "--from", "0.1", "--bag", str(bag)]) == 0
+    out, err = capsys.readouterr()
+    counts = [int(line.split()[1]) for line in err.splitlines() if line.startswith("run: ") and " of 301 steps" in line]
+    assert counts and counts == sorted(counts) and counts[-1] == 301, err
+    assert cli.main(["simulate", str(path), "--set", "ccc.kp=2.0", "--from", "0.1"]) == 0
+    simulated = capsys.readouterr().out
+    table = out[out.index("scores of the samples at t >= 0.1 s"):]
+    assert table.splitlines()[:15] == simulated.splitlines()[:15] and len(simulated.splitlines()) == 15
+    assert "paper000_b_ismc_h50_newton_ccc.kp-2.0" in table.splitlines()[1]
+    assert score_bag(bag)[0].steps == 301                          # the bag holds the whole run

@@ -87,6 +87,13 @@ def test_each_ilc_pass_through_the_graph_equals_its_simulated_pass(tmp_path):
         for name in ("position", "correction", "command"):
             np.testing.assert_array_equal(getattr(recorded, name), getattr(expected, name), err_msg=name)
     assert np.any(read_run(bags[1]).result.correction != 0.0)
+    # `simulate --bag` writes each pass's bag with the graph's payloads on every topic
+    from contouring_ros import cli
+    assert cli.main(["simulate", str(path), "--bag", str(tmp_path / "sim.mcap")]) == 0
+    for j, bag in enumerate(bags, 1):
+        graph_payloads, simulated = (read_run(b, keep_payloads=True).payloads for b in (bag, tmp_path / f"sim_pass{j}.mcap"))
+        assert set(graph_payloads) == set(simulated)
+        assert all(graph_payloads[topic] == simulated[topic] for topic in graph_payloads), j
 
 
 def test_a_reference_with_fewer_preview_points_than_read_stops_the_node_in_one_line():

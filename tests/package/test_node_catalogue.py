@@ -17,9 +17,14 @@ from test_launch import _launched, launch_file  # noqa: F401 (launch_file: the f
 AXES = ["x", "y", "z"]
 
 
-def test_setup_py_installs_the_catalogue_s_console_scripts_without_importing_the_package():
-    """setup.py runs with numpy and rclpy unimportable and reads the catalogue without importing the package."""
+@pytest.mark.parametrize("command, ros_layout", [("install", True), ("develop", True), ("bdist_wheel", False),
+                                                  ("editable_wheel", False), ("dist_info", False)])
+def test_setup_py_installs_the_catalogue_s_console_scripts_without_importing_the_package(command, ros_layout):
+    """setup.py runs with numpy and rclpy unimportable and reads the catalogue without importing the package;
+    colcon's commands (install, develop) get the executables `ros2 run` names, pip's wheel builds the
+    contouring-ros-<node> commands, so that nothing named plant or servo lands on the PATH."""
     script = ("import runpy, sys, setuptools\n"
+              f"sys.argv = ['setup.py', {command!r}]\n"
               "sys.modules['numpy'] = sys.modules['rclpy'] = None\n"
               "setuptools.setup = lambda **kw: print(repr(kw['entry_points']['console_scripts']))\n"
               "runpy.run_path('setup.py')\n"
@@ -27,9 +32,12 @@ def test_setup_py_installs_the_catalogue_s_console_scripts_without_importing_the
     result = subprocess.run([sys.executable, "-c", script], cwd=ROOT, capture_output=True, text=True, timeout=60)
     assert result.returncode == 0, result.stderr
     scripts = eval(result.stdout)
-    assert scripts == [f"{node.console_script} = contouring_ros.nodes.scripts:{node.console_script}"
-                       for node in catalogue.NODES] \
-        + ["contouring-ros = contouring_ros.cli:main"]
+    names = [node.console_script if ros_layout else node.pip_script for node in catalogue.NODES]
+    assert scripts == [f"{name} = contouring_ros.nodes.scripts:{node.console_script}"
+                       for name, node in zip(names, catalogue.NODES)] + ["contouring-ros = contouring_ros.cli:main"]
+    if not ros_layout:
+        assert all(name.startswith("contouring-ros-") for name in names)
+        assert "contouring-ros-contour-estimator" in names and "contouring-ros-plant" in names
 
 
 @pytest.mark.parametrize("node", catalogue.NODES, ids=lambda node: node.name)
