@@ -76,8 +76,11 @@ class IPOPCMAES:
         self._over = self.n == 0 or self.budget <= 0
         self._design = []
         if not self._over and design > 0:
+            import warnings
             from scipy.stats import qmc
-            self._design = [list(x) for x in qmc.Sobol(self.n, scramble=True, seed=self.seed).random(int(design))]
+            with warnings.catch_warnings():       # a design of any size: the balance of 2^m points is not needed
+                warnings.simplefilter("ignore", UserWarning)
+                self._design = [list(x) for x in qmc.Sobol(self.n, scramble=True, seed=self.seed).random(int(design))]
         elif not self._over:
             self._new_run(self.start)
 

@@ -193,9 +193,9 @@ def _magnitude(value) -> float:
 
 
 def _pid_dimensions(context: TuningContext, prefix: str = "") -> tuple:
-    top = context.nyquist / 2.0
-    return (_hz(f"{prefix}f_p", 0.01, top, off=True), _hz(f"{prefix}f_i", 0.01, top, off=True),
-            Dimension(f"{prefix}r_d", "", 1e-3, 10.0, "log", off=True))
+    top = context.nyquist / 4.0
+    return (_hz(f"{prefix}f_p", 0.1, top, off=True), _hz(f"{prefix}f_i", 0.1, top, off=True),
+            Dimension(f"{prefix}r_d", "", 1e-2, 3.0, "log", off=True))
 
 
 def _pid_gains(values: dict, response: Callable, prefix: str = "") -> dict:
@@ -219,9 +219,9 @@ def _pid_point(kp: float, ki: float, kd: float, response: Callable, prefix: str 
 
 def pid_contour_space(section: dict, context: TuningContext) -> Space | None:
     """A PID contour controller (Koren's CCC, Koren & Lo's variable gain, paper 000's unit vector): the
-    proportional and integral terms' crossover frequencies f_p, f_i (0.01 Hz to a quarter of the sample
+    proportional and integral terms' crossover frequencies f_p, f_i (0.1 Hz to an eighth of the sample
     rate, or off) through the axes' mean plant, and the derivative-to-proportional ratio r_d at f_p
-    (1e-3 to 10, or off). None where a plant states no response."""
+    (0.01 to 3, or off). None where a plant states no response."""
     if context.response(1.0) is None:
         return None
 
