@@ -373,16 +373,15 @@ def _paper(args):
         if args.paper != "all" and args.paper not in with_readings:
             raise ConfigError(f"paper {args.paper}: no config/readings/paper{args.paper}.yaml (papers with "
                               f"readings: {', '.join(sorted(with_readings))})")
-        chosen = [p for p in chosen if p in with_readings] if args.paper == "all" else chosen
     sections = []
     for p in chosen:
         sections.append(paper_report(p, graph=args.graph, progress=say))
-        if args.readings:
+        if args.readings and p in with_readings:
             say(f"paper {p}: measuring its open readings")
             sections.append(readings_report(analyse(p, workers=args.workers)))
     text = "\n\n".join(sections)
     print(text)
-    print(f"wrote {write_report(text, args.paper, args.out)}", file=sys.stderr)
+    print(f"wrote {write_report(text, args.paper, args.out, args.readings)}", file=sys.stderr)
     if args.readings:
         return
     from .claims import claim_files, claims_report, write_claims_report
