@@ -5,6 +5,7 @@ over what interval a figure is computed ...). ``config/readings/paper<N>.yaml`` 
 
     paper: "000"
     cases: [paper000_b_ismc_h50_newton, ...]     # scenario files with the paper's figures (mce_um, tace_um, rms_um)
+    summary: "what the measurements below say, in a few sentences (printed after the search)"
     max_combinations: 400                        # above it the search is coordinate descent, not exhaustive
     readings:
       - id: load
@@ -47,6 +48,7 @@ from pathlib import Path
 
 import yaml
 
+from .claims import verdict
 from .errors import ConfigError
 from .experiment.files import load_experiment
 from .experiment.scenarios import CONFIG_DIR
@@ -107,6 +109,7 @@ class PaperReadings:
     max_combinations: int = 400
     path: Path | None = None
     excluded: set = field(default_factory=set)    # (case, metric) the paper's own figures rule out: no target
+    summary: str = ""
 
     def choice(self, picks: dict) -> tuple:
         """A reading id -> alternative index mapping as a full choice tuple (unnamed readings: faithful)."""
@@ -193,7 +196,7 @@ def load_readings(paper: str, directory=READINGS_DIR) -> PaperReadings:
             raise ConfigError(f"{path}: relations[{i}].metric: one of {', '.join(METRICS)}")
         relations.append(entry)
     result = PaperReadings(str(data.get("paper", paper)), cases, figures, readings, relations, [],
-                           int(data.get("max_combinations", 400)), path)
+                           int(data.get("max_combinations", 400)), path, summary=str(data.get("summary", "")))
     for i, entry in enumerate(data.get("gaps") or []):
         where = f"{path}: gaps[{i}]"
         entry = _mapping(entry, where)
@@ -434,12 +437,6 @@ def analyse(paper: str, workers: int | None = None, directory=READINGS_DIR) -> A
                     closest_distance, how, measured, relations, gaps)
 
 
-def _holds(theirs: float, ours) -> str:
-    if ours is None:
-        return "diverged"
-    return "holds" if (ours < 1) == (theirs < 1) else "reversed"
-
-
 def readings_report(analysis: Analysis) -> str:
     """The Markdown section of one paper: readings, sensitivity, search, per-case gaps, relative claims."""
     spec = analysis.spec
@@ -475,7 +472,8 @@ def readings_report(analysis: Analysis) -> str:
               "(ties: its RMS).",
               "", f"- faithful default: worst ratio {_worst(dd[0])}, RMS |ln ratio| {dd[1]:.3g}{every(da)}",
               f"- closest reading: {spec.describe(analysis.closest)}: worst ratio {_worst(cd[0])}, "
-              f"RMS |ln ratio| {cd[1]:.3g}{every(ca)}", "", "| case | metric | paper | ours, default | ours, closest | "
+              f"RMS |ln ratio| {cd[1]:.3g}{every(ca)}", *(["", spec.summary] if spec.summary else []), "",
+              "| case | metric | paper | ours, default | ours, closest | "
               "what explains the rest of the gap (measured) |", "|---|---|---:|---:|---:|---|"]
     explained = {}
     for gap, measured in analysis.gaps:
@@ -488,11 +486,12 @@ def readings_report(analysis: Analysis) -> str:
                      f"{_ratio_text(analysis.default[case][metric], theirs)} | "
                      f"{_ratio_text(analysis.closest_figures[case][metric], theirs)} | {why} |")
     if analysis.relations:
-        lines += ["", "The paper's relative claims (proposed / baseline):", "",
+        lines += ["", "The paper's relative claims (proposed / baseline; verdicts as in `config/claims/`: holds where ours "
+                  "has at least 3/4 of the paper's cut):", "",
                   "| proposed | baseline | metric | paper | default | verdict | closest | verdict |",
                   "|---|---|---|---:|---:|---|---:|---|"]
         for r, theirs, default, closest in analysis.relations:
             fmt = lambda v: "-" if v is None else f"{v:.3g}"  # noqa: E731
             lines.append(f"| {short[r['proposed']]} | {short[r['baseline']]} | {r['metric'].upper()} | {theirs:.3g} | "
-                         f"{fmt(default)} | {_holds(theirs, default)} | {fmt(closest)} | {_holds(theirs, closest)} |")
+                         f"{fmt(default)} | {verdict(default, theirs)} | {fmt(closest)} | {verdict(closest, theirs)} |")
     return "\n".join(lines)
