@@ -25,6 +25,8 @@ over what interval a figure is computed ...). ``config/readings/paper<N>.yaml`` 
         cause: "one line: the change that removes the cause"
         remove: {settings: {...}, from_time: 0.3}    # the run with the cause removed (measure: as readings')
         after: [0.3, 1.5]                        # ours / paper with it removed lies here (tests hold it)
+      - {case: ..., metric: mce, cause: "...", remove: {...}, after: [12, 16], rules_out: true}   # a cause tried
+                                                 # that does NOT explain it: the figure stays in `after`
       - {case: ..., metric: mce, unexplained: "what was tried"}
       - case: paper004_saddle_eso
         metric: mce
@@ -96,6 +98,7 @@ class Gap:
     after: tuple | None = None
     unexplained: str = ""
     paper_bound: dict = field(default_factory=dict)
+    rules_out: bool = False        # a change tried that leaves the figure where it was: not the cause
 
 
 @dataclass
@@ -213,7 +216,10 @@ def load_readings(paper: str, directory=READINGS_DIR) -> PaperReadings:
         result.gaps.append(Gap(entry["case"], entry["metric"], _mapping(entry.get("base"), f"{where}.base"),
                                str(entry.get("cause", "")), _mapping(entry.get("remove"), f"{where}.remove"),
                                tuple(float(v) for v in after) if after else None, str(entry.get("unexplained", "")),
-                               _mapping(entry.get("paper_bound"), f"{where}.paper_bound")))
+                               _mapping(entry.get("paper_bound"), f"{where}.paper_bound"),
+                               bool(entry.get("rules_out", False))))
+        if result.gaps[-1].rules_out and not (entry.get("remove") and after):
+            raise ConfigError(f"{where}: rules_out needs remove and after")
         if result.gaps[-1].paper_bound:
             try:
                 bound = paper_bound(result.gaps[-1])[0]
@@ -383,7 +389,8 @@ def measure_gap(spec: PaperReadings, evaluator: Evaluator, gap: Gap) -> dict:
         out["after"] = after
         out["holds"] = (gap.after is None or (after is not None
                                               and gap.after[0] <= after / theirs <= gap.after[1]))
-        out["text"] = (f"{gap.cause}: {_ratio_text(before, theirs)} -> {_ratio_text(after, theirs)}"
+        out["text"] = (("not the cause: " if gap.rules_out else "")
+                       + f"{gap.cause}: {_ratio_text(before, theirs)} -> {_ratio_text(after, theirs)}"
                        + ("" if out["holds"] else f" (stated {gap.after[0]:g}-{gap.after[1]:g}x: NOT REPRODUCED)"))
     elif gap.paper_bound:
         bound, how = paper_bound(gap)

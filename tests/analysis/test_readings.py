@@ -51,14 +51,18 @@ def _gaps(kind: str):
 
 @pytest.mark.parametrize("paper,index", _gaps("remove"))
 def test_each_stated_cause_moves_the_figure_as_stated(paper, index):
-    """Removing the cause brings ours / paper into the stated range, from outside it: the cause is what moves it."""
+    """Removing the cause brings ours / paper into the stated range, from outside it: the cause is what moves it
+    (a cause ruled out leaves it in the range)."""
     spec, evaluator = _evaluator(paper)
     gap = spec.gaps[index]
     measured = measure_gap(spec, evaluator, gap)
     low, high = gap.after
     before, after = measured["before"] / measured["theirs"], measured["after"] / measured["theirs"]
     assert low <= after <= high, f"{gap.cause}: ours / paper {before:.3g} -> {after:.3g}, stated {low}-{high}"
-    assert not low <= before <= high, f"{gap.cause}: already {before:.3g} before the cause is removed"
+    if gap.rules_out:       # a cause tried and ruled out: the figure stays where it was
+        assert low <= before <= high, f"{gap.cause}: {before:.3g} before, outside the stated {low}-{high}"
+    else:
+        assert not low <= before <= high, f"{gap.cause}: already {before:.3g} before the cause is removed"
 
 
 def test_paper_004_table_2_exceeds_its_own_tracking_bound_and_table_3_does_not():
