@@ -175,6 +175,8 @@ def load_readings(paper: str, directory=READINGS_DIR) -> PaperReadings:
         raise ConfigError(f"{path}: cases: a list of scenario names with the paper's figures is needed")
     figures = {}
     for case in cases:
+        if not (CONFIG_DIR / f"{case}.yaml").exists():
+            raise ConfigError(f"{path}: cases: {case!r} is no scenario of {CONFIG_DIR}")
         info = load_experiment(CONFIG_DIR / f"{case}.yaml").info.get("paper", {})
         figures[case] = {m: float(info[key]) for m, key in METRICS.items() if info.get(key) is not None}
         if not figures[case]:

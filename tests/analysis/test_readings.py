@@ -139,6 +139,9 @@ def test_a_malformed_readings_file_is_refused_naming_the_key(tmp_path):
         load_readings("000", tmp_path)
     with pytest.raises(ConfigError, match="no readings file"):
         load_readings("042", tmp_path)
+    (tmp_path / "paper000.yaml").write_text("paper: '000'\ncases: [paper000_nope]\n")
+    with pytest.raises(ConfigError, match="cases: 'paper000_nope' is no scenario"):
+        load_readings("000", tmp_path)
     (tmp_path / "paper000.yaml").write_text("paper: '000'\ncases: [paper000_mech_load_ismc]\n")
     with pytest.raises(ConfigError, match="gives no paper figure"):
         load_readings("000", tmp_path)
