@@ -48,10 +48,13 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
 import yaml
 
 from .claims import verdict
-from .errors import ConfigError
+from .core.simulation import simulate
+from .errors import ConfigError, Diverged
+from .experiment.build import build_loop
 from .experiment.files import load_experiment
 from .experiment.scenarios import CONFIG_DIR
 from .sweep import experiments_for, score_experiments
@@ -297,13 +300,9 @@ class _Figures:
 def _measured(text: str, settings: dict, from_time: float, measure: str):
     """MCE, TACE and RMS [m] of one run's samples at t >= ``from_time`` under a measure other than the exact
     contour error; None where the run diverged."""
-    import numpy as np
-
-    from .api import simulate
-    from .errors import Diverged
     experiment = experiments_for(text, [settings], "readings")[0][1]
     try:
-        result = simulate(experiment).result
+        result = simulate(build_loop(experiment))
     except Diverged:
         return None
     keep = result.time >= from_time - 1e-12
