@@ -431,9 +431,23 @@ def _paper(args):
                           f"(papers with scenarios: {', '.join(papers)}, or all)")
     say = lambda m: print(m, file=sys.stderr, flush=True)  # noqa: E731
     chosen = papers if args.paper == "all" else [args.paper]
-    text = "\n\n".join(paper_report(p, graph=args.graph, progress=say) for p in chosen)
+    if args.readings:
+        from .readings import analyse, readings_files, readings_report
+        with_readings = {path.stem[5:] for path in readings_files()}
+        if args.paper != "all" and args.paper not in with_readings:
+            raise ConfigError(f"paper {args.paper}: no config/readings/paper{args.paper}.yaml (papers with "
+                              f"readings: {', '.join(sorted(with_readings))})")
+    sections = []
+    for p in chosen:
+        sections.append(paper_report(p, graph=args.graph, progress=say))
+        if args.readings and p in with_readings:
+            say(f"paper {p}: measuring its open readings")
+            sections.append(readings_report(analyse(p, workers=args.workers)))
+    text = "\n\n".join(sections)
     print(text)
-    print(f"wrote {write_report(text, args.paper, args.out)}", file=sys.stderr)
+    print(f"wrote {write_report(text, args.paper, args.out, args.readings)}", file=sys.stderr)
+    if args.readings:
+        return
     from .claims import claim_files, claims_report, write_claims_report
     with_claims = [p for p in chosen if any(path.stem == f"paper{p}" for path in claim_files())]
     if with_claims:
@@ -587,6 +601,10 @@ def main(argv=None):
     p.add_argument("--out", default="reports", help="folder for the Markdown report (default: reports/)")
     p.add_argument("--graph", action="store_true", help="run each scenario through the node graph too")
     p.add_argument("--no-maps", action="store_true", help="write the claims report without computing the regime maps")
+    p.add_argument("--readings", action="store_true",
+                   help="instead of the claims: each open reading's effect on every figure, the single reading "
+                        "closest to the paper's figures and what explains the rest of each gap "
+                        "(config/readings/paper<N>.yaml)")
     p.add_argument("--workers", type=int, help="processes for the claims and maps (default: one per core)")
     _scheduler_option(p)
     p.set_defaults(func=_paper)
