@@ -607,7 +607,7 @@ class Tuning:
         paying for it continuously across each bound (:func:`_objective`), so that a search can settle on an
         optimum on a bound. The objective is a function of the point alone: searches from anywhere see the
         same landscape."""
-        out, experiments, owners = [], [], []
+        out, experiments, owners, loops = [], [], [], {}
         for unit, values, gains in points:
             out.append(Evaluation(gains, Outcome(), 100.0, False, unit=unit, point=values))
             try:
@@ -621,7 +621,7 @@ class Tuning:
                 out[-1].outcome = Outcome(failure="refused: its linear loop is unstable")
                 out[-1].objective = 50.0 + PENALTY * 3.0
                 continue
-            out[-1].ms = robustness
+            loops[len(out) - 1] = robustness
             experiments += here
             owners += [(len(out) - 1, j) for j in range(len(here))]
         outcomes = _outcomes(experiments, self.from_time, [self.limits[j] for _, j in owners])
@@ -630,18 +630,18 @@ class Tuning:
             runs.setdefault(i, [None] * (len(self.checks) + 1))[j] = outcome
         self.tuned.robustness_runs += len(owners) - len(runs)
         for i, outcomes in runs.items():
-            self._judge(out[i], outcomes[0], outcomes[1:])
+            self._judge(out[i], outcomes[0], outcomes[1:], loops[i])
         return out
 
-    def _judge(self, evaluation: Evaluation, nominal: Outcome, perturbed: list) -> None:
-        """The objective and admissibility of a point from its nominal run and its perturbed runs."""
+    def _judge(self, evaluation: Evaluation, nominal: Outcome, perturbed: list, ms: tuple | None) -> None:
+        """The objective and admissibility of a point from its nominal run, its perturbed runs and its linear
+        loop's (Ms, stable, allowed Ms) (None: no linear loop)."""
         p = self.protocol
         objective, admissible = _objective(nominal, self.noise_limit, p)
         evaluation.outcome, evaluation.objective, evaluation.admissible = nominal, objective, admissible
         if not nominal.ok:
             return
         evaluation.worst = max((o.tace if o.ok else math.inf for o in perturbed), default=nominal.tace)
-        ms = evaluation.__dict__.pop("ms", None)
         if ms is not None and ms[0] > ms[2]:
             evaluation.objective += PENALTY * math.log10(ms[0] / ms[2])
             evaluation.admissible = False
@@ -776,7 +776,6 @@ def tune(data: dict, sections: dict, keys: tuple, machine: dict, noise_limit: fl
     robust_factor (otherwise only points far worse than the paper's would pass, and their error is large
     enough to hide any degradation)."""
     return Tuning(data, sections, keys, machine, noise_limit, from_time, protocol, where, robust_floor, space).run(optimiser)
-
 
 
 # ------------------------------------------------------------------------------------------ figures
