@@ -116,6 +116,9 @@ def test_parts_run_apart_are_reported_together(small_run, tmp_path):
     loaded = benchmark.load_parts([first])
     assert [r.label for r in loaded[0].rows] == [r.label for r in rows]
     assert loaded[0].rows[0].figure("tace") == rows[0].figure("tace")
+    _, direct, _ = benchmark.write_outputs([part], tmp_path / "direct")       # the table the run itself writes
+    _, saved, _ = benchmark.write_outputs(loaded, tmp_path / "saved")
+    assert saved.read_bytes() == direct.read_bytes()
     assert main(["benchmark", "--from-parts", str(first), str(tmp_path / "b.pkl"), "--out", str(tmp_path)]) == 0
     text = (tmp_path / "benchmark.md").read_text()
     assert "Generated in 2 parts" in text and "(here)" in text
