@@ -465,7 +465,7 @@ def run_benchmark(families: list, protocol: Protocol | None = None, workers: int
         raise ConfigError(f"--methods {' '.join(methods)}: no estimator, controller or servo set of the chosen "
                           "scenarios matches")
     rows = []
-    with executor(workers, scheduler) as (pool, _):
+    with executor(workers, scheduler, tasks=max(len(families), sum(len(c) for c, _ in plans.values()))) as (pool, _):
         references = {f.name: pool.submit(reference_job, f.data[f.proposed], f.from_time, f.name, protocol) for f in families}
         jobs = []
         for family in families:

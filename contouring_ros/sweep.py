@@ -269,7 +269,7 @@ def score_experiments(experiments: list, workers: int | None = None, progress: b
     :func:`contouring_ros.executors.pool`), vectorised where it can be."""
     from tqdm import tqdm
     out = [None] * len(experiments)
-    with executor(workers, scheduler) as (pool, workers), \
+    with executor(workers, scheduler, tasks=len(experiments)) as (pool, workers), \
             tqdm(total=len(experiments), desc=desc, disable=not progress, leave=False) as bar:
         chunks = _chunks(experiments, workers, batch)
         jobs = pool.map(_score_chunk, [[experiments[i] for i in chunk] for chunk in chunks],
