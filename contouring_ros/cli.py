@@ -83,7 +83,8 @@ def _rate(text: str) -> float:
     except ValueError:
         value = float("nan")
     if not (value == 0.0 or 1e-6 <= value <= 1e6):
-        raise argparse.ArgumentTypeError(f"expected 0 (as fast as possible) or a factor from 1e-6 to 1e6, got {text!r}")
+        raise argparse.ArgumentTypeError("expected 0 (as fast as possible) or a positive factor from 1e-6 to 1e6, got "
+                                         f"{text!r}")
     return value
 
 
