@@ -181,12 +181,14 @@ def _run_passes(config: Path, experiment, bag, run_one):
     """Every pass of a learning experiment through the graph, each pass's scores as it ends, then all side by
     side (:mod:`contouring_ros.learning`)."""
     from . import outputs
-    from .learning import pass_bag, passes, run_passes
+    from .learning import learned_path, pass_bag, passes, run_passes
     from .runner import default_bag_path
     from .scoring import curve_of, format_scores, score_run
     if bag:
         for j in range(1, passes(experiment) + 1):
             outputs.active().claim(pass_bag(Path(bag), j), outputs.BAG, "--bag")
+            if j > 1:
+                outputs.active().claim(learned_path(pass_bag(Path(bag), j)), outputs.LEARNED, "--bag")
     rows = []
 
     def report(j, path, recorded):

@@ -27,7 +27,7 @@ from pathlib import Path
 
 from .errors import OutputError
 
-__all__ = ["Outputs", "BAG", "PNG", "PARQUET", "PART", "HTML", "EXPORT_CSV", "BLOCKS_CSV", "SWEEP_CSV",
+__all__ = ["Outputs", "BAG", "PNG", "PARQUET", "PART", "LEARNED", "HTML", "EXPORT_CSV", "BLOCKS_CSV", "SWEEP_CSV",
            "BENCHMARK_CSV", "REPORT", "active", "signature", "check_write"]
 
 # an output kind: (what it is, the prefixes a file of that kind starts with)
@@ -35,6 +35,7 @@ BAG = ("an MCAP bag", (b"\x89MCAP",))
 PNG = ("a PNG figure", (b"\x89PNG",))
 PARQUET = ("a Parquet table", (b"PAR1",))
 PART = ("a benchmark part", (b"\x1f\x8b",))
+LEARNED = ("a learned correction (.npy)", (b"\x93NUMPY",))
 HTML = ("an HTML report", (b"<!DOCTYPE html>",))
 EXPORT_CSV = ("an exported table", (b"time_s,",))
 BLOCKS_CSV = ("a blocks table", (b"line,",))
@@ -42,7 +43,7 @@ SWEEP_CSV = ("a sweep table", (b"rank,",))
 BENCHMARK_CSV = ("a benchmark table", (b"paper,scenario,",))
 REPORT = ("a Markdown report of this package", (b"# Paper reproductions", b"# Claims", b"# Contouring benchmark"))
 
-_MAGIC = (b"\x89MCAP", b"\x89PNG", b"PAR1", b"\x1f\x8b")
+_MAGIC = (b"\x89MCAP", b"\x89PNG", b"PAR1", b"\x1f\x8b", b"\x93NUMPY")
 _ACTIVE: contextvars.ContextVar = contextvars.ContextVar("contouring_ros_outputs", default=None)
 
 

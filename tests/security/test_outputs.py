@@ -107,3 +107,16 @@ def test_every_atomic_write_of_a_command_obeys_its_rules(tmp_path):
     assert (tmp_path / "t.csv").read_text() == "rank,x\n1,2\n"
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]         # no temporary file left
     write_atomically(tmp_path / "notes.txt", lambda tmp: tmp.write_text("the API writes as asked\n"))
+
+
+def test_a_learning_run_never_writes_its_passes_over_a_users_files(folder, capsys):
+    (folder / "r_pass2_learned.npy").write_text("not a correction\n")
+    (folder / "r_pass3.mcap").write_text("not a bag\n")
+    before = _state(folder)
+    ilc = str(DEFAULT.parent / "ilc_ellipse.yaml")
+    _refused(capsys, ["run", ilc, "--composed", "--bag", "r.mcap"], "--bag r_pass")
+    assert _state(folder) == before
+    (folder / "r_pass3.mcap").unlink()
+    _refused(capsys, ["run", ilc, "--composed", "--bag", "r.mcap"], "--bag r_pass2_learned.npy: exists and is not "
+             "a learned correction")
+    assert (folder / "r_pass2_learned.npy").read_text() == "not a correction\n"
