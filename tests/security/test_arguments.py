@@ -14,6 +14,17 @@ from conftest import DEFAULT, ROOT
 CENTURY_NS = 100 * 365 * 86400 * 10**9
 
 
+@pytest.fixture(autouse=True)
+def no_work(monkeypatch):
+    """A refusal happens before any work: no pool may start (a --workers 100000 that got through would fork
+    that many processes)."""
+    from contouring_ros import executors
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("a process pool was started")
+    monkeypatch.setattr(executors, "ProcessPoolExecutor", refuse)
+
+
 @pytest.mark.parametrize("argv, option", [
     (["sweep", str(DEFAULT), "--grid", "ccc.kp=1,2", "--workers", "-1"], "--workers"),
     (["sweep", str(DEFAULT), "--grid", "ccc.kp=1,2", "--workers", "100000"], "--workers"),
