@@ -166,9 +166,10 @@ def writable(folder, label: str) -> None:
             from None
 
 
-def active() -> Outputs | None:
-    """The Outputs of the command running now (None outside a command: the Python API writes as asked)."""
-    return _ACTIVE.get()
+def active() -> Outputs:
+    """The Outputs of the command running now; outside a command (a command function called from Python), a
+    fresh one without inputs, whose claims check the same things."""
+    return _ACTIVE.get() or Outputs()
 
 
 def check_write(path, tmp) -> None:
