@@ -34,7 +34,7 @@ __all__ = ["Outputs", "BAG", "PNG", "PARQUET", "PART", "LEARNED", "HTML", "EXPOR
 BAG = ("an MCAP bag", (b"\x89MCAP",))
 PNG = ("a PNG figure", (b"\x89PNG",))
 PARQUET = ("a Parquet table", (b"PAR1",))
-PART = ("a benchmark part", (b"\x1f\x8b",))
+PART = ("a benchmark part", (b'{"format": "contouring_ros benchmark part"',))     # its gzip'd first line
 LEARNED = ("a learned correction (.npy)", (b"\x93NUMPY",))
 HTML = ("an HTML report", (b"<!DOCTYPE html>",))
 EXPORT_CSV = ("an exported table", (b"time_s,",))
@@ -43,15 +43,29 @@ SWEEP_CSV = ("a sweep table", (b"rank,",))
 BENCHMARK_CSV = ("a benchmark table", (b"paper,scenario,",))
 REPORT = ("a Markdown report of this package", (b"# Paper reproductions", b"# Claims", b"# Contouring benchmark"))
 
-_MAGIC = (b"\x89MCAP", b"\x89PNG", b"PAR1", b"\x1f\x8b", b"\x93NUMPY")
+_MAGIC = (b"\x89MCAP", b"\x89PNG", b"PAR1", b"\x93NUMPY")
 _ACTIVE: contextvars.ContextVar = contextvars.ContextVar("contouring_ros_outputs", default=None)
 
 
-def signature(path) -> bytes:
-    """What kind of file ``path`` is, by its first bytes: a binary format's magic, else its first line up to
-    the first comma (at most 40 bytes): the header's first column of a table, a report's title."""
+def _head(path, size: int = 64) -> bytes:
+    """The first ``size`` bytes of ``path``, of its decompressed contents where it is gzip data."""
     with open(path, "rb") as stream:
-        head = stream.read(64)
+        head = stream.read(size)
+    if head.startswith(b"\x1f\x8b"):
+        import gzip
+        try:
+            with gzip.open(path, "rb") as stream:
+                return b"gzip:" + stream.read(size)
+        except (OSError, EOFError):
+            return head
+    return head
+
+
+def signature(path) -> bytes:
+    """What kind of file ``path`` is, by its first bytes (of its contents where it is gzip data): a binary
+    format's magic, else its first line up to the first comma (at most 40 bytes): the header's first column
+    of a table, a report's title, a part's format."""
+    head = _head(path)
     for magic in _MAGIC:
         if head.startswith(magic):
             return magic
@@ -139,11 +153,10 @@ class Outputs:
 
 def _starts(path: Path, prefixes: tuple) -> bool:
     try:
-        with open(path, "rb") as stream:
-            head = stream.read(max(len(p) for p in prefixes))
+        head = _head(path, max(len(p) for p in prefixes))
     except OSError:
         return False
-    return any(head.startswith(p) for p in prefixes)
+    return any(head.removeprefix(b"gzip:").startswith(p) for p in prefixes)
 
 
 def writable(folder, label: str) -> None:

@@ -120,3 +120,12 @@ def test_a_learning_run_never_writes_its_passes_over_a_users_files(folder, capsy
     _refused(capsys, ["run", ilc, "--composed", "--bag", "r.mcap"], "--bag r_pass2_learned.npy: exists and is not "
              "a learned correction")
     assert (folder / "r_pass2_learned.npy").read_text() == "not a correction\n"
+
+
+def test_a_users_gzip_file_is_not_taken_for_a_part(folder, capsys):
+    import gzip
+    (folder / "data.gz").write_bytes(gzip.compress(b"my,own,data\n"))
+    before = _state(folder)
+    _refused(capsys, ["benchmark", "--scenarios", "paper001_caseI", "--save-part", "data.gz", "--out", "fresh"],
+             "--save-part data.gz: exists and is not a benchmark part")
+    assert _state(folder) == before
