@@ -482,7 +482,7 @@ def run_benchmark(families: list, protocol: Protocol | None = None, workers: int
         raise ConfigError(f"--methods {' '.join(methods)}: no estimator, controller or servo set of the chosen "
                           "scenarios matches")
     rows = []
-    with executor(workers, scheduler) as (pool, _):
+    with executor(workers, scheduler, tasks=max(len(families), sum(len(c) for c, _ in plans.values()))) as (pool, _):
         references = {f.name: pool.submit(reference_job, f.data[f.proposed], f.from_time, f.name, protocol) for f in families}
         jobs = []
         for family in families:
@@ -1032,27 +1032,33 @@ class Part:
 
 
 def save_part(part: Part, path) -> Path:
-    """Pickle ``part`` to ``path`` (read back by :func:`load_parts` with the same version of the package)."""
-    import pickle
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    write_atomically(path, lambda tmp: tmp.write_bytes(pickle.dumps(part, protocol=pickle.HIGHEST_PROTOCOL)))
-    return path
+    """Write ``part`` to ``path`` as a part file (:mod:`contouring_ros.parts`: JSON with a format version and
+    a checksum, read back by :func:`load_parts`; nothing in it can run code)."""
+    from .parts import save
+    return save(part, path)
 
 
 def load_parts(paths: list) -> list:
-    """The :class:`Part` of each file in ``paths`` (ConfigError naming a file that is not one, or whose
-    protocol differs from the first's: their rows would not compare)."""
-    import pickle
+    """The :class:`Part` of each file in ``paths`` (:func:`contouring_ros.parts.load`: checked before anything
+    is built). ConfigError naming a file that is not one, whose rows do not hang together, or whose protocol
+    differs from the first's (their rows would not compare)."""
+    from .parts import load
+    from .tuning import Tuned
     parts = []
     for path in paths:
-        try:
-            part = pickle.loads(Path(path).read_bytes())
-        except (OSError, pickle.UnpicklingError, EOFError, AttributeError, ImportError) as error:
-            raise ConfigError(f"--from-parts {path}: not a benchmark part of this version ({type(error).__name__}: "
-                              f"{error})") from None
+        part = load(path, f"--from-parts {path}")
         if not isinstance(part, Part):
-            raise ConfigError(f"--from-parts {path}: not a benchmark part (written by benchmark --save-part)")
+            raise ConfigError(f"--from-parts {path}: not a benchmark part (it holds a {type(part).__name__})")
+        problem = next((what for ok, what in (
+            (all(isinstance(f, Family) for f in part.families), "a scenario that is not a Family"),
+            (all(isinstance(r, Row) for r in part.rows), "a row that is not a Row"),
+            (all(any(r.family is f for f in part.families) for r in part.rows), "a row of no scenario of the part"),
+            (all((r.combination is None) != (r.excluded is None) for r in part.rows),
+             "a row with neither or both of a combination and an exclusion"),
+            (all(r.tuned is None or isinstance(r.tuned, Tuned) for r in part.rows), "a row whose tuning is not Tuned"),
+        ) if not ok), None)
+        if problem:
+            raise ConfigError(f"--from-parts {path}: odd contents for a benchmark part: {problem}")
         if parts and part.protocol != parts[0].protocol:
             raise ConfigError(f"--from-parts {path}: its tuning protocol differs from {paths[0]}'s")
         parts.append(part)

@@ -15,14 +15,64 @@ from .errors import BagError, ConfigError, ContouringError, Diverged, Interrupte
 from .experiment.scenarios import DEFAULT_EXPERIMENT, experiment_path as _experiment_path
 
 
+# the stated bounds of the numeric options, checked before any work
+MAX_WORKERS = 256         # --workers: processes (a pool never starts more than it has tasks)
+MAX_BATCH = 10_000        # sweep --batch: combinations per vectorised batch
+MAX_BUDGET = 100_000      # benchmark --budget: evaluations per combination
+MAX_DRAWS = 1_000         # benchmark --draws
+MAX_SEARCHES = 100        # benchmark --searches
+MAX_SECONDS = 1e9         # any time option (about 32 years)
+MAX_WAIT_SUBSCRIBERS = 1_000
+
+
 def _seconds(text: str) -> float:
-    """A non-negative finite time in seconds (argparse type)."""
+    """A non-negative finite time in seconds, at most MAX_SECONDS (argparse type)."""
     try:
         value = float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected seconds, got {text!r}") from None
-    if not 0.0 <= value < float("inf"):
-        raise argparse.ArgumentTypeError(f"expected a non-negative number of seconds, got {text!r}")
+    if not 0.0 <= value <= MAX_SECONDS:
+        raise argparse.ArgumentTypeError(f"expected a number of seconds from 0 to {MAX_SECONDS:g}, got {text!r}")
+    return value
+
+
+def _whole(low: int, high: int, what: str):
+    """An argparse type: a whole number of ``what`` from ``low`` to ``high``."""
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            value = None
+        if value is None or not low <= value <= high:
+            raise argparse.ArgumentTypeError(f"expected a whole number of {what} from {low} to {high}, got {text!r}")
+        return value
+    return parse
+
+
+def _seconds_at_most(limit: float):
+    """An argparse type: a number of seconds from 0 to ``limit``."""
+    def parse(text: str) -> float:
+        value = _seconds(text)
+        if value > limit:
+            raise argparse.ArgumentTypeError(f"expected a number of seconds from 0 to {limit:g}, got {text!r}")
+        return value
+    return parse
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse's parser with its errors on one line (the usage is one --help away)."""
+
+    def error(self, message):
+        self.exit(2, f"{self.prog}: error: {' '.join(message.split())} (see {self.prog} --help)\n")
+
+
+def _magnification(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not 0.0 < value <= 1e9:
+        raise argparse.ArgumentTypeError(f"expected a positive magnification up to 1e9, got {text!r}")
     return value
 
 
@@ -32,8 +82,9 @@ def _rate(text: str) -> float:
         value = float(text)
     except ValueError:
         value = float("nan")
-    if not 0.0 <= value < float("inf"):
-        raise argparse.ArgumentTypeError(f"expected 0 (as fast as possible) or a positive factor, got {text!r}")
+    if not (value == 0.0 or 1e-6 <= value <= 1e6):
+        raise argparse.ArgumentTypeError("expected 0 (as fast as possible) or a positive factor from 1e-6 to 1e6, got "
+                                         f"{text!r}")
     return value
 
 
@@ -66,6 +117,11 @@ def _with_settings(config: Path, specs):
 
 
 def _run(args):
+    from . import outputs
+    if args.bag:
+        outputs.active().claim(args.bag, outputs.BAG, "--bag")
+    else:
+        outputs.active().claim_folder("bags", "run")
     with _with_settings(_experiment_path(args.config), args.set) as (config, experiment):
         _run_config(args, config, experiment)
 
@@ -143,9 +199,15 @@ def _exit_on_breach(curve, result, experiment, bag=None):
 def _run_passes(config: Path, experiment, bag, run_one, from_time: float = 0.0):
     """Every pass of a learning experiment through the graph, each pass's scores as it ends, then all side by
     side (:mod:`contouring_ros.learning`)."""
-    from .learning import run_passes
+    from . import outputs
+    from .learning import learned_path, pass_bag, passes, run_passes
     from .runner import default_bag_path
     from .scoring import curve_of, format_scores, score_run
+    if bag:
+        for j in range(1, passes(experiment) + 1):
+            outputs.active().claim(pass_bag(Path(bag), j), outputs.BAG, "--bag")
+            if j > 1:
+                outputs.active().claim(learned_path(pass_bag(Path(bag), j)), outputs.LEARNED, "--bag")
     rows = []
 
     def report(j, path, recorded):
@@ -299,6 +361,11 @@ def _blocks(args):
     from .blocks import block_results, format_blocks, write_blocks_csv
     from .experiment.build import build_schedule
     from .scoring import curve_of, cutting_lines, motion_steps, read_run
+    from . import outputs
+    if args.csv:
+        outputs.active().claim_folder(args.csv, "--csv")
+        for bag in args.bags:
+            outputs.active().claim(Path(args.csv) / f"{Path(bag).stem}_blocks.csv", outputs.BLOCKS_CSV, "--csv")
     given = _given(args)
     for bag in args.bags:
         run = read_run(bag, progress=sys.stderr.isatty(), **given)
@@ -315,7 +382,6 @@ def _blocks(args):
             print(line)
         print(format_blocks(rows, run.axes, curve, experiment.sample_time))
         if args.csv:
-            Path(args.csv).mkdir(parents=True, exist_ok=True)
             print(write_blocks_csv(rows, run.axes, Path(args.csv) / f"{Path(bag).stem}_blocks.csv", curve,
                                    experiment.sample_time))
 
@@ -363,8 +429,12 @@ def _plot(args):
 
     from .analysis import figures, html_report, write_figures
     from .scoring import curve_of, read_run, score_run
+    from . import outputs
     if args.baseline:
         args.bags = [args.baseline] + [bag for bag in args.bags if bag != args.baseline]
+    out = outputs.active().claim_folder(args.out or Path(args.bags[0]).with_suffix(""), "--out")
+    if args.html:
+        outputs.active().claim(out / "report.html", outputs.HTML, "--html")
     given = _given(args)
     runs, scores = [], []
     for bag in args.bags:        # a run that cannot be scored (diverged, no steps) is still drawn
@@ -377,7 +447,6 @@ def _plot(args):
             print(f"warning: {bag}: not scored ({error})", file=sys.stderr)
             scores.append(None)
         runs.append((Path(bag).stem, run))
-    out = Path(args.out or (Path(args.bags[0]).with_suffix("")))
     drawn = figures(runs, args.magnification)
     for path in write_figures(runs, out, drawn=drawn):
         print(path)
@@ -387,8 +456,15 @@ def _plot(args):
 
 def _export(args):
     from .export import export_bag
+    from . import outputs
     if args.csv is None and args.parquet is None:
         raise ConfigError("export needs --csv DIR and/or --parquet DIR")
+    for option, folder, suffix, kind in (("--csv", args.csv, ".csv", outputs.EXPORT_CSV),
+                                         ("--parquet", args.parquet, ".parquet", outputs.PARQUET)):
+        if folder is not None:
+            outputs.active().claim_folder(folder, option)
+            for bag in args.bags:
+                outputs.active().claim(Path(folder) / f"{Path(bag).stem}{suffix}", kind, option)
     given = _given(args)
     for bag in args.bags:
         written, warnings = export_bag(bag, args.csv, args.parquet, **given)
@@ -404,9 +480,12 @@ def _sweep(args):
     import time
 
     from .sweep import BATCH, format_sweep, parse_grid, run_sweep, sweep_summary, write_sweep_csv
+    from . import outputs
     experiment = load_experiment(_experiment_path(args.config))
     if args.batch is not None and args.batch < 1:
         raise ConfigError(f"--batch {args.batch}: expected a positive number of combinations")
+    out = Path(args.out or f"bags/{experiment.name}_sweep_{datetime.now():%Y%m%d_%H%M%S}.csv")
+    outputs.active().claim(out, outputs.SWEEP_CSV, "--out")
     started = time.monotonic()
     rows = run_sweep(experiment.text, parse_grid(args.grid), args.workers, progress=None,
                      batch=args.batch or BATCH, from_time=args.from_time, scheduler=args.scheduler)
@@ -417,8 +496,6 @@ def _sweep(args):
     print(sweep_summary(rows, time.monotonic() - started, workers) if not args.scheduler else
           sweep_summary(rows, time.monotonic() - started, workers).replace(
               f"on {workers} process{'es' if workers != 1 else ''}", f"on the cluster at {args.scheduler}"))
-    out = Path(args.out or f"bags/{experiment.name}_sweep_{datetime.now():%Y%m%d_%H%M%S}.csv")
-    out.parent.mkdir(parents=True, exist_ok=True)
     write_sweep_csv(rows, out, experiment.axes)
     print(f"ranked results: {out}")
 
@@ -429,6 +506,12 @@ def _paper(args):
     if args.paper != "all" and args.paper not in papers:
         raise ConfigError(f"paper {args.paper!r}: no scenario files config/paper{args.paper}_*.yaml "
                           f"(papers with scenarios: {', '.join(papers)}, or all)")
+    from . import outputs
+    out = outputs.active().claim_folder(args.out, "--out")
+    outputs.active().claim(out / ("papers.md" if args.paper == "all" else f"paper{args.paper}.md"), outputs.REPORT,
+                           "--out")
+    outputs.active().claim(out / ("claims.md" if args.paper == "all" else f"claims_paper{args.paper}.md"),
+                           outputs.REPORT, "--out")
     say = lambda m: print(m, file=sys.stderr, flush=True)  # noqa: E731
     chosen = papers if args.paper == "all" else [args.paper]
     if args.readings:
@@ -457,6 +540,36 @@ def _paper(args):
         print(f"wrote {write_claims_report(report, args.out, name)}", file=sys.stderr)
 
 
+# the options that name what a command writes; every other path on its command line is an input
+_OUTPUT_OPTIONS = {"run": ("bag",), "export": ("csv", "parquet"), "blocks": ("csv",), "sweep": ("out",),
+                   "plot": ("out",), "paper": ("out",), "benchmark": ("out", "save_part")}
+
+
+def _inputs(args) -> list:
+    """The files a command reads, as named on its command line (its experiment file by scenario name too):
+    never replaced by its outputs (:mod:`contouring_ros.outputs`)."""
+    found = []
+    for key, value in vars(args).items():
+        if key in _OUTPUT_OPTIONS.get(args.command, ()) or key == "func":
+            continue
+        for item in value if isinstance(value, list) else [value]:
+            if not isinstance(item, str) or not item or "\0" in item:
+                continue
+            try:
+                path = _experiment_path(item) if key == "config" else Path(item)
+                if path.is_file():
+                    found.append(path)
+            except (OSError, ContouringError, ValueError):
+                continue
+    return found
+
+
+def _force_option(parser) -> None:
+    parser.add_argument("--force", action="store_true",
+                        help="replace an existing file that is not this command's own kind of output (never one "
+                             "of its inputs)")
+
+
 def _scheduler_option(parser) -> None:
     parser.add_argument("--scheduler", metavar="ADDRESS",
                         help="run on the Dask distributed cluster whose scheduler is at ADDRESS (e.g. "
@@ -483,6 +596,13 @@ def _benchmark(args):
         + (f" --searches {args.searches}" if args.searches != Protocol.searches else "") \
         + (f" --max-searches {max_searches}" if max_searches != Protocol.max_searches else "") \
         + (f" --methods {' '.join(args.methods)}" if args.methods else "")
+    from . import outputs
+    out = outputs.active().claim_folder(args.out, "--out")
+    for name, kind in (("benchmark.md", outputs.REPORT), ("benchmark.csv", outputs.BENCHMARK_CSV),
+                       ("benchmark_heatmap.png", outputs.PNG)):
+        outputs.active().claim(out / name, kind, "--out")
+    if args.save_part:
+        outputs.active().claim(args.save_part, outputs.PART, "--save-part")
     if args.from_parts:
         from .benchmark import load_parts, write_outputs
         if args.methods or args.scenarios or args.save_part:
@@ -501,7 +621,7 @@ def _benchmark(args):
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(prog="contouring-ros", description=__doc__)
+    parser = _Parser(prog="contouring-ros", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
     p = sub.add_parser("run", help="run an experiment through the node graph, record a bag, print its scores")
     p.add_argument("config", nargs="?", default=DEFAULT_EXPERIMENT, help=f"experiment YAML (default {DEFAULT_EXPERIMENT})")
@@ -524,6 +644,7 @@ def main(argv=None):
     p.add_argument("--domain", type=_domain_id, metavar="ID",
                    help="run on this ROS domain, shared with ROS tools and other runs there (give each graph its "
                         "own --namespace) instead of a private one")
+    _force_option(p)
     p.set_defaults(func=_run)
     p = sub.add_parser("simulate", help="run an experiment in-process (no ROS) and print its scores")
     p.add_argument("config")
@@ -547,6 +668,7 @@ def main(argv=None):
     p.add_argument("bags", nargs="+")
     p.add_argument("--csv", metavar="DIR", help="also write <bag>_blocks.csv per bag into DIR")
     p.add_argument("--experiment", help=experiment_help)
+    _force_option(p)
     p.set_defaults(func=_blocks)
     p = sub.add_parser("compare", help="score runs side by side, with ratios to a baseline")
     p.add_argument("bags", nargs="+")
@@ -563,10 +685,10 @@ def main(argv=None):
     p.add_argument("--start", type=_seconds, default=0.0, metavar="T",
                    help="with --play: skip the messages before T seconds after the bag's first")
     p.add_argument("--topics", metavar="/A,/B", help="with --play: play only these topics (/clock is still published)")
-    p.add_argument("--wait-subscribers", type=int, default=1, metavar="N",
+    p.add_argument("--wait-subscribers", type=_whole(0, MAX_WAIT_SUBSCRIBERS, "subscribers"), default=1, metavar="N",
                    help="with --play: wait until N nodes subscribe to the bag's topics before publishing "
                         "(default 1; 0: start at once)")
-    p.add_argument("--wait-timeout", type=_seconds, default=10.0, metavar="S",
+    p.add_argument("--wait-timeout", type=_seconds_at_most(86400.0), default=10.0, metavar="S",
                    help="with --play: publish anyway after S seconds without them (default 10)")
     p.add_argument("--experiment", help=experiment_help)
     p.set_defaults(func=_replay)
@@ -574,27 +696,32 @@ def main(argv=None):
     p.add_argument("bags", nargs="+")
     p.add_argument("--out", help="directory for the figures (default: next to the first bag)")
     p.add_argument("--html", action="store_true", help="also write a self-contained report.html")
-    p.add_argument("--magnification", type=float, help="contour error magnification in the path plot")
+    p.add_argument("--magnification", type=_magnification, help="contour error magnification in the path plot")
     p.add_argument("--baseline", help="with --html: the bag the ratios refer to (default: the first)")
     p.add_argument("--experiment", help=experiment_help)
+    _force_option(p)
     p.set_defaults(func=_plot)
     p = sub.add_parser("export", help="every signal of every step of bags, with the exact contour error, as tables")
     p.add_argument("bags", nargs="+")
     p.add_argument("--csv", metavar="DIR", help="write DIR/<bag>.csv (column names carry units and axis names)")
     p.add_argument("--parquet", metavar="DIR", help="write DIR/<bag>.parquet (needs pyarrow)")
     p.add_argument("--experiment", help=experiment_help)
+    _force_option(p)
     p.set_defaults(func=_export)
     p = sub.add_parser("sweep", help="in-process runs over a parameter grid, ranked by MCE and TACE")
     p.add_argument("config")
     p.add_argument("--grid", action="append", required=True,
                    help="KEY=V1,V2,... (repeatable), e.g. ccc.kp=0.5,1,2 or curve.h=50,100")
-    p.add_argument("--workers", type=int, help="processes (default: one per core)")
-    p.add_argument("--batch", type=int, default=None,
-                   help="at most this many combinations per vectorised batch (default 250; 1: each alone)")
+    p.add_argument("--workers", type=_whole(1, MAX_WORKERS, "processes"),
+                   help=f"processes, 1 to {MAX_WORKERS} (default: one per core; never more than there are tasks)")
+    p.add_argument("--batch", type=_whole(1, MAX_BATCH, "combinations"), default=None,
+                   help=f"at most this many combinations per vectorised batch, 1 to {MAX_BATCH} (default 250; 1: each "
+                        "alone)")
     p.add_argument("--from", dest="from_time", type=_seconds, default=0.0, metavar="T",
                    help="score only the samples at t >= T seconds (steady state)")
     p.add_argument("--out", help="CSV of the ranked results (default bags/<experiment>_sweep_<time>.csv)")
     _scheduler_option(p)
+    _force_option(p)
     p.set_defaults(func=_sweep)
     p = sub.add_parser("paper", help="run a paper's scenarios and print our numbers beside the paper's")
     p.add_argument("paper", help="paper number with scenario files in config/ (e.g. 000, 003) or 'all'")
@@ -605,8 +732,10 @@ def main(argv=None):
                    help="instead of the claims: each open reading's effect on every figure, the single reading "
                         "closest to the paper's figures and what explains the rest of each gap "
                         "(config/readings/paper<N>.yaml)")
-    p.add_argument("--workers", type=int, help="processes for the claims and maps (default: one per core)")
+    p.add_argument("--workers", type=_whole(1, MAX_WORKERS, "processes"),
+                   help=f"processes for the claims and maps, 1 to {MAX_WORKERS} (default: one per core)")
     _scheduler_option(p)
+    _force_option(p)
     p.set_defaults(func=_paper)
     from .tuning import Protocol
     p = sub.add_parser("benchmark", help="every estimator x controller (x servo) on every paper scenario, each gain "
@@ -614,21 +743,24 @@ def main(argv=None):
     p.add_argument("--scenarios", nargs="+", metavar="NAME",
                    help="scenarios (or scenario files) by name or glob, e.g. 'paper000_*' (default: the papers' own "
                         "experiments; the claims' mechanism scenarios with e.g. '*_mech_*')")
-    p.add_argument("--budget", type=int, default=Protocol.evaluations,
-                   help=f"evaluations of each search at most (default {Protocol.evaluations})")
-    p.add_argument("--draws", type=int, default=Protocol.draws,
-                   help=f"noise-seed and model-mismatch draws per tuned combination (default {Protocol.draws})")
-    p.add_argument("--searches", type=int, default=Protocol.searches,
+    p.add_argument("--budget", type=_whole(2, MAX_BUDGET, "evaluations"), default=Protocol.evaluations,
+                   help=f"evaluations of each search at most, 2 to {MAX_BUDGET} (default {Protocol.evaluations})")
+    p.add_argument("--draws", type=_whole(1, MAX_DRAWS, "draws"), default=Protocol.draws,
+                   help=f"noise-seed and model-mismatch draws per tuned combination, 1 to {MAX_DRAWS} (default "
+                        f"{Protocol.draws})")
+    p.add_argument("--searches", type=_whole(1, MAX_SEARCHES, "searches"), default=Protocol.searches,
                    help="independent searches per combination (seeds 1, 2, ...; the first from the file's gains), "
                         "each of at most --budget evaluations; a row is converged when "
                         f"{Protocol.agree} of them end within {100 * Protocol.agreement:g}% of the best nominal TACE; "
                         "the robust result with the lowest nominal TACE is kept, the same for every method "
-                        f"(default {Protocol.searches})")
-    p.add_argument("--max-searches", type=int,
+                        f"(1 to {MAX_SEARCHES}, default {Protocol.searches})")
+    p.add_argument("--max-searches", type=_whole(1, MAX_SEARCHES, "searches"),
                    help="while a row's searches do not agree, more run one at a time up to this many, the same cap "
-                        f"for every method (default {Protocol.max_searches}, at least --searches)")
+                        f"for every method (at least --searches, at most {MAX_SEARCHES}; default "
+                        f"{Protocol.max_searches})")
     p.add_argument("--out", default="reports", help="folder for benchmark.md, .csv and the figures (default: reports/)")
-    p.add_argument("--workers", type=int, help="processes (default: one per core)")
+    p.add_argument("--workers", type=_whole(1, MAX_WORKERS, "processes"),
+                   help=f"processes, 1 to {MAX_WORKERS} (default: one per core; never more than there are tasks)")
     p.add_argument("--save-part", metavar="FILE", help="also keep this run's rows in FILE, to report them with other "
                                                        "parts (e.g. each paper run on another machine)")
     p.add_argument("--methods", nargs="+", metavar="GLOB",
@@ -639,10 +771,16 @@ def main(argv=None):
     p.add_argument("--from-parts", nargs="+", metavar="FILE", help="run nothing: write the report, CSV and figures "
                                                                    "from parts saved by --save-part")
     _scheduler_option(p)
+    _force_option(p)
     p.set_defaults(func=_benchmark)
     args = parser.parse_args(argv)
     try:
-        args.func(args)
+        from .outputs import Outputs
+        if getattr(args, "scheduler", None):     # before any work: one line within 30 s if it is not one
+            from .executors import probe_scheduler
+            probe_scheduler(args.scheduler)
+        with Outputs(_inputs(args), force=getattr(args, "force", False)):
+            args.func(args)
     except ContouringError as error:
         print(f"error: {error}", file=sys.stderr)
         return 2

@@ -50,7 +50,9 @@ class OutputError(ContouringError):
 def write_atomically(path, write):
     """Call ``write(tmp)`` on a temporary file beside ``path`` (same folder, so the rename is atomic), then
     rename it to ``path``: a full disk or any failure leaves no truncated file under ``path`` (a file already
-    there is kept as it was). An OSError becomes one :class:`OutputError` line naming ``path``."""
+    there is kept as it was). An OSError becomes one :class:`OutputError` line naming ``path``. Inside a
+    command, the move obeys that command's :class:`contouring_ros.outputs.Outputs` (no input, no file of
+    another kind, no path written twice)."""
     import os
     import secrets
     from pathlib import Path
@@ -59,6 +61,8 @@ def write_atomically(path, write):
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         write(tmp)
+        from .outputs import check_write
+        check_write(path, tmp)          # the running command's rules (contouring_ros.outputs)
         os.replace(tmp, path)
     except OSError as error:
         _remove(tmp)

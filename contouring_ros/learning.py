@@ -17,6 +17,7 @@ import numpy as np
 
 from .core.ilc import learn
 from .core.simulation import first_divergence, path_bound, simulate
+from .errors import write_atomically
 from .experiment.build import build_loop
 from .experiment.model import Experiment
 from .experiment.schema import SEED_RANGE
@@ -132,6 +133,17 @@ def pass_bag(bag: Path, j: int) -> Path:
     return bag.with_name(f"{bag.stem}_pass{j}{bag.suffix or '.mcap'}")
 
 
+def learned_path(bag) -> Path:
+    """Where the correction a pass plays back is kept: ``<its bag's stem>_learned.npy`` beside its bag."""
+    bag = Path(bag)
+    return bag.with_name(f"{bag.stem}_learned.npy")
+
+
+def _save(path, table) -> None:
+    with open(path, "wb") as stream:
+        np.save(stream, table)
+
+
 def run_passes(config: Path, experiment: Experiment, bag: Path, run, progress=None) -> list:
     """Every pass through the node graph: ``run(path, bag, experiment)`` runs one (runner.run_graph with the
     caller's layout and domain) and returns its bag. Returns the passes' bags."""
@@ -143,8 +155,8 @@ def run_passes(config: Path, experiment: Experiment, bag: Path, run, progress=No
             path, this_pass = config, experiment
             specs = [f"{key}={value}" for key, value in pass_settings(experiment, j).items()]
             if table is not None:
-                learned = target.with_name(f"{target.stem}_learned.npy").resolve()
-                np.save(learned, table)
+                learned = learned_path(target).resolve()
+                write_atomically(learned, lambda tmp: _save(tmp, table))
                 specs.append(f"ccc.learned_file={learned}")
             if specs:
                 specs.append(f'experiment.name="{experiment.name}"')   # each pass keeps the experiment's name

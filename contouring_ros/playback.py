@@ -29,8 +29,11 @@ Options
 -------
 ``loop``: play the bag again and again until Ctrl-C; /clock and the pacing restart with the bag at each
 pass (time jumps back: the messages go out unchanged, so their header stamps and /clock agree). ``start``: skip the
-messages before ``start`` seconds after the bag's first message. ``topics``: play only these topics
-(/clock is still synthesised from their log times); a topic the bag does not have is refused.
+messages before ``start`` seconds after the bag's first message (a start past the bag's last message is
+refused). ``topics``: play only these topics (/clock is still synthesised from their log times); a topic the
+bag does not have is refused, and so is a topic name ROS refuses (over 247 characters, odd characters), in
+one line before ROS starts. At a positive rate a gap to the next message of more than :data:`MAX_WAIT` s of
+wall time (a bag whose last messages are logged years later) is refused, saying so, instead of waited for.
 
 Message types
 -------------
@@ -66,6 +69,7 @@ WINDOW = 1000       # messages a publisher may have unacknowledged before the pl
 SETTLE = 0.25       # s the matched subscriptions must stay the same before the first message
 ACK_TIMEOUT = 10.0  # s the player waits for acknowledgements before it goes on without them (and says so)
 CTRL_C_DRAIN = 2.0  # s at most for the acknowledgements of the messages under way at a Ctrl-C
+MAX_WAIT = 3600.0   # s of wall time the player waits for one message at a positive rate; a longer gap is refused
 _TYPE_NAME = re.compile(r"^([a-z][a-z0-9_]*)/msg/([A-Za-z][A-Za-z0-9]*)$")
 _CLOCK_TYPE = "rosgraph_msgs/msg/Clock"
 
@@ -140,6 +144,7 @@ class _Index:
     schemas: dict = field(default_factory=dict)
     channels: dict = field(default_factory=dict)
     first_log: int | None = None
+    last_log: int | None = None
 
 
 def _index(path: Path, warnings: list) -> _Index:
@@ -155,6 +160,7 @@ def _index(path: Path, warnings: list) -> _Index:
             (index.schemas if isinstance(record, Schema) else index.channels)[record.id] = record
         starts = [start for _, _, start, end in chunks if end > 0]     # a chunk without messages has 0, 0
         index.first_log = min(starts) if starts else None
+        index.last_log = max((end for _, _, _, end in chunks if end > 0), default=None)
         if any(isinstance(record, Channel) for record in records):
             return index
         index = _Index()
@@ -163,9 +169,25 @@ def _index(path: Path, warnings: list) -> _Index:
             index.schemas[record.id] = record
         elif isinstance(record, Channel):
             index.channels[record.id] = record
-        elif hasattr(record, "log_time") and (index.first_log is None or record.log_time < index.first_log):
-            index.first_log = record.log_time
+        elif hasattr(record, "log_time"):
+            if index.first_log is None or record.log_time < index.first_log:
+                index.first_log = record.log_time
+            if index.last_log is None or record.log_time > index.last_log:
+                index.last_log = record.log_time
     return index
+
+
+def _check_topic_name(path: Path, topic: str) -> None:
+    """BagError in one line where ROS refuses ``topic`` as a topic name (too long, odd characters ...)."""
+    from rclpy.exceptions import InvalidTopicNameException
+    from rclpy.validate_full_topic_name import validate_full_topic_name
+    try:
+        validate_full_topic_name(topic)
+    except InvalidTopicNameException as error:
+        why = str(error).splitlines()[0].removeprefix("Invalid topic name: ")
+        shown = topic if len(topic) <= 60 else f"{topic[:57]}... ({len(topic)} characters)"
+        raise BagError(f"{path}: topic {shown}: ROS refuses the name ({why}); play the others with --topics") \
+            from None
 
 
 def _channel_type(index: _Index, channel) -> str:
@@ -321,10 +343,14 @@ def play_bag(path, rate: float = 1.0, progress: bool = False, say=print, *, loop
         raise BagError(f"{path}: no such bag")
     if rate < 0:
         raise BagError(f"--rate {rate:g}: must be 0 (as fast as possible) or positive")
-    if start < 0:
-        raise BagError(f"--start {start:g}: must be 0 or positive")
+    if not 0 <= start < 1e12:
+        raise BagError(f"--start {start:g}: must be 0 or positive (and within the bag)")
     warnings = []
     index = _index(path, [])              # what the reader makes do with is said once, by the playing pass
+    if start and index.first_log is not None and index.last_log is not None \
+            and start > (index.last_log - index.first_log) * 1e-9:
+        raise BagError(f"--start {start:g}: beyond the bag, whose last message is at "
+                       f"{(index.last_log - index.first_log) * 1e-9:g} s after its first")
     bag_topics = {channel.topic for channel in index.channels.values()}
     if topics is not None:
         topics = [topic if topic.startswith("/") else "/" + topic for topic in topics if topic]
@@ -338,6 +364,7 @@ def play_bag(path, rate: float = 1.0, progress: bool = False, say=print, *, loop
     for channel in sorted(index.channels.values(), key=lambda c: c.id):
         if channel.topic not in selected:
             continue
+        _check_topic_name(path, channel.topic)
         try:
             type_name = _channel_type(index, channel)
             if channel.topic == graph.CLOCK and type_name != _CLOCK_TYPE:
@@ -394,6 +421,11 @@ def play_bag(path, rate: float = 1.0, progress: bool = False, say=print, *, loop
                     first_log, wall_start = record.log_time, time.monotonic()
                 if rate > 0:
                     due = wall_start + (record.log_time - first_log) * 1e-9 / rate
+                    if due - time.monotonic() > MAX_WAIT:
+                        raise BagError(f"{path}: the next message is {(due - time.monotonic()) * rate:.3g} s of "
+                                       f"the bag's time ahead, {due - time.monotonic():.3g} s at --rate {rate:g}: "
+                                       f"over the {MAX_WAIT:g} s the player waits for one (published {sent} "
+                                       "messages; --rate 0 plays without waiting)")
                     if due > time.monotonic():
                         acks.idle(due)
                 with interrupts.deferred():       # a Ctrl-C lands between messages: the count is exact

@@ -433,10 +433,16 @@ def run_graph(experiment_path, bag=None, *, timeout: float | None = None, domain
     experiment_path = Path(experiment_path)
     if experiment is None:
         experiment = load_experiment(experiment_path)
-    bag = Path(bag) if bag is not None else default_bag_path(experiment)
-    bag.parent.mkdir(parents=True, exist_ok=True)
-    if bag.exists():
-        bag.unlink()
+    final = Path(bag) if bag is not None else default_bag_path(experiment)
+    if final.is_dir():
+        raise RunError(f"the bag {final} is a folder: name a file")
+    try:
+        final.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        raise RunError(f"the bag {final} cannot be written ({error.strerror or type(error).__name__})") from None
+    # the recorder writes beside the bag's name and the bag is moved into place as the run ends: a file already
+    # there stays whole until then (and, if the run never opens its bag, after it)
+    bag = recording_path(final)
     timeout = timeout if timeout is not None else 60.0 + experiment.n_steps / 50.0
     if layout is None and not groups:        # the experiment file's layout
         groups = split_groups(experiment.groups) if experiment.layout == "grouped" else None
@@ -496,13 +502,13 @@ def run_graph(experiment_path, bag=None, *, timeout: float | None = None, domain
                 _stop(nodes)          # every node gone (the recorder has closed the bag) before we say what exists
                 what = "SIGTERM" if terminated else "SIGINT"
                 if bag.is_file() and bag.stat().st_size > 0:
-                    state = f"the bag {bag} holds the steps recorded so far"
+                    state = f"the bag {final} holds the steps recorded so far"
                 else:
-                    state = f"no bag yet (the recorder had not opened {bag})"
+                    state = f"no bag yet (the recorder had not opened {final})"
                 raise Interrupted(f"interrupted by {what}: stopped every node; {state}",
-                                  bag=bag if bag.is_file() else None, code=143 if terminated else 130) from None
+                                  bag=final if bag.is_file() else None, code=143 if terminated else 130) from None
             except RunError as error:
-                raise RunError(str(error), bag=bag) from None
+                raise RunError(str(error), bag=final if bag.is_file() else None) from None
             finally:
                 _stop(nodes)
                 for node in nodes:
@@ -511,6 +517,7 @@ def run_graph(experiment_path, bag=None, *, timeout: float | None = None, domain
                 if any(node.process is not None and (node.process.returncode or 0) < 0 for node in nodes):
                     clean_shared_memory(wall_started - 1.0)
     finally:
+        _move_into_place(bag, final)
         parameter_directory.cleanup()
         for sig, handler in replaced_handlers.items():
             signal.signal(sig, handler)
@@ -518,10 +525,27 @@ def run_graph(experiment_path, bag=None, *, timeout: float | None = None, domain
         _TERMINATIONS.clear()
     if late:        # it landed after the last poll: the run is whole, and the signal is still answered
         raise Interrupted(f"interrupted by {signal.Signals(late[0]).name} as the run ended: every node had "
-                          f"exited; the bag {bag} holds the whole run", bag=bag,
+                          f"exited; the bag {final} holds the whole run", bag=final,
                           code=143 if late[0] == signal.SIGTERM else 130)
     say(f"ran {experiment.n_steps} steps in {time.monotonic() - started:.1f} s wall time")
-    return bag
+    return final
+
+
+def recording_path(bag) -> Path:
+    """Where the recorder writes the bag ``bag`` while the run lasts: ``.<name>.recording`` beside it."""
+    bag = Path(bag)
+    return bag.with_name(f".{bag.name}.recording")
+
+
+def _move_into_place(recording: Path, final: Path) -> None:
+    """The recorder's file, written beside the bag's name, moved onto it (whole or partial: the run's bag);
+    nothing there is touched when the recorder never opened its file."""
+    if recording.is_file():
+        try:
+            os.replace(recording, final)
+        except OSError as error:
+            raise RunError(f"the bag {final} cannot be written ({error.strerror or type(error).__name__}); the run "
+                           f"is kept in {recording}") from None
 
 
 def _watch(nodes, timeout, started, say, poll_progress=None):

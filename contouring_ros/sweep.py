@@ -191,9 +191,19 @@ def experiments_for(text: str, settings_list: list, where: str = "--grid") -> li
     return out
 
 
+MAX_COMBINATIONS = 50_000   # a sweep's combinations, at most: each validated experiment holds about 4.3 kB
+#                             (paper000's file), so they stay within about 0.2 GB before their runs
+
+
 def combinations(text: str, grid: dict) -> list:
-    """(settings, validated experiment) for every combination of the grid's values."""
-    return experiments_for(text, [dict(zip(grid, values)) for values in itertools.product(*grid.values())])
+    """(settings, validated experiment) for every combination of the grid's values. The count is checked
+    against :data:`MAX_COMBINATIONS` from the lengths alone, before any combination is made (ConfigError)."""
+    count = math.prod(len(values) for values in grid.values())
+    if count > MAX_COMBINATIONS:
+        sizes = " x ".join(str(len(values)) for values in grid.values())
+        raise ConfigError(f"--grid: {sizes} = {count:.4g} combinations, over the {MAX_COMBINATIONS} a sweep runs "
+                          "(fewer values, or several sweeps)")
+    return experiments_for(text, (dict(zip(grid, values)) for values in itertools.product(*grid.values())))
 
 
 BATCH = 250      # combinations per vectorised batch (memory: about 0.25 MB per combination and 1000 steps)
@@ -346,7 +356,8 @@ def score_experiments(experiments: list, workers: int | None = None, progress_ba
             counted = None
     shown = progress_of(len(experiments), desc, "combination", terminal=progress_bar) \
         if progress_bar is not False else contextlib.nullcontext(lambda done: None)
-    with executor(workers, scheduler, progress.attach, (counted,)) as (pool, workers), shown as show:
+    with executor(workers, scheduler, progress.attach, (counted,), tasks=len(experiments)) as (pool, workers), \
+            shown as show:
         chunks = _chunks(experiments, workers, batch)
         jobs = {pool.submit(_score_chunk, [experiments[i] for i in chunk], from_time): chunk for chunk in chunks}
         finished, pending = 0, set(jobs)

@@ -69,6 +69,18 @@ def recorded_bag(folder: Path, duration: float, name: str) -> tuple:
 
 
 
+def recorded_bytes(bag) -> int:
+    """How far a run's bag has got: the size of the file the recorder writes while the run lasts (beside the
+    bag's name, :func:`contouring_ros.runner.recording_path`), or of the bag once moved into place."""
+    from contouring_ros.runner import recording_path
+    for path in (recording_path(bag), Path(bag)):
+        try:
+            return path.stat().st_size
+        except OSError:
+            continue
+    return 0
+
+
 def cli_with_file_size_limit(args, limit_bytes: int, cwd=ROOT):
     """The CLI with every file it writes capped at ``limit_bytes`` (RLIMIT_FSIZE: a write past it fails
     with EFBIG, as a full disk fails one with ENOSPC)."""

@@ -341,8 +341,13 @@ class ReferenceTable:
     clock (exact stops waiting for the axes) makes each run's times its own.
 
     Entries are computed as runs first reach them and kept read-only (a consumer that wrote into a shared
-    array would fail at once instead of changing later runs). Safe to read from several threads.
+    array would fail at once instead of changing later runs). Safe to read from several threads. At most
+    :attr:`KEPT_STEPS` steps are kept per kind of entry: a step past them is computed when asked, by the same
+    code (the same numbers), and not kept, so that a long run (an hour at 1 kHz: 3.6 million steps, about
+    1.5 kB each as entries) holds its reference only as its result's arrays.
     """
+
+    KEPT_STEPS = 100_000       # steps kept per kind of entry (about 150 MB of scalar-path entries)
 
     def __init__(self, curve: Curve, schedule, sample_time: float):
         self.curve, self.schedule, self.sample_time = curve, schedule, float(sample_time)
@@ -360,7 +365,10 @@ class ReferenceTable:
         return ReferenceTable, (self.curve, self.schedule, self.sample_time)     # another process: a fresh table
 
     def _extend(self, entries: list, k: int, compute) -> object:
-        """Entry k of ``entries``, computed (``compute(j)``) up to it first where it is not there yet."""
+        """Entry k of ``entries``, computed (``compute(j)``) up to it first where it is not there yet; past
+        KEPT_STEPS computed and not kept."""
+        if k >= self.KEPT_STEPS:
+            return compute(k)
         if k >= len(entries):
             with self._lock:
                 while len(entries) <= k:

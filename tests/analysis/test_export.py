@@ -80,7 +80,7 @@ def test_plot_out_naming_an_existing_file_is_refused_in_one_line_and_the_file_ke
     done = subprocess.run([sys.executable, "-m", "contouring_ros.cli", "plot", str(path), "--out", str(existing)],
                           cwd=ROOT, capture_output=True, text=True, timeout=300)
     assert done.returncode != 0 and "Traceback" not in done.stderr
-    assert done.stderr.strip().splitlines()[-1].startswith(f"error: {existing}: a file of that name exists")
+    assert done.stderr.strip().splitlines()[-1].startswith(f"error: --out {existing}: a file of that name exists")
     assert existing.read_text() == "mine"
 
 

@@ -52,12 +52,13 @@ def test_a_sweep_csv_that_cannot_be_written_leaves_the_earlier_file_whole(tmp_pa
     experiment = tmp_path / "short.yaml"
     experiment.write_text(shortened(DEFAULT, 0.02))
     out = tmp_path / "sweep.csv"
-    out.write_text("a whole earlier sweep\n")
+    earlier = "rank,ccc.kp,status,mce_m\n1,1,ok,0.001\n"        # a whole earlier sweep's table
+    out.write_text(earlier)
     done = cli_with_file_size_limit(["sweep", str(experiment), "--grid", "ccc.kp=1,2", "--out", str(out)], 300)
     assert done.returncode != 0 and "Traceback" not in done.stderr, done.stderr
     errors = [line for line in done.stderr.splitlines() if line.startswith("error:")]
     assert len(errors) == 1 and str(out) in errors[0] and "cannot write it" in errors[0], done.stderr
-    assert out.read_text() == "a whole earlier sweep\n"
+    assert out.read_text() == earlier
     assert sorted(p.name for p in tmp_path.iterdir()) == ["short.yaml", "sweep.csv"]
 
 

@@ -18,7 +18,7 @@ from contouring_ros.core.simulation import simulate
 from contouring_ros.errors import RunError
 from contouring_ros.runner import DomainLease, run_graph, shared_memory_in_use
 from contouring_ros.scoring import read_run, score_bag, score_run
-from conftest import DEFAULT, ROOT, machine_pace, shortened, sigint_as_from_a_terminal
+from conftest import DEFAULT, ROOT, machine_pace, recorded_bytes, shortened, sigint_as_from_a_terminal
 
 graph = pytest.mark.graph
 
@@ -38,7 +38,7 @@ def _run_and_signal(experiment, bag, node_name, sig, after: float, domain_id: in
 
         def send():
             deadline = time.monotonic() + 30
-            while not bag.exists() or bag.stat().st_size < 2000:     # lockstep under way
+            while recorded_bytes(bag) < 2000:     # lockstep under way
                 if time.monotonic() > deadline:
                     return
                 time.sleep(0.05)
@@ -118,7 +118,7 @@ def test_signal_to_the_runner_stops_every_node_and_closes_the_bag(tmp_path, writ
                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT,
                               preexec_fn=sigint_as_from_a_terminal)
     deadline = time.monotonic() + 30
-    while (not bag.exists() or bag.stat().st_size < 2000) and time.monotonic() < deadline:
+    while recorded_bytes(bag) < 2000 and time.monotonic() < deadline:
         time.sleep(0.05)
     runner.send_signal(sig)
     _, err = runner.communicate(timeout=30)

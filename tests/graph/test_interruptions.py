@@ -12,7 +12,7 @@ from types import SimpleNamespace
 import pytest
 
 from contouring_ros.runner import DomainLease, private_environment
-from conftest import DEFAULT, ROOT, shortened, sigint_as_from_a_terminal
+from conftest import DEFAULT, ROOT, recorded_bytes, shortened, sigint_as_from_a_terminal
 
 graph = pytest.mark.graph
 
@@ -79,7 +79,7 @@ def test_the_runner_says_what_exists_and_exits_130(tmp_path, write_experiment, m
         time.sleep(0.2)
     else:
         deadline = time.monotonic() + 60
-        while (not bag.exists() or bag.stat().st_size < 2000) and time.monotonic() < deadline:
+        while recorded_bytes(bag) < 2000 and time.monotonic() < deadline:
             time.sleep(0.05)
     runner.send_signal(sig)
     out, err = runner.communicate(timeout=60)

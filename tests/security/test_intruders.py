@@ -19,7 +19,7 @@ from contouring_ros.core.simulation import simulate
 from contouring_ros.errors import RunError
 from contouring_ros.runner import DomainLease, private_environment, run_graph
 from contouring_ros.scoring import read_run
-from conftest import DEFAULT, ROOT, shortened, sigint_as_from_a_terminal
+from conftest import DEFAULT, ROOT, recorded_bytes, shortened, sigint_as_from_a_terminal
 
 graph = pytest.mark.graph
 
@@ -28,7 +28,9 @@ import sys, time, os
 import rclpy
 from contouring_ros import cdr
 from contouring_ros.nodes.lockstep import DIAGNOSTICS_QOS, GRAPH_QOS, message_class
+from contouring_ros.runner import recording_path
 topic, type_name, mode, bag = sys.argv[1:5]
+bag = str(recording_path(bag))                         # the recorder's file while the run lasts
 rclpy.init()
 node = rclpy.create_node("intruder")
 pub = node.create_publisher(message_class(type_name), topic, DIAGNOSTICS_QOS if topic == "/diagnostics" else GRAPH_QOS)
@@ -172,7 +174,7 @@ def _start_runner(path, bag):
                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT,
                               preexec_fn=sigint_as_from_a_terminal)
     deadline = time.monotonic() + 60
-    while (not bag.exists() or bag.stat().st_size < 2000) and time.monotonic() < deadline:
+    while recorded_bytes(bag) < 2000 and time.monotonic() < deadline:
         time.sleep(0.05)
     return runner
 

@@ -14,7 +14,7 @@ from ...registry import Entry, Role
 from ...core.tuning_space import (adaptive_tnb_space, ilc_space, mpcc_space, pid_contour_space, task_frame_space,
                              tvt_space)
 from ..schema import AXIS_GAIN_RANGE, BANDWIDTH_RANGE, DAMPING_RANGE, FORCE_RANGE, GAIN_RANGE, MASS_RANGE, POSITIVE_RANGE, REQUIRED, \
-    Param, pid_gains
+    MAX_STEPS, Param, pid_gains
 
 __all__ = ["CONTROLLERS", "APPROXIMATIONS", "WHOLE_COMMAND_CONTROLLERS"]
 
@@ -53,10 +53,12 @@ def _mpcc(s, c):
 MAX_LEARNED_BYTES = 256 << 20
 
 
-def load_learned(path, where: str, n_axes: int, base=None) -> np.ndarray:
+def load_learned(path, where: str, n_axes: int, base=None, steps: int | None = None) -> np.ndarray:
     """The correction table of an ILC pass: the .npy file ``path`` (relative to ``base``, the experiment's
     folder, where relative), a finite real array of steps x ``n_axes``; anything else one ConfigError line
-    naming /ccc.learned_file."""
+    naming /ccc.learned_file. The file is mapped, not read: only the rows a run of ``steps`` steps plays
+    back (all, at most MAX_STEPS, without ``steps``) are converted to float, so a small dtype just under the
+    size limit (int8: 256 M values) never becomes a float64 copy eight times its size."""
     path = Path(path)
     if not path.is_absolute() and base is not None:
         path = Path(base) / path
@@ -76,7 +78,9 @@ def load_learned(path, where: str, n_axes: int, base=None) -> np.ndarray:
         shape = getattr(table, "shape", None)
         refuse(f"holds a {shape} {getattr(table, 'dtype', type(table).__name__)} array, expected finite real "
                f"values, steps x {n_axes} axes")
-    table = np.array(table, dtype=float)
+    if steps is None and table.shape[0] > MAX_STEPS:
+        refuse(f"holds {table.shape[0]} steps, more than the {MAX_STEPS} a run may have")
+    table = np.array(table[:steps if steps is not None else MAX_STEPS], dtype=float)    # rows past the run: unused
     if not np.all(np.isfinite(table)):
         refuse(f"holds a {table.shape} array, expected finite values, steps x {n_axes} axes")
     return table
@@ -92,7 +96,8 @@ def _check_ilc(section, axes):
 def _ilc(s, c):
     """The learned correction of ``learned_file`` (an .npy array, steps x axes), or none (the first pass)."""
     base = Path(c.experiment.path).parent if c.experiment is not None and c.experiment.path else None
-    table = load_learned(s["learned_file"], c.where, c.n_axes, base) if s["learned_file"] else None
+    steps = getattr(c.experiment, "n_steps", None) if c.experiment is not None else None
+    table = load_learned(s["learned_file"], c.where, c.n_axes, base, steps) if s["learned_file"] else None
     return ilc.LearnedCorrection(c.n_axes, table)
 
 

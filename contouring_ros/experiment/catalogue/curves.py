@@ -10,7 +10,7 @@ from ...core import curves, gcode
 from ...registry import Entry, Role
 from ..ros_yaml import _read_file
 from ..scenarios import resolve_part_program
-from ..schema import COORDINATE_RANGE, MAX_PROGRAM_BYTES, REQUIRED, SIZE_RANGE, Param, _printable
+from ..schema import COORDINATE_RANGE, MAX_PROGRAM_BYTES, MAX_PROGRAM_LINES, REQUIRED, SIZE_RANGE, Param, _printable
 
 __all__ = ["CURVES", "TOOL_PATH_TYPES", "WINDOW", "program_warnings"]
 
@@ -57,6 +57,10 @@ def _gcode(s, context):
         text = raw.decode("utf-8")
     except UnicodeDecodeError as error:
         raise ValueError(f"{path}: not a text file (not UTF-8 at byte {error.start})") from None
+    lines = max(text.count("\n"), text.count("\r")) + (not text.endswith(("\n", "\r")))
+    if lines > MAX_PROGRAM_LINES:          # before a block is read: each holds about 3.3 kB as a tool path
+        raise ValueError(f"{path.name}: {lines} lines, over the {MAX_PROGRAM_LINES} a part program may have (split "
+                         "it into several programs)")
     try:
         program = gcode.parse_program(text, s["start"], s["strict"])
         tool_path = curves.ToolPath.from_program(program, s["blend_tolerance"])
