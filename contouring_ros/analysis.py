@@ -24,7 +24,8 @@ from .experiment.validate import validate_section
 from .core.curves import ToolPath
 from .core.geometry import ExactContourError
 from .core.interpolation import Reference
-from .errors import ConfigError, ContouringError, OutputError, write_atomically
+from .errors import ConfigError, ContouringError, OutputError
+from .outputs import write_atomically
 from .core.feed_control import parse_feed_events
 from .scoring import SCORE_ROWS, breach_of, curve_of, format_scores, motion_steps
 from .sweep import differences

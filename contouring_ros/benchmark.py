@@ -49,12 +49,17 @@ from .experiment.catalogue import CONTROLLERS, ESTIMATORS, SERVOS
 from .experiment.ros_yaml import read_yaml
 from .experiment.schema import GLOBAL_SECTION, REQUIRED
 from .core.simulation import simulate
-from .errors import ConfigError, Diverged, write_atomically
+from .errors import ConfigError, Diverged
+from .outputs import write_atomically
 from .executors import pool as executor
 from .experiment.scenarios import CONFIG_DIR
+from .core.margins import LoopMargins
+from .core.metrics import Scores
+from .parts import load as read_part, register as allow_in_parts, save as write_part
+from .search import Agreement
 from .tuning import (
-    Protocol, REALISTIC, SATURATION_MARGIN, experiment_for, fit_to_machine, gain_keys, interval, machine_settings,
-    pareto_front, run_outcomes, tune, worst_case
+    REALISTIC, SATURATION_MARGIN, Evaluation, Outcome, Protocol, Search, Tuned, experiment_for, fit_to_machine,
+    gain_keys, interval, machine_settings, pareto_front, run_outcomes, tune, worst_case
 )
 
 __all__ = ["GOAL", "Family", "Combination", "Excluded", "Row", "Reference",
@@ -1031,22 +1036,23 @@ class Part:
     methods: tuple = ()           # --methods: only these combinations (and each scenario's proposed one) ran
 
 
+allow_in_parts(Part, Family, Combination, Excluded, Reference, Row, Protocol, Outcome, Evaluation, Tuned, Search,
+               Agreement, LoopMargins, Scores)
+
+
 def save_part(part: Part, path) -> Path:
     """Write ``part`` to ``path`` as a part file (:mod:`contouring_ros.parts`: JSON with a format version and
     a checksum, read back by :func:`load_parts`; nothing in it can run code)."""
-    from .parts import save
-    return save(part, path)
+    return write_part(part, path)
 
 
 def load_parts(paths: list) -> list:
     """The :class:`Part` of each file in ``paths`` (:func:`contouring_ros.parts.load`: checked before anything
     is built). ConfigError naming a file that is not one, whose rows do not hang together, or whose protocol
     differs from the first's (their rows would not compare)."""
-    from .parts import load
-    from .tuning import Tuned
     parts = []
     for path in paths:
-        part = load(path, f"--from-parts {path}")
+        part = read_part(path, f"--from-parts {path}")
         if not isinstance(part, Part):
             raise ConfigError(f"--from-parts {path}: not a benchmark part (it holds a {type(part).__name__})")
         problem = next((what for ok, what in (

@@ -18,7 +18,7 @@ from .core.geometry import ExactContourError
 from .core.gcode import INCH, MM
 from .core.interpolation import SETTLE
 from .core.metrics import Scores, score
-from .errors import write_atomically
+from .outputs import write_atomically
 
 __all__ = ["BlockResult", "block_results", "cutting_steps", "cutting_scores", "format_blocks", "write_blocks_csv",
            "block_cells", "block_headings", "block_columns", "motion_end", "feed_unit", "block_codes", "breach_line"]

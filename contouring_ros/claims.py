@@ -62,7 +62,8 @@ import yaml
 
 from .experiment.files import load_experiment
 from .experiment.ros_yaml import read_yaml
-from .errors import ConfigError, write_atomically
+from .errors import ConfigError
+from .outputs import write_atomically
 from .executors import pool as executor
 from .experiment.scenarios import CONFIG_DIR
 from .sweep import experiments_for, grid_key_location, score_experiments

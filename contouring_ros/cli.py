@@ -279,7 +279,7 @@ def _write_simulation_bag(given: str, experiment, result) -> Path:
     """The in-process run's bag, as the node graph's recorder would have written it (the same topics, types
     and payloads: :func:`contouring_ros.bag.write_simulation`)."""
     from .bag import write_simulation
-    from .errors import write_atomically
+    from .outputs import write_atomically
     path = _bag_target(given, experiment)
     path.parent.mkdir(parents=True, exist_ok=True)
     return write_atomically(path, lambda tmp: write_simulation(tmp, experiment, result))

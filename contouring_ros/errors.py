@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 __all__ = ["ContouringError", "ConfigError", "RunError", "Interrupted", "BagError", "ScoreError", "Diverged",
-           "OutputError", "IncompatibleRclpy", "write_atomically", "one_line"]
+           "OutputError", "IncompatibleRclpy", "one_line"]
 
 
 def one_line(error) -> str:
@@ -45,40 +45,6 @@ class BagError(ContouringError):
 class OutputError(ContouringError):
     """A file cannot be written (a full disk, a folder one cannot write into, a file where a folder is
     expected); the message names the path. Nothing half-written is left under the file's name."""
-
-
-def write_atomically(path, write):
-    """Call ``write(tmp)`` on a temporary file beside ``path`` (same folder, so the rename is atomic), then
-    rename it to ``path``: a full disk or any failure leaves no truncated file under ``path`` (a file already
-    there is kept as it was). An OSError becomes one :class:`OutputError` line naming ``path``. Inside a
-    command, the move obeys that command's :class:`contouring_ros.outputs.Outputs` (no input, no file of
-    another kind, no path written twice)."""
-    import os
-    import secrets
-    from pathlib import Path
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}.part")
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        write(tmp)
-        from .outputs import check_write
-        check_write(path, tmp)          # the running command's rules (contouring_ros.outputs)
-        os.replace(tmp, path)
-    except OSError as error:
-        _remove(tmp)
-        raise OutputError(f"{path}: cannot write it ({error.strerror or type(error).__name__}); nothing was "
-                          "written there") from None
-    except BaseException:
-        _remove(tmp)
-        raise
-    return path
-
-
-def _remove(path):
-    try:
-        path.unlink()
-    except OSError:
-        pass
 
 
 class IncompatibleRclpy(ContouringError, ImportError):

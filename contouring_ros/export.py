@@ -12,7 +12,8 @@ from pathlib import Path
 import numpy as np
 
 from .core.geometry import ExactContourError
-from .errors import BagError, write_atomically
+from .errors import BagError
+from .outputs import write_atomically
 from .scoring import curve_of, read_run
 
 __all__ = ["run_table", "write_csv", "write_parquet", "export_bag"]

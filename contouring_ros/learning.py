@@ -17,7 +17,7 @@ import numpy as np
 
 from .core.ilc import learn
 from .core.simulation import first_divergence, path_bound, simulate
-from .errors import write_atomically
+from .outputs import write_atomically
 from .experiment.build import build_loop
 from .experiment.model import Experiment
 from .experiment.schema import SEED_RANGE

@@ -28,7 +28,7 @@ from pathlib import Path
 from .errors import OutputError
 
 __all__ = ["Outputs", "BAG", "PNG", "PARQUET", "PART", "LEARNED", "HTML", "EXPORT_CSV", "BLOCKS_CSV", "SWEEP_CSV",
-           "BENCHMARK_CSV", "REPORT", "active", "signature", "check_write"]
+           "BENCHMARK_CSV", "REPORT", "active", "signature", "check_write", "write_atomically"]
 
 # an output kind: (what it is, the prefixes a file of that kind starts with)
 BAG = ("an MCAP bag", (b"\x89MCAP",))
@@ -190,3 +190,33 @@ def check_write(path, tmp) -> None:
     outputs = _ACTIVE.get()
     if outputs is not None:
         outputs.check_write(path, tmp)
+
+
+def write_atomically(path, write):
+    """Call ``write(tmp)`` on a temporary file beside ``path`` (same folder, so the rename is atomic), then
+    rename it to ``path``: a full disk or any failure leaves no truncated file under ``path`` (a file already
+    there is kept as it was). An OSError becomes one :class:`OutputError` line naming ``path``. Inside a
+    command, the move obeys that command's :class:`contouring_ros.outputs.Outputs` (no input, no file of
+    another kind, no path written twice)."""
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}.part")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        write(tmp)
+        check_write(path, tmp)          # the running command's rules
+        os.replace(tmp, path)
+    except OSError as error:
+        _remove(tmp)
+        raise OutputError(f"{path}: cannot write it ({error.strerror or type(error).__name__}); nothing was "
+                          "written there") from None
+    except BaseException:
+        _remove(tmp)
+        raise
+    return path
+
+
+def _remove(path):
+    try:
+        path.unlink()
+    except OSError:
+        pass

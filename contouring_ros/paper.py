@@ -7,7 +7,7 @@ from pathlib import Path
 from .experiment.build import build_loop
 from .experiment.files import load_experiment
 from .core.simulation import simulate
-from .errors import write_atomically
+from .outputs import write_atomically
 from .experiment.scenarios import CONFIG_DIR, available_papers, scenario_files
 from .runner import run_graph
 from .scoring import score_bag, score_run

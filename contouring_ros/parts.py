@@ -31,9 +31,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import ConfigError, write_atomically
+from .errors import ConfigError
+from .outputs import write_atomically
 
-__all__ = ["FORMAT", "VERSION", "MAX_FILE_BYTES", "MAX_TEXT_BYTES", "CLASSES", "dumps", "loads", "save", "load"]
+__all__ = ["FORMAT", "VERSION", "MAX_FILE_BYTES", "MAX_TEXT_BYTES", "CLASSES", "register", "dumps", "loads", "save", "load"]
 
 FORMAT = "contouring_ros benchmark part"
 VERSION = 1
@@ -42,23 +43,15 @@ MAX_TEXT_BYTES = 1024 * 2**20       # its decompressed JSON, at most (a gzip bom
 _NUMPY_KINDS = "biuf"               # numpy scalars and arrays of bools, integers and floats only
 
 
-def _allowed() -> dict:
-    """Class name -> class: every dataclass a part may hold (the only classes :func:`loads` builds)."""
-    from . import benchmark, tuning
-    from .core import margins, metrics
-    classes = [benchmark.Part, benchmark.Family, benchmark.Combination, benchmark.Excluded, benchmark.Reference,
-               benchmark.Row, tuning.Protocol, tuning.Outcome, tuning.Evaluation, tuning.Tuned, tuning.Search,
-               margins.LoopMargins, metrics.Scores]
-    return {f"{c.__module__.rsplit('.', 1)[-1]}.{c.__qualname__}": c for c in classes}
+#: class name -> class: every dataclass a part may hold, the only classes :func:`loads` builds; registered by
+#: the modules that define them (:func:`register`: contouring_ros.benchmark registers the benchmark's), so
+#: this module imports none of them
+CLASSES: dict = {}
 
 
-CLASSES: dict = {}                  # filled on first use (the benchmark imports this module)
-
-
-def _classes() -> dict:
-    if not CLASSES:
-        CLASSES.update(_allowed())
-    return CLASSES
+def register(*classes) -> None:
+    """Allow ``classes`` (dataclasses) in parts, each under '<module>.<name>'."""
+    CLASSES.update({f"{c.__module__.rsplit('.', 1)[-1]}.{c.__qualname__}": c for c in classes})
 
 
 class _Odd(Exception):
@@ -104,7 +97,7 @@ def _encode(value, names: dict, ids: dict):
 
 def dumps(part) -> bytes:
     """``part`` (a benchmark Part) as the bytes of a part file: gzip of the header line and the payload."""
-    names = {cls: name for name, cls in _classes().items()}
+    names = {cls: name for name, cls in CLASSES.items()}
     payload = json.dumps(_encode(part, names, {}), separators=(",", ":"), allow_nan=False).encode()
     header = {"format": FORMAT, "version": VERSION, "sha256": hashlib.sha256(payload).hexdigest(),
               "bytes": len(payload)}
@@ -124,7 +117,7 @@ class _Builder:
     """Builds the objects of a checked payload, checking each value against its field's declared type."""
 
     def __init__(self):
-        self.classes = _classes()
+        self.classes = CLASSES
         self.objects = {}
         self.hints = {}
 

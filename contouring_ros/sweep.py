@@ -29,7 +29,8 @@ from .experiment.validate import experiment_from_data
 from .core.batch import batch_minimum, batch_problem, simulate_batch, structure
 from .core import progress
 from .core.simulation import first_divergence, simulate
-from .errors import ConfigError, Diverged, ScoreError, write_atomically
+from .errors import ConfigError, Diverged, ScoreError
+from .outputs import write_atomically
 from .executors import pool as executor
 from .notices import progress_of
 from .scoring import score_run

@@ -5,7 +5,8 @@ import pytest
 
 from contouring_ros import outputs
 from contouring_ros.cli import main
-from contouring_ros.errors import OutputError, write_atomically
+from contouring_ros.errors import OutputError
+from contouring_ros.outputs import write_atomically
 
 from conftest import DEFAULT, recorded_bag, shortened
 

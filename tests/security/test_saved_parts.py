@@ -13,6 +13,7 @@ import pytest
 from contouring_ros import benchmark, parts, tuning
 from contouring_ros.cli import main
 from contouring_ros.errors import ConfigError
+from contouring_ros.search import agreement
 
 
 def _part() -> benchmark.Part:
@@ -22,7 +23,8 @@ def _part() -> benchmark.Part:
     draws = [tuning.Outcome(tace=1e-6, mce=2e-6, peak_command=(1.0, np.float64(2.5))),
              tuning.Outcome(failure="diverged at t = 1 s")]
     tuned = tuning.Tuned(gains={"ccc.kp": np.float64(2.0)}, draws=draws, nominal=draws[0], robust_worst=math.inf,
-                         search_tace=[math.nan, 3e-6])
+                         search_tace=[math.nan, 3e-6], agreement=agreement([math.inf, 3e-6, 3.1e-6, 3.05e-6]),
+                         point={"f_p": 12.5, "r_d": 0.0})
     proposed = benchmark.Row(family, combination, tuned=tuned, status="ok")
     proposed.reference = proposed
     excluded = benchmark.Row(family, None, benchmark.Excluded("tangent_line", "tvt", "ismc", "not paired"))
@@ -50,7 +52,8 @@ def test_a_part_comes_back_with_its_values_types_and_shared_objects(tmp_path):
     assert proposed.reference is proposed and proposed.family is back.families[0] is back.rows[1].family
     assert type(proposed.tuned.gains["ccc.kp"]) is np.float64 and proposed.tuned.robust_worst == math.inf
     assert math.isnan(proposed.tuned.search_tace[0]) and proposed.tuned.nominal is proposed.tuned.draws[0]
-    assert back.protocol == part.protocol and isinstance(back.protocol.scan, tuple)
+    assert back.protocol == part.protocol and back.rows[0].tuned.agreement == part.rows[0].tuned.agreement
+    assert back.rows[0].tuned.converged and back.rows[0].tuned.point == {"f_p": 12.5, "r_d": 0.0}
     assert proposed.combination.gain_keys == ("ccc.kp",) and back.methods == ()
     assert path.read_bytes() == benchmark.save_part(part, tmp_path / "q.part").read_bytes()    # deterministic
 
