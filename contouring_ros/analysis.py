@@ -615,12 +615,14 @@ LABELLED_BLOCKS = 40
 
 
 def _feed_events(trace) -> list:
-    """(step, label) of the run's feed holds (its experiment's ``feed_events``) and of a monitoring breach."""
+    """(step, label) of the run's feed holds and overrides (its experiment's ``feed_events``) and of a monitoring
+    breach."""
     experiment = trace.experiment
     if experiment is None:
         return []
     ts = experiment.sample_time
-    out = [(hold, f"hold {hold * ts:g} s") for hold, _ in parse_feed_events(experiment.feed_events, ts)]
+    out = [(step, f"hold {step * ts:g} s" if what == "hold" else f"{value * 100:g}% {step * ts:g} s")
+           for step, what, value in parse_feed_events(experiment.feed_events, ts) if what != "resume"]
     breach = breach_of(trace.run.result, experiment)
     if breach is not None:
         out.append((breach.step, f"breach {breach.step * ts:g} s"))
@@ -649,7 +651,7 @@ def draw_feed(traces):
         if len(blocks) <= LABELLED_BLOCKS:
             for edge in edges[1:-1]:
                 top.axvline(edge, color="0.85", lw=0.6, zorder=0)
-        for step, label in _feed_events(t):          # holds and a monitoring breach, where they happened
+        for step, label in _feed_events(t):          # holds, overrides and a breach, where they came
             at = float(_finite(t.run.result.theta)[min(step, len(t.run.result.theta) - 1)]) / per_minute
             top.axvline(at, color=t.colour, ls=":", lw=1.0)
             top.annotate(label, (at, 1.0), xycoords=("data", "axes fraction"), rotation=90, fontsize=7,

@@ -267,6 +267,11 @@ class FeedPlan:
         Scales every programmed feed (1: 100 %).
     lookahead_blocks : int
         Blocks the planner sees ahead (step 3 of the module docstring); 0: the whole program.
+    entry : (float, float)
+        The feed [m/s] and its rate [m/s^2] at the path's start: (0, 0) from rest; else a plan made while the
+        tool moves (:meth:`rest_of_path`, a feed override's re-plan). The first span's profile starts from
+        that state (Ruckig first brings a feed above the span's limit down within the acceleration and jerk
+        bounds); ValueError where it cannot reach the first span's end without reversing.
 
     Attributes
     ----------
@@ -288,7 +293,7 @@ class FeedPlan:
     def __init__(self, path: ToolPath, acceleration: float, jerk: float, feedrate: float | None = None,
                  rapid_feedrate: float | None = None, normal_acceleration: float = 0.0, axis_feedrate=None,
                  axis_acceleration=None, axis_jerk=None, contour_tolerance: float = 0.0, tracking_lag=None,
-                 dwell: float = 0.0, feed_override: float = 1.0, lookahead_blocks: int = 0):
+                 dwell: float = 0.0, feed_override: float = 1.0, lookahead_blocks: int = 0, entry=(0.0, 0.0)):
         if acceleration <= 0.0 or jerk <= 0.0:
             raise ValueError("acceleration and jerk must be positive")
         if feed_override <= 0.0:
@@ -311,7 +316,9 @@ class FeedPlan:
         feed = np.array([limit.feed for limit in self.limits])
         acc = np.array([limit.acceleration for limit in self.limits])
         jer = np.array([limit.jerk for limit in self.limits])
+        self.entry = (float(entry[0]), float(entry[1]))
         corner = np.zeros(m + 1)                 # speed limit at each block boundary
+        corner[0] = min(self.entry[0], feed[0])
         hold = np.zeros(m + 1)                   # [s] held at each boundary before the next block
         hold[0] = getattr(path, "dwell", 0.0)
         hold[m] = blocks[-1].dwell
@@ -348,6 +355,7 @@ class FeedPlan:
                 v[i + 1] = min(v[i + 1], reach(v[i], room[i], max(v[i + 1], v[i]), span_acc[i], span_jerk[i]))
             for i in range(k - 1, -1, -1):       # backward: what it can brake to its exit speed from
                 v[i] = min(v[i], reach(v[i + 1], room[i], max(v[i], v[i + 1]), span_acc[i], span_jerk[i]))
+        v[0] = self.entry[0]                     # the first span's profile starts from the entry state
         self._span = (first, span_start, span_length, cap, span_acc, span_jerk, v, hold[np.append(first, m)])
         durations = np.array([self._profile(i).duration for i in range(k)])
         span_hold = hold[first]
@@ -394,7 +402,8 @@ class FeedPlan:
         from ruckig import InputParameter, Result, Ruckig, Trajectory
         _, start, length, cap, acc, jerk, v, _ = self._span
         inp = InputParameter(1)
-        inp.current_position, inp.current_velocity, inp.current_acceleration = [0.0], [float(v[i])], [0.0]
+        inp.current_position, inp.current_velocity = [0.0], [float(v[i])]
+        inp.current_acceleration = [self.entry[1] if i == 0 else 0.0]
         inp.target_position, inp.target_velocity, inp.target_acceleration = [float(length[i])], [float(v[i + 1])], [0.0]
         inp.max_velocity, inp.max_acceleration, inp.max_jerk = [float(cap[i])], [float(acc[i])], [float(jerk[i])]
         trajectory = Trajectory(1)
@@ -477,11 +486,14 @@ class FeedPlan:
         out[-1] = v[-1]
         return out
 
-    def rest_of_path(self, theta: float) -> "FeedPlan | None":
-        """The same plan (bounds, feeds, look-ahead) of the path from arc length theta on, from rest there: what
-        a control plans when it resumes after a feed hold; None where nothing is left."""
+    def rest_of_path(self, theta: float, feed_override: float | None = None, entry=(0.0, 0.0)) -> "FeedPlan | None":
+        """The same plan (bounds, feeds, look-ahead) of the path from arc length theta on, from the ``entry``
+        state there (feed, its rate; rest by default), with another ``feed_override`` where given: what a
+        control plans when it resumes after a feed hold, or when the feed override changes while it moves;
+        None where nothing is left. ValueError where no profile leaves the entry state within the bounds."""
         path = _PathFrom(getattr(self.curve, "path", self.curve), theta)      # the whole path, after a resume too
-        return FeedPlan(path, **self._arguments) if path.blocks else None
+        arguments = self._arguments if feed_override is None else {**self._arguments, "feed_override": feed_override}
+        return FeedPlan(path, **arguments, entry=entry) if path.blocks else None
 
     def bounds_at(self, theta: float) -> tuple:
         """(acceleration, jerk) bounds along the path of the block at arc length theta."""
