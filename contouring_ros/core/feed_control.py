@@ -106,10 +106,37 @@ class FeedControl:
         self.breached = False
         self.ended = False              # a stop that came to rest at the program's end: nothing to resume
         self.events = []                # (step, what, arc length): what happened when
+        self.step = -1                  # the latest step whose reference was computed
+
+    def command(self, what: str, percent: float | None = None) -> tuple:
+        """A ``hold``, ``resume`` or ``override`` (``percent``) given while the run goes (the realtime
+        interpolator's services and override topic): it acts as the same event of ``feed_events`` at the
+        next step whose reference is computed. Returns (accepted, one line saying what or why not)."""
+        k = self.step + 1
+        if self.breached:
+            return False, f"{what} refused: the run stopped on a monitoring breach"
+        held = self.held if not any(event[1] in ("hold", "resume") for event in self.queue) else \
+            [event[1] for event in self.queue if event[1] in ("hold", "resume")][-1] == "hold"
+        value = None
+        if what == "hold" and held:
+            return False, "hold refused: the feed is held already"
+        if what == "resume" and not held:
+            return False, "resume refused: no feed hold to resume"
+        if what == "override":
+            if not (percent is not None and OVERRIDE_RANGE[0] <= percent <= OVERRIDE_RANGE[1]):
+                return False, (f"feed override {percent} % refused: it must be {OVERRIDE_RANGE[0]:g} to "
+                               f"{OVERRIDE_RANGE[1]:g} %")
+            value = float(percent) / 100.0
+        elif what not in ("hold", "resume"):
+            raise ValueError(f"{what!r}: expected hold, resume or override")
+        at = next((i for i, event in enumerate(self.queue) if event[0] > k), len(self.queue))
+        self.queue.insert(at, (k, what, value))
+        return True, f"{what}{'' if value is None else f' {percent:g}%'} at step {k}"
 
     def reference(self, k: int, position=None, velocity=None):
         """The reference of step k (``position``, ``velocity``: the axis states the in-position check sees,
         those of step k - delay; None before the first)."""
+        self.step = k
         if self.monitor is not None and not self.breached and self.monitor.stopping(k):
             self.breached = True
             if self.stop is None:

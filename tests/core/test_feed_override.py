@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 import contouring_ros as cr
+from contouring_ros.core.feed_control import parse_feed_events
 from contouring_ros.core.feed_planning import scurve_time
 from conftest import CONFIG
 
@@ -91,3 +92,39 @@ def test_feed_png_marks_each_override_where_it_came(stepped, tmp_path):
         marks = [text for text in top.texts if text.get_text() == label]
         assert len(marks) == 1 and marks[0].xy[0] == pytest.approx(stepped.result.theta[step] * 1e3)     # mm
 
+
+def live_theta(commands: dict, events=(), steps: int = 4000) -> tuple:
+    """theta of each step of the example part's reference with the timed ``events`` (the axes never in position: the in-position waits
+    run to their timeout) with ``commands`` {step: [(what, percent), ...]} given to the FeedControl as the
+    realtime interpolator's services and topic give them, while the step before was the latest computed;
+    and the answers."""
+    from contouring_ros.config import load_experiment
+    from contouring_ros.experiment.build import build_clock, build_feed_control, build_path
+    experiment = load_experiment(EXAMPLE)
+    curve, schedule, _ = build_path(experiment)
+    clock = build_clock(experiment, curve, schedule)
+    control = build_feed_control(experiment, curve, schedule, clock, None, live=True)
+    control.queue = parse_feed_events(events, TS)            # the file's timed events
+    theta, answers = [], []
+    for k in range(steps):
+        for what, percent in commands.get(k, ()):
+            answers.append(control.command(what, percent))
+        theta.append(float(control.reference(k).theta))
+    return np.array(theta), answers
+
+
+def test_commands_while_running_act_as_the_same_timed_events():
+    timed, _ = live_theta({}, ["hold 1.0", "override 50% 1.4", "resume 1.6", "override 150% 2.6"])
+    live, answers = live_theta({1000: [("hold", None)], 1400: [("override", 50.0)], 1600: [("resume", None)],
+                                2600: [("override", 150.0)]})
+    assert all(ok for ok, _ in answers) and answers[0][1] == "hold at step 1000"
+    np.testing.assert_array_equal(live, timed)
+    plain, _ = live_theta({})
+    assert not np.array_equal(live, plain)
+
+
+def test_commands_that_cannot_act_are_refused_with_one_line():
+    _, answers = live_theta({10: [("resume", None), ("override", 250.0), ("hold", None), ("hold", None)]}, steps=20)
+    assert [ok for ok, _ in answers] == [False, False, True, False]
+    assert answers[0][1] == "resume refused: no feed hold to resume"
+    assert "0 to 200 %" in answers[1][1] and answers[3][1] == "hold refused: the feed is held already"
