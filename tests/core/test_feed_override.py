@@ -91,6 +91,12 @@ def test_feed_png_marks_each_override_where_it_came(stepped, tmp_path):
     for label, step in (("50% 1 s", 1000), ("150% 2.5 s", 2500)):
         marks = [text for text in top.texts if text.get_text() == label]
         assert len(marks) == 1 and marks[0].xy[0] == pytest.approx(stepped.result.theta[step] * 1e3)     # mm
+    # the dashed limit follows the override: F1200 of the first lines, 600 from the 50 % step, 1800 on N40's F1200
+    # line after the 150 % step, each from where the reference was then
+    limits = [patch.get_data() for patch in top.patches]
+    assert [float(data.values[0]) for data in limits] == pytest.approx([1200.0, 600.0, 1800.0])
+    assert [float(data.edges[0]) for data in limits[1:]] == pytest.approx(
+        [stepped.result.theta[1000] * 1e3, stepped.result.theta[2500] * 1e3])
 
 
 def live_theta(commands: dict, events=(), steps: int = 4000) -> tuple:
