@@ -632,11 +632,14 @@ def draw_effort(traces):
          lambda t, i: t.run.result.correction[:, i])])
 
 
-def _block_limits(trace: _Trace) -> np.ndarray:
+def _block_limits(trace: _Trace, override: float | None = None) -> np.ndarray:
     """The feed limit [m/s] of each block of a tool path run: the feed plan's (F, rapid rate, axes,
-    centripetal or contour-tolerance bound), else the programmed F (nan where there is none)."""
+    centripetal or contour-tolerance bound; under another feed ``override`` where given), else the programmed
+    F (nan where there is none)."""
     try:
         schedule = build_schedule(trace.experiment, trace.curve)
+        if override is not None and hasattr(schedule, "rest_of_path"):
+            schedule = schedule.rest_of_path(trace.curve.domain[0], override)
     except ContouringError:
         schedule = None
     limits = getattr(schedule, "limits", None)
@@ -656,16 +659,33 @@ LABELLED_BLOCKS = 40
 
 
 def _feed_events(trace) -> list:
-    """(step, label) of the run's feed holds (its experiment's ``feed_events``) and of a monitoring breach."""
+    """(step, label) of the run's feed holds and overrides (its experiment's ``feed_events``) and of a monitoring
+    breach."""
     experiment = trace.experiment
     if experiment is None:
         return []
     ts = experiment.sample_time
-    out = [(hold, f"hold {hold * ts:g} s") for hold, _ in parse_feed_events(experiment.feed_events, ts)]
+    out = [(step, f"hold {step * ts:g} s" if what == "hold" else f"{value * 100:g}% {step * ts:g} s")
+           for step, what, value in parse_feed_events(experiment.feed_events, ts) if what != "resume"]
     breach = breach_of(trace.run.result, experiment)
     if breach is not None:
         out.append((breach.step, f"breach {breach.step * ts:g} s"))
     return out
+
+
+def _override_stretches(trace) -> list:
+    """((start, end) arc length [m], feed override or None for the plan's own) of each stretch of the path a
+    run went along under one feed override (its experiment's ``feed_events``; 0 % left out: no feed there)."""
+    theta, domain = _finite(trace.run.result.theta), trace.curve.domain
+    experiment, out, at, current = trace.experiment, [], domain[0], None
+    events = parse_feed_events(experiment.feed_events, experiment.sample_time) if experiment is not None else []
+    for step, what, value in events:
+        if what != "override" or value == 0.0 or step >= len(theta):
+            continue
+        here = float(theta[step])
+        out.append(((at, here), current))
+        at, current = here, value
+    return out + [((at, domain[1]), current)]
 
 
 def draw_feed(traces):
@@ -686,11 +706,17 @@ def draw_feed(traces):
         feed = np.linalg.norm(_finite(t.run.result.reference_velocity), axis=1)
         top.plot(_finite(t.run.result.theta) / per_minute, feed * scale, color=t.colour, lw=1.2)
         edges = np.array([b.start for b in blocks] + [t.curve.domain[1]]) / per_minute
-        top.stairs(_block_limits(t) * scale, edges, color=t.colour, ls="--", lw=0.9, baseline=None)
+        for (start, end), override in _override_stretches(t):      # each stretch under its feed override
+            start, end = start / per_minute, end / per_minute
+            inside = np.flatnonzero((edges[1:] > start) & (edges[:-1] < end))
+            if inside.size:
+                top.stairs((_block_limits(t, override) * scale)[inside],
+                           np.clip(edges[inside[0]:inside[-1] + 2], start, end), color=t.colour, ls="--", lw=0.9,
+                           baseline=None)
         if len(blocks) <= LABELLED_BLOCKS:
             for edge in edges[1:-1]:
                 top.axvline(edge, color="0.85", lw=0.6, zorder=0)
-        for step, label in _feed_events(t):          # holds and a monitoring breach, where they happened
+        for step, label in _feed_events(t):          # holds, overrides and a breach, where they came
             at = float(_finite(t.run.result.theta)[min(step, len(t.run.result.theta) - 1)]) / per_minute
             top.axvline(at, color=t.colour, ls=":", lw=1.0)
             top.annotate(label, (at, 1.0), xycoords=("data", "axes fraction"), rotation=90, fontsize=7,

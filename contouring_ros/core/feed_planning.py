@@ -267,6 +267,11 @@ class FeedPlan:
         Scales every programmed feed (1: 100 %).
     lookahead_blocks : int
         Blocks the planner sees ahead (step 3 of the module docstring); 0: the whole program.
+    entry : (float, float)
+        The feed [m/s] and its rate [m/s^2] at the path's start: (0, 0) from rest; else a plan made while the
+        tool moves (:meth:`rest_of_path`, a feed override's re-plan). The first span's profile starts from
+        that state (Ruckig first brings a feed above the span's limit down within the acceleration and jerk
+        bounds); ValueError where it cannot reach the first span's end without reversing.
 
     Attributes
     ----------
@@ -288,7 +293,7 @@ class FeedPlan:
     def __init__(self, path: ToolPath, acceleration: float, jerk: float, feedrate: float | None = None,
                  rapid_feedrate: float | None = None, normal_acceleration: float = 0.0, axis_feedrate=None,
                  axis_acceleration=None, axis_jerk=None, contour_tolerance: float = 0.0, tracking_lag=None,
-                 dwell: float = 0.0, feed_override: float = 1.0, lookahead_blocks: int = 0):
+                 dwell: float = 0.0, feed_override: float = 1.0, lookahead_blocks: int = 0, entry=(0.0, 0.0)):
         if acceleration <= 0.0 or jerk <= 0.0:
             raise ValueError("acceleration and jerk must be positive")
         if feed_override <= 0.0:
@@ -311,7 +316,9 @@ class FeedPlan:
         feed = np.array([limit.feed for limit in self.limits])
         acc = np.array([limit.acceleration for limit in self.limits])
         jer = np.array([limit.jerk for limit in self.limits])
+        self.entry = (float(entry[0]), float(entry[1]))
         corner = np.zeros(m + 1)                 # speed limit at each block boundary
+        corner[0] = min(self.entry[0], feed[0])
         hold = np.zeros(m + 1)                   # [s] held at each boundary before the next block
         hold[0] = getattr(path, "dwell", 0.0)
         hold[m] = blocks[-1].dwell
@@ -332,9 +339,17 @@ class FeedPlan:
             (corner[1:m] >= feed[1:]) & (hold[1:m] == 0.0)
         first = np.concatenate([[0], np.flatnonzero(~joined) + 1])           # each span's first block
         window = int(lookahead_blocks) if 0 < lookahead_blocks < m else 0
-        if window:            # spans of at most half the window: at least half a window is seen beyond each
-            first = np.union1d(first, np.arange(0, m, max(1, window // 2)))
         starts = np.array([block.start for block in blocks] + [self.theta_end])
+        if window:            # spans of at most half the window: at least half a window is seen beyond each
+            splits = np.arange(0, m, max(1, window // 2))
+            if self.entry[0] > feed[0]:
+                # entered above the first block's feed (an override lowered it): the first span runs on over
+                # the blocks the way down covers (twice the distance of a jerk-limited slow-down from the
+                # speed the entry's acceleration still brings), so that it has the room to come down
+                v_peak = self.entry[0] + max(self.entry[1], 0.0) ** 2 / (2.0 * jer[0])
+                down = v_peak * max(self.entry[1], 0.0) / jer[0] + scurve_distance(feed[0], v_peak, acc[0], jer[0])
+                splits = splits[(splits == 0) | (starts[splits] - starts[0] > 2.0 * down)]
+            first = np.union1d(first, splits)
         span_start = starts[first]
         span_length = np.append(span_start[1:], self.theta_end) - span_start
         cap, span_acc, span_jerk = feed[first], acc[first], jer[first]
@@ -348,6 +363,7 @@ class FeedPlan:
                 v[i + 1] = min(v[i + 1], reach(v[i], room[i], max(v[i + 1], v[i]), span_acc[i], span_jerk[i]))
             for i in range(k - 1, -1, -1):       # backward: what it can brake to its exit speed from
                 v[i] = min(v[i], reach(v[i + 1], room[i], max(v[i], v[i + 1]), span_acc[i], span_jerk[i]))
+        v[0] = self.entry[0]                     # the first span's profile starts from the entry state
         self._span = (first, span_start, span_length, cap, span_acc, span_jerk, v, hold[np.append(first, m)])
         durations = np.array([self._profile(i).duration for i in range(k)])
         span_hold = hold[first]
@@ -372,6 +388,7 @@ class FeedPlan:
         brake to a stop within what was seen (the next window sees more, so its limits are as high or
         higher)."""
         k, m = len(first), len(starts) - 1
+        safe = np.full(k + 1, np.nan)      # boundary i + 1's speed as the window of span i - 1 saw it
         for i in range(k):
             v[i + 1] = min(v[i + 1], reach(v[i], room[i], max(v[i + 1], v[i]), acc[i], jerk[i]))
             end = int(first[i]) + window                      # the first block beyond the window
@@ -379,11 +396,24 @@ class FeedPlan:
                 last, back = k, v[k]
             else:
                 last, back = int(np.searchsorted(first, end, side="left")), 0.0
+            if last == i + 2:
+                safe[last] = back
             for j in range(last - 1, i, -1):                   # spans i + 1 .. last - 1, from the window's end
                 seen = room[j] if j + 1 < k and first[j + 1] <= end else (starts[min(end, m)] - span_start[j]) * \
                     (1.0 - SPARE)
                 back = min(v[j], reach(back, seen, max(v[j], back), acc[j], jerk[j]))
+                if j == i + 2:
+                    safe[j] = back
             v[i + 1] = min(v[i + 1], back)
+            # A jerk-limited slow-down that starts and ends at zero acceleration needs more room from v to
+            # v / 3 than from v to rest: where the window now allows a speed at boundary i + 1 that span i
+            # cannot brake to from v[i], the speed the window before allowed there (from which it fixed
+            # v[i]) is kept. Only a plan entered while moving (an override) has none: it cannot be made.
+            if v[i] > reach(v[i + 1], room[i], max(v[i], v[i + 1]), acc[i], jerk[i]) * (1.0 + 1e-12):
+                if np.isnan(safe[i + 1]):
+                    raise ValueError("the entry feed cannot be brought down to the look-ahead's speed within "
+                                     "the first span")
+                v[i + 1] = min(v[i + 1], safe[i + 1])
 
     def _profile(self, i: int):
         """Span i's Ruckig trajectory (the last few asked for are kept: the reference walks the spans in order,
@@ -391,15 +421,24 @@ class FeedPlan:
         cached = vars(self).setdefault("_cached", {})
         if i in cached:
             return cached[i]
-        from ruckig import InputParameter, Result, Ruckig, Trajectory
+        from ruckig import InputParameter, Result, Ruckig, RuckigError, Trajectory
         _, start, length, cap, acc, jerk, v, _ = self._span
         inp = InputParameter(1)
-        inp.current_position, inp.current_velocity, inp.current_acceleration = [0.0], [float(v[i])], [0.0]
+        inp.current_position, inp.current_velocity = [0.0], [float(v[i])]
+        inp.current_acceleration = [self.entry[1] if i == 0 else 0.0]
+        if i == 0 and self.entry != (0.0, 0.0):
+            # from a moving state the way down to the span's feed limit must not undershoot into reverse (a
+            # jerk-limited brake from F to 10 % of it would otherwise overshoot below zero and come back)
+            inp.min_velocity = [0.0]
         inp.target_position, inp.target_velocity, inp.target_acceleration = [float(length[i])], [float(v[i + 1])], [0.0]
         inp.max_velocity, inp.max_acceleration, inp.max_jerk = [float(cap[i])], [float(acc[i])], [float(jerk[i])]
         trajectory = Trajectory(1)
-        result = Ruckig(1).calculate(inp, trajectory)
         line = self.curve.blocks[int(self._span[0][i])].line
+        try:
+            result = Ruckig(1).calculate(inp, trajectory)
+        except RuckigError as error:          # no profile from this entry state (a feed override)
+            raise ValueError(f"line {line}: no jerk-limited profile for this block ({error})".splitlines()[0]) \
+                from None
         if result not in (Result.Working, Result.Finished):
             raise ValueError(f"line {line}: no jerk-limited profile for this block ({result})")
         extrema = trajectory.position_extrema[0]
@@ -428,8 +467,8 @@ class FeedPlan:
         if i >= len(start):                      # the hold after the last block
             return self.theta_end, 0.0, 0.0
         into = t - times[i] - hold[i]
-        if into <= 0.0:                          # holding before span i
-            return float(start[i]), 0.0, 0.0
+        if into <= 0.0:                          # holding before span i (or at the entry state)
+            return (float(start[i]), *self.entry) if i == 0 and hold[0] == 0.0 else (float(start[i]), 0.0, 0.0)
         trajectory = self._profile(i)
         if into >= trajectory.duration:
             return float(start[i] + length[i]), float(self._span[6][i + 1]), 0.0
@@ -477,11 +516,14 @@ class FeedPlan:
         out[-1] = v[-1]
         return out
 
-    def rest_of_path(self, theta: float) -> "FeedPlan | None":
-        """The same plan (bounds, feeds, look-ahead) of the path from arc length theta on, from rest there: what
-        a control plans when it resumes after a feed hold; None where nothing is left."""
+    def rest_of_path(self, theta: float, feed_override: float | None = None, entry=(0.0, 0.0)) -> "FeedPlan | None":
+        """The same plan (bounds, feeds, look-ahead) of the path from arc length theta on, from the ``entry``
+        state there (feed, its rate; rest by default), with another ``feed_override`` where given: what a
+        control plans when it resumes after a feed hold, or when the feed override changes while it moves;
+        None where nothing is left. ValueError where no profile leaves the entry state within the bounds."""
         path = _PathFrom(getattr(self.curve, "path", self.curve), theta)      # the whole path, after a resume too
-        return FeedPlan(path, **self._arguments) if path.blocks else None
+        arguments = self._arguments if feed_override is None else {**self._arguments, "feed_override": feed_override}
+        return FeedPlan(path, **arguments, entry=entry) if path.blocks else None
 
     def bounds_at(self, theta: float) -> tuple:
         """(acceleration, jerk) bounds along the path of the block at arc length theta."""

@@ -223,6 +223,11 @@ class InPositionClock:
             return float(self.stop_times[self._next])
         return t
 
+    @property
+    def holding(self) -> bool:
+        """Whether the reference waits at an exact stop for the axes now."""
+        return self._held >= 0
+
     def ahead(self, t: float, count: int) -> np.ndarray:
         """The plan's times at the ``count`` steps after the one :meth:`time` just gave ``t``, as far as they
         are known now: held at the corner while the axes settle there, else running on with the steps up to

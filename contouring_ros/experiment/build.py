@@ -116,21 +116,24 @@ def build_monitor(experiment: Experiment):
     return Monitor(limits[0], limits[1], LOOKAHEAD)
 
 
-def build_feed_control(experiment: Experiment, curve, schedule, clock, monitor):
+def build_feed_control(experiment: Experiment, curve, schedule, clock, monitor, live: bool = False):
     """The run's :class:`~contouring_ros.core.feed_control.FeedControl` where it has feed events or a
-    monitor; else None (the reference comes from the plan and the in-position clock alone)."""
-    holds = parse_feed_events(experiment.feed_events, experiment.sample_time)
-    if not holds and monitor is None:
+    monitor, or takes them while it runs (``live``: the realtime interpolator's hold, resume and override
+    interfaces, on a planned tool path whose reference no servo reads ahead); else None (the reference comes
+    from the plan and the in-position clock alone)."""
+    events = parse_feed_events(experiment.feed_events, experiment.sample_time)
+    live = live and planned_tool_path(experiment) and not reference_preview(experiment)
+    if not events and monitor is None and not live:
         return None
-    if holds and reference_preview(experiment):
-        raise ConfigError(f"{experiment.path}: feed_events: holds do not run with a servo or controller that reads "
-                          "the reference ahead (its preview would not follow the stop)")
+    if events and reference_preview(experiment):
+        raise ConfigError(f"{experiment.path}: feed_events: holds and overrides do not run with a servo or controller "
+                          "that reads the reference ahead (its preview would not follow the new plan)")
     windows = in_position_windows(experiment)
 
     def clock_for(plan):
         return InPositionClock(plan, curve, windows, experiment.sample_time,
                                experiment.schedule["in_position_timeout"], LOOKAHEAD)
-    return FeedControl(curve, schedule, experiment.sample_time, clock, clock_for, monitor, holds, LOOKAHEAD)
+    return FeedControl(curve, schedule, experiment.sample_time, clock, clock_for, monitor, events, LOOKAHEAD)
 
 
 def in_position_windows(shared) -> list | None:

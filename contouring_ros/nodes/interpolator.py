@@ -1,10 +1,20 @@
 """Interpolator node: publishes the reference of every step, a few steps ahead, and /clock; where exact stops
 wait for the axes (in-position check), it takes every axis state too. Where a servo reads the reference
 ahead (ZPETC), each /reference message carries after its point the positions of the steps after it
-(docs/ARCHITECTURE.md, "Reference preview")."""
+(docs/ARCHITECTURE.md, "Reference preview").
+
+In realtime mode the interpolator is also a control's operator panel: the services ~/hold and ~/resume
+(std_srvs/srv/Trigger: feed hold and resume) and the topic ~/feed_override (std_msgs/msg/Float64, percent, 0
+to 200) act on the reference from the next step it computes, as the same events of ``feed_events`` do
+(:meth:`contouring_ros.core.feed_control.FeedControl.command`). In lockstep the services refuse (the timed
+``feed_events`` are the reproducible way) and the topic is not read."""
 from __future__ import annotations
 
+from std_msgs.msg import Float64
+from std_srvs.srv import Trigger
+
 from .. import cdr, graph
+from ..rclpy_adapter import take_request, taker
 from ..experiment.build import (build_clock, build_curve, build_feed_control, build_monitor, build_schedule,
                                 interpolator_takes_state, reference_preview)
 from ..core.interpolation import reference, reference_ahead
@@ -28,7 +38,13 @@ class InterpolatorNode(LockstepNode):
         self.schedule = build_schedule(self.experiment, self.curve)
         self.clock = build_clock(self.experiment, self.curve, self.schedule)
         self.monitor = build_monitor(self.experiment)
-        self.control = build_feed_control(self.experiment, self.curve, self.schedule, self.clock, self.monitor)
+        self.live = self.experiment.timing == "realtime"
+        self.control = build_feed_control(self.experiment, self.curve, self.schedule, self.clock, self.monitor,
+                                          live=self.live)
+        self.panel = [self.node.create_service(Trigger, "~/" + what, lambda request, response, what=what:
+                                               self.on_command(response, what)) for what in ("hold", "resume")]
+        self.override_sub = self.node.create_subscription(Float64, "~/feed_override", self.on_override, 10)
+        self.take_override = taker(self.override_sub, Float64, raw=False)
         self.add_input(graph.CONTOUR_ERROR)
         self.state_topics = [graph.state_topic(a) for a in self.axes] \
             if interpolator_takes_state(self.experiment) else []
@@ -60,12 +76,48 @@ class InterpolatorNode(LockstepNode):
             *stamp, self.names, [*ref.position, float(ref.theta)], [*ref.velocity, float(ref.theta_dot)],
             [*ref.acceleration, float(ref.theta_ddot)], preview=preview))
 
+    def on_command(self, response, what: str, percent: float | None = None):
+        """A hold, resume (``response``: the Trigger service's) or override from the panel interfaces."""
+        if not self.live:
+            ok, message = False, (f"{what} refused: in timing: lockstep the run's feed_events are the way to hold, "
+                                  "resume and override (reproducibly)")
+        elif self.control is None:
+            ok, message = False, (f"{what} refused: feed hold and override need a tool path planned by the feed plan "
+                                  "whose reference no servo reads ahead")
+        else:
+            ok, message = self.control.command(what, percent)
+        if ok:                 # (rclpy refuses two severities from one line of code)
+            self.node.get_logger().info(message)
+        else:
+            self.node.get_logger().warning(message)
+        if response is not None:
+            response.success, response.message = ok, message
+        return response
+
+    def on_override(self, message):
+        """A feed override [percent] on ~/feed_override."""
+        self.on_command(None, "override", float(message.data))
+
+    def take_panel(self):
+        """Answer the hold and resume requests and read the overrides that wait (the lean loops run no
+        executor: each realtime tick takes them before it computes its reference)."""
+        for service in self.panel:
+            while True:
+                request, header = take_request(service)
+                if header is None:
+                    break
+                service.send_response(service.callback(request, Trigger.Response()), header)
+        while (taken := self.take_override()) is not None:
+            self.on_override(taken[0])
+
     def start(self):
         self.clock_pub.publish(cdr.encode_clock(0, 0))
         for k in range(graph.LOOKAHEAD):
             self.publish_reference(k)
 
     def on_step(self, k, inputs):
+        if self.live:
+            self.take_panel()
         if k > 0:
             self.clock_pub.publish(cdr.encode_clock(*self.stamp(k)))
         states = [inputs.get(topic) for topic in self.state_topics]

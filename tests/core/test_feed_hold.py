@@ -13,9 +13,11 @@ A, J, TS = 1.0, 10.0, 1e-3          # the example part's path bounds and sample 
 
 
 def test_feed_events_are_read_into_steps_and_bad_ones_refused():
-    assert parse_feed_events(["hold 1.2", "resume 1.8", "hold 3"], TS) == [(1200, 1800), (3000, None)]
+    assert parse_feed_events(["hold 1.2", "resume 1.8", "hold 3"], TS) == \
+        [(1200, "hold", None), (1800, "resume", None), (3000, "hold", None)]
     for events, fragment in [(["resume 1"], "a hold comes next"), (["hold 2", "resume 1"], "must rise"),
-                             (["pause 1"], "expected 'hold T'"), (["hold x"], "not a time")]:
+                             (["pause 1"], "expected 'hold T'"), (["override 250% 1"], "0 to 200 %"),
+                             (["override fast 1"], "not a percentage"), (["hold x"], "not a time")]:
         with pytest.raises(ValueError, match=fragment):
             parse_feed_events(events, TS)
     with pytest.raises(ConfigError) as error:

@@ -590,3 +590,35 @@ def test_a_short_look_ahead_is_only_slower_and_keeps_every_bound(window):
     assert np.all(schedule.junctions <= whole.junctions * (1 + 1e-9) + 1e-12)
     if window == 6:       # 6 blocks of 0.17 mm (3 chords and their blend arcs) cannot brake from F1200: slower
         assert schedule.duration > 1.2 * whole.duration
+
+
+def test_a_window_never_fixes_a_speed_the_span_before_cannot_brake_to():
+    """A jerk-limited slow-down with zero acceleration at both ends needs more room from v to v / 3 than from v to
+    rest, so a window that sees further may allow a speed its predecessor's span cannot brake to (the feed
+    reversed on this circle of chords into a G61 line at half the feed, planned from rest at 13.2 mm, 200 %)."""
+    path = ToolPath.from_program(parse_program(chord_circle(360, 5.0, header="G64 P0.001") + "\nG61 X8 Y0 F600"))
+    schedule = FeedPlan(path, 1.0, 10.0, lookahead_blocks=50)
+    for theta in np.linspace(0.001, 0.02, 12):
+        for override in (1.0, 2.0):
+            rest = schedule.rest_of_path(theta, override)
+            t, s, v, acc = sampled(rest)
+            assert v.min() >= -1e-12 and np.all(np.diff(s) >= -1e-15), (theta, override)
+            assert np.abs(acc).max() <= 1.0 * (1 + 1e-9)
+
+
+@pytest.mark.parametrize("window", [0, 50])
+def test_a_plan_entered_while_moving_comes_down_to_the_new_feed_within_the_bounds(window):
+    """rest_of_path from a moving state (an override to 10 % and to 50 % of F1200 on the chord circle): the feed
+    runs on from the entry state, comes down to the new limit without reversing, keeps the bounds."""
+    path = ToolPath.from_program(parse_program(chord_circle(360, 5.0, header="G64 P0.001")))
+    schedule = FeedPlan(path, 1.0, 10.0, lookahead_blocks=window)
+    theta, v0, a0 = schedule(0.05)                     # still accelerating towards F
+    assert 0.0 < v0 < 0.02 and a0 > 0.0
+    for override in (0.1, 0.5):
+        rest = schedule.rest_of_path(float(theta), override, (float(v0), float(a0)))
+        t, s, v, acc = sampled(rest)
+        assert s[0] == theta and v[0] == pytest.approx(v0) and acc[0] == pytest.approx(a0)
+        assert v.min() >= 0.0 and np.abs(acc).max() <= 1.0 * (1 + 1e-9)
+        assert np.abs(np.diff(acc) / DT).max() <= 10.0 * (1 + 1e-6)
+        down = t > 0.2                                  # 0.1 s to end the acceleration, < 0.1 s to come down
+        assert v[down].max() <= 0.02 * override * (1 + 1e-9)

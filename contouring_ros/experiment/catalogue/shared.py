@@ -70,9 +70,11 @@ GLOBALS = {
     "following_error_limit": Param("floats", [0.0], help="following-error monitoring, one or one per axis: the run "
                                    "stops on the path once an axis' |reference - position| passes it, 0: off [m]",
                                    bounds=(0.0, 1.0)),
-    # feed hold and resume at given times (core/feed_control.py), e.g. ["hold 1.2", "resume 1.8"]
-    "feed_events": Param("strings", [], help="feed holds and resumes of the run: 'hold T' and 'resume T' [s], "
-                         "alternating, a hold first"),
+    # feed hold, resume and override at given times (core/feed_control.py), e.g. ["hold 1.2", "resume 1.8",
+    # "override 50% 2.5"]
+    "feed_events": Param("strings", [], help="feed holds, resumes and overrides of the run: 'hold T', 'resume T' "
+                         "and 'override P% T' (T [s] rising, P 0 to 200 percent); holds and resumes alternate, "
+                         "a hold first"),
     # false: what use_sim_time nodes and diagnostic aggregators listen to; true: several graphs sharing a
     # domain, each its clock
     "namespaced_clock": Param("bool", False, help="under a namespace, /clock and /diagnostics take it too (else they "
