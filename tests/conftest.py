@@ -1,6 +1,7 @@
 """Shared fixtures: experiment texts and paths."""
 from __future__ import annotations
 
+import json
 import signal
 from pathlib import Path
 
@@ -97,6 +98,17 @@ def cli_with_file_size_limit(args, limit_bytes: int, cwd=ROOT):
 #: the signals of a run that the graph's bag and the in-process simulation must hold bit for bit alike
 SIGNALS = ["theta", "reference_position", "reference_velocity", "position", "velocity", "estimate_theta",
            "estimate_vector", "estimate_signed", "correction", "command"]
+
+
+def example_part_with_feed_events(folder: Path, events: list, name: str) -> Path:
+    """The example part (config/gcode_example_part.yaml) shortened to 3 s with ``events`` as its feed_events,
+    written to ``folder``/``name``.yaml with its part program's path made absolute."""
+    text = shortened(CONFIG / "gcode_example_part.yaml", 3.0).replace(
+        "sample_time: 0.001", f"sample_time: 0.001\n    feed_events: {json.dumps(events)}")
+    assert "feed_events" in text
+    path = folder / f"{name}.yaml"
+    path.write_text(text.replace("file: parts/example_part.ngc", f"file: {CONFIG / 'parts/example_part.ngc'}"))
+    return path
 
 
 def assert_graph_equals_simulation(experiment_path, bag):

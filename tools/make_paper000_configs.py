@@ -16,7 +16,8 @@ HEADER = """\
 #
 # Readings this file had to choose where the paper is silent (the same in every paper000_* file):
 # - Units. The paper works in millimetres (a_r = 20 mm, h_r in 1/m, gains per mm). Lengths here are SI
-#   metres and the actuator command unit is 1/1000 of the paper's, so every gain keeps the paper's number:
+#   metres and the actuator command unit is 1000 times the paper's (a command's number is 1/1000 of the
+#   paper's: the load bound 0.15 is 1.5e-4 here), so every gain keeps the paper's number:
 #   k = 10.3 (m/s per unit), PID gains per metre = the paper's per millimetre. Only the quantities that are
 #   not gains change: the disturbance bound 0.15 -> 1.5e-4 units, and the ISMC boundary layer mu = 1 -> 1e-3
 #   m/s (kappa mu, in command units, is the paper's value / 1000).
@@ -123,8 +124,9 @@ def main(out=None):
 # change only what the header of each family says, chosen from the physics. Claims: config/claims/paper000.yaml.
 
 MECH_COMMON = """\
-# Readings shared with the faithful paper000_* files: lengths in metres and the command unit 1/1000 of the
-# paper's (every gain keeps the paper's number); plants k = 10.3 / 10.0 m/s per unit, tau = 40 / 45 ms (eq. 2);
+# Readings shared with the faithful paper000_* files: lengths in metres and the command unit 1000 times the
+# paper's (a command's number is 1/1000 of the paper's; every gain keeps the paper's number); plants
+# k = 10.3 / 10.0 m/s per unit, tau = 40 / 45 ms (eq. 2);
 # the CCC correction adds to each axis' command (Fig. 5); Newton CEE (8, 11) iterated within each 1 ms step
 # from the previous step's estimate with the faithful files' stopping rule:
 #   {newton}

@@ -28,8 +28,9 @@ HEADER = """\
 # {compared}
 #
 # Readings this file had to choose:
-# - Units. The paper works in millimetres. Lengths here are SI metres and the command unit is 1/1000 of the
-#   paper's (the axis equations are linear), so every gain of Table 1 and of the CCC keeps its number; the
+# - Units. The paper works in millimetres. Lengths here are SI metres and the command unit is 1000 times the
+#   paper's (a command's number is 1/1000 of the paper's; the axis equations are linear), so every gain of
+#   Table 1 and of the CCC keeps its number; the
 #   disturbances d = 800 sin(pi t) ... (mm/s^2, added to the acceleration as in eq. 13-14) become 0.8 m/s^2.
 #   Section 5 gives d_y = 900 sin(2 pi t) (1 Hz), d_z = 800 sin(4 pi t) (2 Hz), d_x = 800 sin(pi t) (0.5 Hz).
 # - Axes: M q'' + B q' = K_f u + M d (model: mass_damper, disturbance_unit: acceleration), exact

@@ -62,13 +62,9 @@ def test_a_resume_before_the_stop_ends_waits_for_it_and_holds_repeat():
 @pytest.mark.graph
 @pytest.mark.slow
 def test_the_graph_holds_and_resumes_as_the_simulation_does(tmp_path):
-    from conftest import assert_graph_equals_simulation, shortened
+    from conftest import assert_graph_equals_simulation, example_part_with_feed_events
     from contouring_ros.runner import run_graph
-    text = shortened(CONFIG / "gcode_example_part.yaml", 3.0).replace(
-        "sample_time: 0.001", 'sample_time: 0.001\n    feed_events: ["hold 0.3", "resume 0.6", "hold 2.5", "resume 2.7"]')
-    assert "feed_events" in text
-    path = tmp_path / "held.yaml"
-    path.write_text(text.replace("file: parts/example_part.ngc", f"file: {CONFIG / 'parts/example_part.ngc'}"))
+    path = example_part_with_feed_events(tmp_path, ["hold 0.3", "resume 0.6", "hold 2.5", "resume 2.7"], "held")
     assert_graph_equals_simulation(path, run_graph(path, tmp_path / "held.mcap"))
 
 

@@ -72,13 +72,9 @@ def test_an_override_during_a_hold_sets_the_feed_of_the_resume():
 @pytest.mark.graph
 @pytest.mark.slow
 def test_the_graph_overrides_as_the_simulation_does(tmp_path):
-    from conftest import assert_graph_equals_simulation, shortened
+    from conftest import assert_graph_equals_simulation, example_part_with_feed_events
     from contouring_ros.runner import run_graph
-    text = shortened(CONFIG / "gcode_example_part.yaml", 3.0).replace(
-        "sample_time: 0.001", 'sample_time: 0.001\n    feed_events: ["override 50% 0.8", "override 150% 1.6"]')
-    assert "feed_events" in text
-    path = tmp_path / "override.yaml"
-    path.write_text(text.replace("file: parts/example_part.ngc", f"file: {CONFIG / 'parts/example_part.ngc'}"))
+    path = example_part_with_feed_events(tmp_path, ["override 50% 0.8", "override 150% 1.6"], "override")
     assert_graph_equals_simulation(path, run_graph(path, tmp_path / "override.mcap"))
 
 

@@ -37,7 +37,9 @@ def test_every_given_key_and_every_default_is_described(scenario, node, role):
     received = _received(scenario, node)
     described = node_parameters(received, node, role)
     assert set(received) <= set(described)                   # nothing the file gives is left out
-    assert {k for k in GLOBALS if GLOBALS[k].kind != "dict"} <= {k.split(".")[0] for k in described}
+    # every shared key is described, but for one whose default is an empty list, which ROS cannot type
+    assert {k for k in GLOBALS if GLOBALS[k].kind != "dict" and GLOBALS[k].default != []} <= \
+        {k.split(".")[0] for k in described}
     for name, value in received.items():
         assert described[name].value == value and described[name].given
     assert section_from_parameters({n: p.value for n, p in described.items() if p.given}) == \
