@@ -98,7 +98,7 @@ class FeedControl:
         self.clock_for, self.monitor = clock_for, monitor
         self.queue = list(events)        # the events still to come, in order
         self.plan, self.clock, self.origin = schedule, clock, 0
-        self.override = float(getattr(schedule, "_arguments", {}).get("feed_override", 1.0))
+        self.override = float(getattr(schedule, "feed_override", 1.0))
         self.wanted = None              # an override not applied yet (the plan could not leave its state then)
         self.last_time = 0.0            # plan time of the latest reference computed along the plan
         self.stop = None                # the ControlledStop under way or done (hold, 0% override or breach)

@@ -307,6 +307,7 @@ class FeedPlan:
                                contour_tolerance=contour_tolerance, tracking_lag=tracking_lag, dwell=dwell,
                                feed_override=feed_override, lookahead_blocks=lookahead_blocks)
         self.contour_tolerance = float(contour_tolerance)
+        self.feed_override = float(feed_override)
         self.theta_start, self.theta_end = path.domain
         blocks = path.blocks
         self.limits = block_limits(path, acceleration, jerk, feedrate, rapid_feedrate, normal_acceleration,

@@ -105,7 +105,9 @@ def test_a_run_past_its_timeout_names_each_node_still_running_with_its_last_line
     assert message.startswith("the run did not finish within 1 s (still running: ") and "\n" not in message, message
     running = re.findall(r"(/[\w/]+), its last line: ", message)
     assert running and set(running) <= set(graph_names.node_names(["x", "y"])), message
-    assert raised.value.bag == tmp_path / "late.mcap"
+    # the error names the bag where the recorder got to write one (moved into place as the run ended)
+    late = tmp_path / "late.mcap"
+    assert raised.value.bag == (late if late.is_file() else None)
 
 
 @graph
