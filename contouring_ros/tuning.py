@@ -72,7 +72,7 @@ from .experiment.catalogue import CONTROLLERS, PLANTS, SERVOS
 from .experiment.validate import experiment_from_data
 from .experiment.schema import GLOBAL_SECTION
 from .core.margins import axis_loop, coupled_loop, margins, quick_robustness
-from .core.tuning_space import Space, TuningContext, combine, log_box
+from .core.tuning_space import Space, TuningContext, combine, gain_magnitude, log_box
 from .errors import ConfigError
 from .learning import passes, simulate_last_passes
 from .search import IPOPCMAES, Agreement, agreement, run_side_by_side
@@ -216,17 +216,12 @@ def varied_parameters(model) -> tuple:
     return PLANTS.entry(model).varied if isinstance(model, str) and model in PLANTS else ()
 
 
-def _magnitude(value) -> float:
-    values = [abs(float(v)) for v in (value if isinstance(value, list) else [value])]
-    return max(values) if values else 0.0
-
-
 def _set_gain(section: dict, key: str, magnitude: float) -> None:
     """The gain ``key`` of ``section`` set to ``magnitude`` (a per-axis list keeps its proportions; a list
     of zeros becomes ``magnitude`` on every axis)."""
     value = section.get(key, magnitude)
     if isinstance(value, list):
-        top = _magnitude(value)
+        top = gain_magnitude(value)
         section[key] = [magnitude * float(v) / top for v in value] if top > 0 else [magnitude] * len(value)
     else:
         section[key] = magnitude

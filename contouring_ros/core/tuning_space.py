@@ -24,7 +24,7 @@ from typing import Callable
 
 __all__ = ["Dimension", "Space", "TuningContext", "OFF_SHARE", "first_order_response", "mass_damper_response",
            "pid_contour_space", "pid_servo_space", "task_frame_space", "tvt_space", "adaptive_tnb_space",
-           "ilc_space", "mpcc_space", "log_box", "combine", "crossover"]
+           "ilc_space", "mpcc_space", "log_box", "combine", "crossover", "gain_magnitude"]
 
 OFF_SHARE = 0.02     # the lowest this share of a range that can be off means off (0)
 
@@ -187,7 +187,8 @@ def _hz(name: str, low: float, high: float, off: bool = False) -> Dimension:
     return Dimension(name, "Hz", low, high, "log", off)
 
 
-def _magnitude(value) -> float:
+def gain_magnitude(value) -> float:
+    """The size of a gain: its absolute value, or a per-axis list's largest entry (0 for an empty list)."""
     values = [abs(float(v)) for v in (value if isinstance(value, list) else [value])]
     return max(values) if values else 0.0
 
@@ -230,8 +231,8 @@ def pid_contour_space(section: dict, context: TuningContext) -> Space | None:
 
     def point(sections):
         ccc = sections["/ccc"]
-        return _pid_point(_magnitude(ccc.get("kp", 0.0)), _magnitude(ccc.get("ki", 0.0)),
-                          _magnitude(ccc.get("kd", 0.0)), context.response)
+        return _pid_point(gain_magnitude(ccc.get("kp", 0.0)), gain_magnitude(ccc.get("ki", 0.0)),
+                          gain_magnitude(ccc.get("kd", 0.0)), context.response)
     return Space(_pid_dimensions(context), gains, point)
 
 
@@ -284,7 +285,7 @@ def _ratio(name: str, low: float, high: float, off: bool = False) -> Dimension:
 
 
 def _relative(section: dict, key: str, fallback: float = 1.0) -> float:
-    value = _magnitude(section.get(key, 0.0))
+    value = gain_magnitude(section.get(key, 0.0))
     return value if value > 0 else fallback
 
 
@@ -303,7 +304,7 @@ def adaptive_tnb_space(section: dict, context: TuningContext) -> Space:
     def point(sections):
         ccc = sections["/ccc"]
         return {"f_alpha": float(ccc["alpha"]) / (2 * math.pi),
-                **{k: _magnitude(ccc.get(k, 0.0)) / base[k] for k in base}}
+                **{k: gain_magnitude(ccc.get(k, 0.0)) / base[k] for k in base}}
     return Space(dims, gains, point)
 
 
@@ -353,16 +354,16 @@ def log_box(section: dict, keys: tuple, decades: float) -> Space:
     else 1), the lowest end meaning off."""
     anchors = {}
     for key in keys:
-        value = _magnitude(section[key])
+        value = gain_magnitude(section[key])
         if value <= 0.0:
             sibling, ratio = {"ki": ("kp", 30.0), "kd": ("kp", 1e-3)}.get(key, (None, 1.0))
-            base = _magnitude(section.get(sibling, 0.0)) if sibling else 0.0
+            base = gain_magnitude(section.get(sibling, 0.0)) if sibling else 0.0
             value = base * ratio if base > 0.0 else 1.0
         anchors[key] = value
     dims = tuple(Dimension(k, "", anchors[k] * 10.0 ** -decades, anchors[k] * 10.0 ** decades, "log", True)
                  for k in keys)
     return Space(dims, lambda v: {k: v[k] for k in keys},
-                 lambda s: {k: _magnitude(s["/ccc"][k]) for k in keys}, "log box")
+                 lambda s: {k: gain_magnitude(s["/ccc"][k]) for k in keys}, "log box")
 
 
 def combine(first: Space | None, second: Space | None) -> Space | None:
