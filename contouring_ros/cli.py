@@ -751,7 +751,7 @@ def main(argv=None):
     p.add_argument("--searches", type=_whole(1, MAX_SEARCHES, "searches"), default=Protocol.searches,
                    help="independent searches per combination (seeds 1, 2, ...; the first from the file's gains), "
                         "each of at most --budget evaluations; a row is converged when "
-                        f"{Protocol.agree} of them end within {100 * Protocol.agreement:g}% of the best nominal TACE; "
+                        f"{Protocol.agree} of them end within {100 * Protocol.agreement:g}%% of the best nominal TACE; "
                         "the robust result with the lowest nominal TACE is kept, the same for every method "
                         f"(1 to {MAX_SEARCHES}, default {Protocol.searches})")
     p.add_argument("--max-searches", type=_whole(1, MAX_SEARCHES, "searches"),

@@ -99,7 +99,7 @@ class Protocol:
 
     evaluations: int = 200         # evaluations per search (the file's gains included in the first)
     design: int = 48               # each search's first points: scrambled Sobol over the whole box, one batch
-    popsize: int = 8               # the first CMA-ES run's population; each restart doubles it (IPOP)
+    popsize: int = 8              # the first CMA-ES run's population; each restart doubles it (IPOP)
     step: float = 0.25             # CMA-ES's first step [share of each coordinate's range]
     searches: int = 3              # independent searches per combination (seeds seed, seed + 1, ...)
     max_searches: int = 6          # ... more, one at a time, while they do not agree, up to this many
@@ -593,55 +593,90 @@ class Tuning:
     def with_gains(self, gains: dict) -> dict:
         return sections_with_gains(self.sections, gains)
 
-    def measure(self, points: list) -> list:
-        """An Evaluation per (unit point, values, gains): each point on the nominal plant and with each plant
-        parameter at +-perturbation (:func:`perturbations`), every run of every point in one batch where the
-        classes allow. A point is refused unrun where its linear loop is unstable; beyond the Ms bound
-        (:func:`loop_robustness`), not robust (its worst TACE over the perturbations above robust_factor x
-        its nominal TACE and above the floor), too noisy or saturated it is inadmissible, its objective
-        paying for it continuously across each bound (:func:`_objective`), so that a search can settle on an
-        optimum on a bound. The objective is a function of the point alone: searches from anywhere see the
-        same landscape."""
-        out, experiments, owners, loops = [], [], [], {}
+    #: the robustness runs of a batch go in stages: each search's best STAGES[0] points that could become its
+    #: choice, then the rest of those that still could (an admissible point among the first lowers the bar)
+    STAGES = (2, math.inf)
+
+    def measure(self, points: list, thresholds: list | None = None, groups: list | None = None) -> list:
+        """An Evaluation per (unit point, values, gains): every point on the nominal plant in one batch, then,
+        in :attr:`STAGES`, the points that could become their search's choice with each plant parameter at
+        +-perturbation (:func:`perturbations`), each batch run as one where the classes allow. A point is
+        refused unrun where its linear loop is unstable; beyond the Ms bound (:func:`loop_robustness`), not
+        robust (its worst TACE over the perturbations above robust_factor x its nominal TACE and above the
+        floor), too noisy or saturated it is inadmissible, its objective paying for it continuously across
+        each bound (:func:`_objective`), so that a search can settle on an optimum on a bound.
+
+        ``thresholds[i]``: point i's search's best admissible objective so far (inf: none yet, the default);
+        ``groups[i]``: which search point i belongs to (default: all one). A point whose nominal objective is
+        not below its search's best admissible objective (the points of this batch checked before it
+        included) cannot become that search's choice: an admissible point's objective is its nominal one,
+        and the penalties only add. Its robustness runs are not made; its objective is the nominal one (a
+        lower bound) and it is not admissible (:attr:`Evaluation.worst` nan). Every point that could be
+        chosen is run at every perturbation, so a search chooses what it would were every point checked."""
+        thresholds = [math.inf] * len(points) if thresholds is None else thresholds
+        out, nominal, owners, loops = [], [], [], {}
         for unit, values, gains in points:
             out.append(Evaluation(gains, Outcome(), 100.0, False, unit=unit, point=values))
             try:
-                here = [experiment_for(self.data, self.with_gains(gains), dict(self.machine, **change), self.where)
-                        for change in [{}] + self.checks]
+                here = experiment_for(self.data, self.with_gains(gains), self.machine, self.where)
             except ConfigError as error:
                 out[-1].outcome = Outcome(failure=f"refused: {error}")
                 continue
-            robustness = loop_robustness(here[0]) if self.protocol.ms_limit else None
+            robustness = loop_robustness(here) if self.protocol.ms_limit else None
             if robustness is not None and not robustness[1]:
                 out[-1].outcome = Outcome(failure="refused: its linear loop is unstable")
                 out[-1].objective = 50.0 + PENALTY * 3.0
                 continue
             loops[len(out) - 1] = robustness
-            experiments += here
-            owners += [(len(out) - 1, j) for j in range(len(here))]
-        outcomes = _outcomes(experiments, self.from_time, [self.limits[j] for _, j in owners])
-        runs = {}
-        for (i, j), outcome in zip(owners, outcomes):
-            runs.setdefault(i, [None] * (len(self.checks) + 1))[j] = outcome
-        self.tuned.robustness_runs += len(owners) - len(runs)
-        for i, outcomes in runs.items():
-            self._judge(out[i], outcomes[0], outcomes[1:], loops[i])
+            nominal.append(here)
+            owners.append(len(out) - 1)
+        outcomes = dict(zip(owners, _outcomes(nominal, self.from_time, [self.limits[0]] * len(nominal))))
+        for i, outcome in outcomes.items():
+            self._judge(out[i], outcome, None, loops[i])
+        groups = [0] * len(points) if groups is None else groups
+        best = {}                                # each search's best admissible objective so far
+        for i, group in enumerate(groups):
+            best[group] = min(best.get(group, math.inf), thresholds[i])
+        waiting = sorted((i for i, o in outcomes.items() if o.ok and not out[i].outcome.failure.startswith("Ms")),
+                         key=lambda i: out[i].objective)
+        for stage in self.STAGES:
+            counts, checked = {}, []
+            for i in waiting:
+                if out[i].objective < best[groups[i]] and counts.get(groups[i], 0) < stage:
+                    counts[groups[i]] = counts.get(groups[i], 0) + 1
+                    checked.append(i)
+            if not checked:
+                break
+            perturbed = [experiment_for(self.data, self.with_gains(out[i].gains), dict(self.machine, **change),
+                                        self.where) for i in checked for change in self.checks]
+            runs = _outcomes(perturbed, self.from_time, self.limits[1:] * len(checked))
+            self.tuned.robustness_runs += len(runs)
+            n = len(self.checks)
+            for k, i in enumerate(checked):
+                self._judge(out[i], outcomes[i], runs[k * n:(k + 1) * n], loops[i])
+                if out[i].admissible:
+                    best[groups[i]] = min(best[groups[i]], out[i].objective)
+            waiting = [i for i in waiting if i not in set(checked)]
         return out
 
-    def _judge(self, evaluation: Evaluation, nominal: Outcome, perturbed: list, ms: tuple | None) -> None:
-        """The objective and admissibility of a point from its nominal run, its perturbed runs and its linear
-        loop's (Ms, stable, allowed Ms) (None: no linear loop)."""
+    def _judge(self, evaluation: Evaluation, nominal: Outcome, perturbed: list | None, ms: tuple | None) -> None:
+        """The objective and admissibility of a point from its nominal run, its perturbed runs (None: not run,
+        the point is then not admissible) and its linear loop's (Ms, stable, allowed Ms) (None: no linear
+        loop)."""
         p = self.protocol
         objective, admissible = _objective(nominal, self.noise_limit, p)
         evaluation.outcome, evaluation.objective, evaluation.admissible = nominal, objective, admissible
         if not nominal.ok:
             return
-        evaluation.worst = max((o.tace if o.ok else math.inf for o in perturbed), default=nominal.tace)
         if ms is not None and ms[0] > ms[2]:
             evaluation.objective += PENALTY * math.log10(ms[0] / ms[2])
             evaluation.admissible = False
             evaluation.outcome = dataclasses.replace(nominal, failure=f"Ms {ms[0]:.3g} over {ms[2]:.3g}")
             return
+        if perturbed is None:                    # robustness not checked (yet): not admissible
+            evaluation.admissible = False
+            return
+        evaluation.worst = max((o.tace if o.ok else math.inf for o in perturbed), default=nominal.tace)
         bound = max(p.robust_factor * nominal.tace, self.robust_floor)
         if evaluation.worst > bound:
             evaluation.objective += PENALTY * min(math.log10(evaluation.worst / bound) if bound > 0 else 3.0, 3.0)
@@ -653,7 +688,11 @@ class Tuning:
     def evaluate(self, runs: list, asked: list) -> list:
         """One round of searches side by side: every search's points (``asked[i]`` of ``runs[i]``, unit points)
         measured in one batch (:meth:`measure`). Returns each search's objectives."""
-        evaluations = self.measure([(list(u), *self.space.decode(u)) for units in asked for u in units])
+        thresholds = [min((e.objective for e in run.evaluations if e.admissible), default=math.inf)
+                      for run, units in zip(runs, asked) for _ in units]
+        groups = [run.index for run, units in zip(runs, asked) for _ in units]
+        evaluations = self.measure([(list(u), *self.space.decode(u)) for units in asked for u in units],
+                                   thresholds, groups)
         out, at = [], 0
         for run, units in zip(runs, asked):
             mine = evaluations[at:at + len(units)]

@@ -7,8 +7,10 @@ estimator's own output.
 """
 from __future__ import annotations
 
+import hashlib
 import math
 from dataclasses import dataclass
+
 
 import numpy as np
 
@@ -317,6 +319,24 @@ class FootPoints:
     signed: np.ndarray
 
 
+_TREES: dict = {}      # the search trees of the curves scored last, by their samples' digest
+_TREES_KEPT = 16
+
+
+def _search_tree(samples: np.ndarray):
+    """A k-d tree over a curve's dense ``samples``, shared by every solver of the same samples: a tuning
+    scores thousands of runs of one curve, each run building its own curve object."""
+    samples = np.ascontiguousarray(samples, dtype=float)
+    key = (samples.shape, hashlib.blake2b(samples.tobytes(), digest_size=16).digest())
+    tree = _TREES.get(key)
+    if tree is None:
+        from scipy.spatial import cKDTree   # imported here: the nodes never need it, and it is slow to load
+        if len(_TREES) >= _TREES_KEPT:
+            _TREES.pop(next(iter(_TREES)))
+        tree = _TREES[key] = cKDTree(samples)
+    return tree
+
+
 class ExactContourError:
     """Distance from points to the whole curve: k-d tree global search, then bracketed Newton refinement.
 
@@ -341,9 +361,8 @@ class ExactContourError:
                  window: float | None = None):
         self.curve = curve
         lo, hi = curve.domain
-        from scipy.spatial import cKDTree   # imported here: the nodes never need it, and it is slow to load
         self._grid = np.linspace(lo, hi, int(samples))
-        self._tree = cKDTree(curve.point(self._grid))
+        self._tree = _search_tree(curve.point(self._grid))
         self.tolerance = float(tolerance)
         self.max_iterations = int(max_iterations)
         self.window = float(curve.contour_error_window if window is None else window)
@@ -372,17 +391,19 @@ class ExactContourError:
         lower = grid[np.maximum(nearest - 1, 0)]
         upper = grid[np.minimum(nearest + 1, grid.size - 1)]
         theta = grid[nearest]
+        active = np.arange(len(points))          # the points whose Newton step has not yet settled
         for _ in range(self.max_iterations):
-            d = self.curve.derivatives(theta, order=2)
-            error = d[0] - points
+            here = theta[active]
+            d = self.curve.derivatives(here, order=2)
+            error = d[0] - points[active]
             gradient = np.sum(error * d[1], axis=-1)                       # paper 000 eq. 9
             hessian = np.sum(error * d[2], axis=-1) + np.sum(d[1] * d[1], axis=-1)  # eq. 10
             hessian = np.where(hessian > 0.0, hessian, np.sum(d[1] * d[1], axis=-1))  # eq. 11 fallback
-            step = gradient / hessian
-            new_theta = np.clip(theta - step, lower, upper)
-            moved = np.abs(new_theta - theta)
-            theta = new_theta
-            if np.all(moved <= self.tolerance * np.maximum(1.0, np.abs(theta))):
+            new_theta = np.clip(here - gradient / hessian, lower[active], upper[active])
+            theta[active] = new_theta
+            moving = np.abs(new_theta - here) > self.tolerance * np.maximum(1.0, np.abs(new_theta))
+            active = active[moving]
+            if not active.size:
                 break
         d = self.curve.derivatives(theta, order=1)
         vector = d[0] - points

@@ -84,3 +84,19 @@ def test_package_xml_declares_what_setup_py_installs():
             continue
         key = keys.get(name, f"python3-{name.lower()}")
         assert key is None or f"<exec_depend>{key}</exec_depend>" in xml, name
+
+
+def test_every_subcommand_prints_its_help(capsys):
+    """``contouring-ros COMMAND --help`` prints a help text and exits 0 for every subcommand (a help string
+    with a bare % once made argparse raise instead)."""
+    from contouring_ros import cli
+    with pytest.raises(SystemExit) as done:
+        cli.main(["--help"])
+    assert done.value.code == 0
+    commands = capsys.readouterr().out.split("{", 1)[1].split("}", 1)[0].split(",")
+    assert "benchmark" in commands and "run" in commands
+    for command in commands:
+        with pytest.raises(SystemExit) as done:
+            cli.main([command, "--help"])
+        assert done.value.code == 0, command
+        assert capsys.readouterr().out.startswith(f"usage: contouring-ros {command}"), command
