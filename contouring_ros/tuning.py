@@ -45,9 +45,10 @@ Constraints (the same for every method of a scenario, measured in simulation):
   :attr:`Protocol.robust_factor` times the nominal one, or no worse than the proposed method's worst TACE
   there with the paper's gains (the same robustness as the paper's own design is enough: where that design
   itself degrades by more than the factor, a rule relative to a point's own error alone would pass only
-  points far worse than the paper's, whose large error hides their degradation). Every point of a search is
-  run at every perturbation, in the same batch as its nominal run (:meth:`Tuning.measure`), so a point's
-  objective depends on the point alone and independent searches see one landscape. Where no point of a
+  points far worse than the paper's, whose large error hides their degradation). Every point that could
+  become its search's choice (its nominal objective below the search's best admissible one) is run at
+  every perturbation (:meth:`Tuning.measure`), so a search chooses what it would were every point checked;
+  a point that could not is left unchecked, its objective the nominal one. Where no point of a
   search is robust, the one with the lowest worst case is given, marked "not robust".
 
 Objective: the steady-state TACE of the exact contour error (median seed).

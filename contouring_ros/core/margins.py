@@ -88,6 +88,12 @@ def _trim(p) -> np.ndarray:
     return p[nonzero[0]:] if nonzero.size else np.zeros(1)
 
 
+def _polymul(a, b) -> np.ndarray:
+    """a(z) b(z): numpy's polymul without its poly1d round trip (the same coefficients, leading zeros kept:
+    :func:`_trim` drops them). A search asks for a loop's robustness at every point."""
+    return np.convolve(np.atleast_1d(np.asarray(a, dtype=float)), np.atleast_1d(np.asarray(b, dtype=float)))
+
+
 def _has_root(p: np.ndarray, z: float) -> bool:
     if len(p) < 2:
         return False
@@ -116,11 +122,11 @@ def _cancel(num, den) -> tuple:
 
 
 def _add(f: tuple, g: tuple) -> tuple:
-    return _cancel(np.polyadd(np.polymul(f[0], g[1]), np.polymul(g[0], f[1])), np.polymul(f[1], g[1]))
+    return _cancel(np.polyadd(_polymul(f[0], g[1]), _polymul(g[0], f[1])), _polymul(f[1], g[1]))
 
 
 def _mul(f: tuple, g: tuple) -> tuple:
-    return _cancel(np.polymul(f[0], g[0]), np.polymul(f[1], g[1]))
+    return _cancel(_polymul(f[0], g[0]), _polymul(f[1], g[1]))
 
 
 _ZERO, _ONE = (np.zeros(1), np.ones(1)), (np.ones(1), np.ones(1))
@@ -173,16 +179,16 @@ def _plant_polynomials(plant, ts: float):
     _check_sample_time(plant, ts, "plant")
     num_p = np.array([pu, pv * vu - pu * alpha])
     num_v = np.array([vu, -vu])                       # vu (z - 1) over the common (z - 1)(z - alpha)
-    den = np.polymul([1.0, -1.0], [1.0, -alpha])
+    den = _polymul([1.0, -1.0], [1.0, -alpha])
     if getattr(plant, "velocity_measurement", "model") == "encoder":
         # the velocity read is the backward difference of the position readings: (z - 1) / (Ts z) P_p
-        num_v = np.polymul([1.0, -1.0], num_p)
-        num_p = np.polymul([ts, 0.0], num_p)
-        den = np.polymul([ts, 0.0], den)
+        num_v = _polymul([1.0, -1.0], num_p)
+        num_p = _polymul([ts, 0.0], num_p)
+        den = _polymul([ts, 0.0], den)
     delay = getattr(plant, "command_delay", 0)
     if int(delay) != delay or delay < 0:
         raise ValueError(f"command_delay must be a non-negative integer number of samples, got {delay!r}")
-    den = np.polymul(den, np.r_[1.0, np.zeros(int(delay))])
+    den = _polymul(den, np.r_[1.0, np.zeros(int(delay))])
     return num_p, num_v, den
 
 
@@ -243,8 +249,8 @@ def _loop(plant, filters, ts: float) -> control.TransferFunction | None:
         return None
     num_p, num_v, den = polynomials
     (fp_num, fp_den), (fv_num, fv_den) = filters
-    num = np.polyadd(np.polymul(np.polymul(fp_num, num_p), fv_den), np.polymul(np.polymul(fv_num, num_v), fp_den))
-    return _transfer(*_cancel(num, np.polymul(np.polymul(fp_den, fv_den), den)), ts)
+    num = np.polyadd(_polymul(_polymul(fp_num, num_p), fv_den), _polymul(_polymul(fv_num, num_v), fp_den))
+    return _transfer(*_cancel(num, _polymul(_polymul(fp_den, fv_den), den)), ts)
 
 
 def axis_loop(plant, servo, sample_time: float) -> control.TransferFunction | None:
