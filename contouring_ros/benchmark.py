@@ -938,7 +938,7 @@ def benchmark_report(rows: list, families: list, protocol: Protocol, where: str,
         f"- **Tuning, the same for every method**: {protocol.describe()}. The spaces "
         "(contouring_ros/core/tuning_space.py): PID contour controllers (variable_gain, unit_vector) and the "
         "ZPETC's PID: the proportional and integral terms' crossover frequencies through the axes' plant "
-        "(f_p, f_i, each 0.01 Hz to a quarter of the sample rate, or off) and the derivative's ratio to the "
+        "(f_p, f_i, each 0.1 Hz to an eighth of the sample rate, or off) and the derivative's ratio to the "
         "proportional term at f_p (r_d); task_frame_pd: its bandwidths and damping ratio; tvt: its bandwidth; "
         "adaptive_tnb: its tracking bandwidth and its coupling and adaptation gains as ratios to the paper's; "
         "ILC: its learning gains as ratios to the file's, its lead and its Q-filter cutoff; MPCC: its horizon "
