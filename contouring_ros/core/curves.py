@@ -700,11 +700,21 @@ def _plain(segment):
 
 def _path_block(segment, plain, n, start, length, kind, feed, line, deviation, dwell) -> PathBlock:
     """The :class:`PathBlock` of one segment beginning at arc length ``start``."""
+    if segment[0] == "line":                 # one direction: its tangent at both ends
+        d1 = np.array(plain[1])
+        tangent = d1 / _norm(d1)
+        return PathBlock(kind, float(start), float(length), feed, line, tangent, tangent.copy(), 0.0,
+                         float(deviation), float(dwell))
     begin, end = segment_columns(segment, plain, n, 0.0), segment_columns(segment, plain, n, float(length))
-    d1, d2 = np.array(begin[1]), np.array(begin[2])
-    curvature = float(np.linalg.norm(d2)) if kind != "line" and kind != "rapid" else 0.0
-    return PathBlock(kind, float(start), float(length), feed, line, d1 / np.linalg.norm(d1),
-                     np.array(end[1]) / np.linalg.norm(end[1]), curvature, float(deviation), float(dwell))
+    d1, d2, d3 = np.array(begin[1]), np.array(begin[2]), np.array(end[1])
+    curvature = _norm(d2) if kind != "line" and kind != "rapid" else 0.0
+    return PathBlock(kind, float(start), float(length), feed, line, d1 / _norm(d1), d3 / _norm(d3), curvature,
+                     float(deviation), float(dwell))
+
+
+def _norm(vector: np.ndarray) -> float:
+    """np.linalg.norm of a vector, as numpy computes it (sqrt of its dot with itself), without its overhead."""
+    return math.sqrt(float(vector.dot(vector)))
 
 
 def _program_items(blocks, d: int, blend_tolerance: float):
@@ -714,7 +724,7 @@ def _program_items(blocks, d: int, blend_tolerance: float):
         start, end = block.start[:d], block.end[:d]
         tolerance = blend_tolerance if block.tolerance is None else block.tolerance
         if block.kind in ("line", "rapid"):
-            length = float(np.linalg.norm(end - start))
+            length = _norm(end - start)
             item = [("line", start, (end - start) / length, 0.0, 0.0, 0.0), length, block.kind,
                     block.feed, block.line, tolerance, block.dwell]
         else:
@@ -748,7 +758,7 @@ def _program_items(blocks, d: int, blend_tolerance: float):
 
 
 def _floats(vector) -> tuple:
-    return tuple(float(x) for x in vector)
+    return tuple(np.asarray(vector, dtype=float).tolist())
 
 
 def _blend(items):
@@ -766,8 +776,8 @@ def _blend(items):
         (_, p1, u2, *_), length1 = item[0], item[1]
         tolerance = previous[5]
         if previous[2] == "line" and item[2] == "line" and tolerance > 0.0 and not previous[6]:
-            chord = float(np.linalg.norm(u2 - u1))
-            phi = 2.0 * math.atan2(chord, float(np.linalg.norm(u2 + u1)))     # the turn, accurate at any angle
+            chord = _norm(u2 - u1)
+            phi = 2.0 * math.atan2(chord, _norm(u2 + u1))     # the turn, accurate at any angle
             if 1e-9 < phi < math.pi - 1e-6:
                 half = phi / 2.0       # 1 / cos(half) - 1 = 2 sin^2(half / 2) / cos(half), exact for tiny turns
                 radius = tolerance * math.cos(half) / (2.0 * math.sin(half / 2.0) ** 2)

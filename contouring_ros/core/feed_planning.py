@@ -189,6 +189,7 @@ class LimitBounds:
         n = dimension
         self.per_axis = [np.full(n, np.inf) if v is None else np.broadcast_to(np.asarray(v, dtype=float), (n,))
                          for v in (axis_feedrate, axis_acceleration, axis_jerk)]
+        self.unbounded = all(np.isposinf(limit).all() for limit in self.per_axis)
         self.acceleration, self.jerk, self.feedrate, self.rapid_feedrate = acceleration, jerk, feedrate, rapid_feedrate
         self.normal_acceleration, self.feed_override = normal_acceleration, feed_override
         self.axis_acceleration, self.axis_jerk = axis_acceleration, axis_jerk
@@ -209,7 +210,9 @@ class LimitBounds:
         else:
             raise ValueError(f"line {block.line}: no feed rate (an F word, or the schedule's feedrate)")
         a, j = self.acceleration, self.jerk
-        if block.curvature == 0.0:
+        if self.unbounded:          # no per-axis bounds: each is infinite in every direction
+            axis_v = axis_a = axis_j = math.inf
+        elif block.curvature == 0.0:
             u = np.abs(block.tangent_in)
             with np.errstate(divide="ignore"):
                 axis_v, axis_a, axis_j = (float(np.min(limit / u)) for limit in self.per_axis)

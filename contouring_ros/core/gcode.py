@@ -142,6 +142,8 @@ class Program:
 
 
 def _strip_comments(text: str, number: int) -> str:
+    if "(" not in text and ")" not in text and ";" not in text:
+        return text
     out, depth = [], 0
     for char in text:
         if char == "(":
@@ -380,7 +382,7 @@ class ProgramReader:
             if motion in (0, 1):
                 if centre or radius is not None:
                     raise ProgramError(f"line {number}: {'I, J, K' if centre else 'R'} on a G{motion} line")
-                if np.array_equal(end, position):
+                if (end == position).all():
                     continue                                    # a move to where the tool is: no motion
                 block = Block("rapid" if motion == 0 else "line", position, end, block_feed, number,
                               tolerance=block_tolerance, number=label,
