@@ -22,7 +22,8 @@ parameter is s itself: theta = s, theta_dot = v (the feed), theta_ddot = dv/dt.
    (:func:`reach`, in closed form). Both passes are linear in the number of blocks. With a look-ahead of W
    blocks (``lookahead_blocks``, a control's block queue) spans are at most W / 2 blocks and each span's
    exit speed is fixed from the W blocks ahead of its start alone, the last taken to end in a stop
-   (:meth:`FeedPlan._windowed`): never faster than the whole program's plan.
+   (:meth:`FeedPlan._windowed`): never faster than the whole program's plan. :mod:`.feed_stream` makes the
+   same plan while it reads the program, holding only the window.
 4. One time-optimal jerk-limited profile per span between its boundary speeds (zero acceleration at both
    ends, so acceleration is continuous across spans), computed by Ruckig (Berscheid and Kroeger,
    "Jerk-limited Real-time Trajectory Generation with Arbitrary Target States", RSS 2021), bounded by the

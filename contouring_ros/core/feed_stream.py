@@ -10,9 +10,10 @@ blocks (:class:`~contouring_ros.core.gcode.ProgramReader`, G64 Q merged by
 steps 1-4, and ``FeedPlan._windowed``): a span's exit speed is fixed when its entry is, from the W stretches
 ahead of its start alone, the last taken to end in a stop. That needs nothing beyond the W + 1 stretches
 ahead, so the plan holds at most those, whatever the program's length; the first span is planned, and the
-first reference sample leaves, once the first W + 1 stretches are read. The plan it makes is the windowed
-whole-program plan's, span for span (tested): never faster than the whole program's plan, and within every
-bound.
+first reference sample leaves, once the first W + 1 stretches are read. On a program of more than W
+stretches the plan it makes is ``FeedPlan(path, lookahead_blocks=W)``'s span for span and sample for sample
+(tested; on a shorter one FeedPlan plans the whole program at once, the stream still in spans of at most
+W / 2): never faster than the whole program's plan, and within every bound.
 """
 from __future__ import annotations
 
