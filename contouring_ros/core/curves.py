@@ -591,7 +591,7 @@ class ToolPath(Curve):
         if not math.isfinite(total) or total > MAX_PATH_LENGTH:
             raise ValueError(f"the path is {total:.4g} m long (at most {MAX_PATH_LENGTH:g} m): check the units "
                              "(G1 X50 is 50 mm under G21, the default, and 50 inch = 1.27 m under G20)")
-        self.segments = [item[0] for item in items]
+        self.segments = [_arrays(item[0]) for item in items]
         self._finish([item[1] for item in items], [(item[2], item[3], item[4], item[5], item[6]) for item in items])
         return self
 
@@ -605,7 +605,7 @@ class ToolPath(Curve):
         start = 0.0
         for segment, length, kind, feed, line, deviation, dwell, _ in _blend(_program_items(blocks, dimension,
                                                                                              blend_tolerance)):
-            plain = _plain(segment)
+            plain = (segment[1], segment[2]) if segment[0] == "line" else (segment[1], *segment[2])
             yield (segment, plain), _path_block(segment, plain, dimension, start, length, kind, feed, line,
                                                 deviation, dwell)
             start += length
@@ -698,34 +698,51 @@ def _plain(segment):
     return None
 
 
+def _arrays(segment) -> tuple:
+    """A program segment (its vectors tuples of floats, as :func:`_program_items` and :func:`_blend` make
+    them) with numpy vectors (what :meth:`ToolPath._segment_array` evaluates)."""
+    kind, origin, direction, *rest = segment
+    if kind == "line":
+        return (kind, np.array(origin), np.array(direction), *rest)
+    return (kind, np.array(origin), (*(np.array(v) for v in direction[:3]), direction[3]), *rest)
+
+
 def _path_block(segment, plain, n, start, length, kind, feed, line, deviation, dwell) -> PathBlock:
     """The :class:`PathBlock` of one segment beginning at arc length ``start``."""
     if segment[0] == "line":                 # one direction: its tangent at both ends
-        d1 = np.array(plain[1])
-        tangent = d1 / _norm(d1)
-        return PathBlock(kind, float(start), float(length), feed, line, tangent, tangent.copy(), 0.0,
+        tangent = _unit(plain[1])
+        return PathBlock(kind, float(start), float(length), feed, line, np.array(tangent), np.array(tangent), 0.0,
                          float(deviation), float(dwell))
     begin, end = segment_columns(segment, plain, n, 0.0), segment_columns(segment, plain, n, float(length))
-    d1, d2, d3 = np.array(begin[1]), np.array(begin[2]), np.array(end[1])
-    curvature = _norm(d2) if kind != "line" and kind != "rapid" else 0.0
-    return PathBlock(kind, float(start), float(length), feed, line, d1 / _norm(d1), d3 / _norm(d3), curvature,
-                     float(deviation), float(dwell))
+    curvature = _norm(begin[2]) if kind != "line" and kind != "rapid" else 0.0
+    return PathBlock(kind, float(start), float(length), feed, line, np.array(_unit(begin[1])),
+                     np.array(_unit(end[1])), curvature, float(deviation), float(dwell))
 
 
-def _norm(vector: np.ndarray) -> float:
-    """np.linalg.norm of a vector, as numpy computes it (sqrt of its dot with itself), without its overhead."""
-    return math.sqrt(float(vector.dot(vector)))
+def _norm(vector) -> float:
+    """The length of a vector of floats, as np.linalg.norm computes it (the square root of the sum of the
+    squares, in order) without numpy's overhead on 2 or 3 elements."""
+    total = 0.0
+    for x in vector:
+        total += x * x
+    return math.sqrt(total)
+
+
+def _unit(vector) -> tuple:
+    length = _norm(vector)
+    return tuple(x / length for x in vector)
 
 
 def _program_items(blocks, d: int, blend_tolerance: float):
     """Each part-program block's segment as :func:`_blend` takes it: [segment, length, kind, feed, line,
-    tolerance, dwell] (a generator)."""
+    tolerance, dwell] (a generator; the segment's vectors as tuples of floats)."""
     for block in blocks:
-        start, end = block.start[:d], block.end[:d]
         tolerance = blend_tolerance if block.tolerance is None else block.tolerance
         if block.kind in ("line", "rapid"):
-            length = _norm(end - start)
-            item = [("line", start, (end - start) / length, 0.0, 0.0, 0.0), length, block.kind,
+            start, end = block.start[:d].tolist(), block.end[:d].tolist()
+            chord = [e - s for s, e in zip(start, end)]
+            length = _norm(chord)
+            item = [("line", tuple(start), tuple(x / length for x in chord), 0.0, 0.0, 0.0), length, block.kind,
                     block.feed, block.line, tolerance, block.dwell]
         else:
             first, second, normal = block.plane
@@ -745,13 +762,12 @@ def _program_items(blocks, d: int, blend_tolerance: float):
             w[normal] = rise / length
             base = centre.copy()
             base[normal] = block.start[normal]
-            item = [("helix", base[:d], (e1[:d], e2[:d], w[:d], rho), radius, a0, turn), length, "arc",
-                    block.feed, block.line, tolerance, block.dwell]
+            item = [("helix", _floats(base[:d]), (_floats(e1[:d]), _floats(e2[:d]), _floats(w[:d]), rho), radius, a0,
+                     turn), length, "arc", block.feed, block.line, tolerance, block.dwell]
         # every derived length and radius finite (a NaN passes the length guard)
         _, origin, direction, radius, *_ = item[0]
-        numbers = [item[1], radius, *np.ravel(origin), *np.ravel(direction[:3] if item[0][0] == "helix"
-                                                                else direction)]
-        if not all(math.isfinite(float(v)) for v in numbers):
+        vectors = direction[:3] if item[0][0] == "helix" else (direction,)
+        if not all(math.isfinite(v) for v in (item[1], radius, *origin, *(x for v in vectors for x in v))):
             raise ValueError(f"line {item[4]}: the move's length or radius is not a finite number "
                              "(coordinates or offsets too large)")
         yield item
@@ -764,7 +780,7 @@ def _floats(vector) -> tuple:
 def _blend(items):
     """Insert a tangent arc at each corner between two G1 lines whose first has a tolerance and no dwell
     (see :meth:`ToolPath.from_program`); a generator holding one item back (its end is cut by the corner's
-    blend)."""
+    blend). Vectors are tuples of floats, each component computed as numpy would compute it elementwise."""
     previous = None
     for item in items:
         item = list(item) + [item[1]]
@@ -776,8 +792,9 @@ def _blend(items):
         (_, p1, u2, *_), length1 = item[0], item[1]
         tolerance = previous[5]
         if previous[2] == "line" and item[2] == "line" and tolerance > 0.0 and not previous[6]:
-            chord = _norm(u2 - u1)
-            phi = 2.0 * math.atan2(chord, _norm(u2 + u1))     # the turn, accurate at any angle
+            difference = tuple(b - a for a, b in zip(u1, u2))
+            chord = _norm(difference)
+            phi = 2.0 * math.atan2(chord, _norm([a + b for a, b in zip(u1, u2)]))     # the turn, at any angle
             if 1e-9 < phi < math.pi - 1e-6:
                 half = phi / 2.0       # 1 / cos(half) - 1 = 2 sin^2(half / 2) / cos(half), exact for tiny turns
                 radius = tolerance * math.cos(half) / (2.0 * math.sin(half / 2.0) ** 2)
@@ -786,15 +803,14 @@ def _blend(items):
                 if cut > limit:
                     cut, radius = limit, limit / math.tan(half)
                 corner = p1
-                centre_side = (u2 - u1) / chord
-                centre = corner + centre_side * radius / math.cos(half)
-                begin = corner - u1 * cut
-                e1 = (begin - centre) / radius
+                cosine = math.cos(half)
+                centre = tuple(c + x / chord * radius / cosine for c, x in zip(corner, difference))
+                e1 = tuple((c - u * cut - m) / radius for c, u, m in zip(corner, u1, centre))
                 previous[1] = length0 - cut
                 feeds = [f for f in (previous[3], item[3]) if f is not None]
-                arc = [("helix", centre, (e1, u1.copy(), np.zeros_like(u1), radius), radius, 0.0, 1.0), radius * phi,
+                arc = [("helix", centre, (e1, u1, (0.0,) * len(u1), radius), radius, 0.0, 1.0), radius * phi,
                        "blend", min(feeds) if feeds else None, item[4], tolerance, 0.0, radius * phi]
-                item[0] = ("line", corner + u2 * cut, u2, 0.0, 0.0, 0.0)
+                item[0] = ("line", tuple(c + u * cut for c, u in zip(corner, u2)), u2, 0.0, 0.0, 0.0)
                 item[1] = length1 - cut
         yield previous
         if arc is not None:
