@@ -10,9 +10,10 @@ F1200, G64 P0.001, in mm as CAM systems write them), with the bounds of config/g
 
 Streaming (core/feed_stream.py): the program's lines are generated one at a time as the planner reads them
 (no program text is held), read, made tool-path stretches and planned over the default look-ahead
-(feed_stream.LOOKAHEAD_BLOCKS stretches), and the reference sampled every millisecond to the end; the line
-printed gives the blocks per second over the whole run, the first-motion latency (seconds from the start
-until the first reference sample is out) and the process's peak resident memory.
+(feed_planning.LOOKAHEAD_BLOCKS stretches, the schedule key lookahead_blocks' default), and the reference
+sampled every millisecond to the end; the line printed gives the blocks per second over the whole run, the
+first-motion latency (seconds from the start until the first reference sample is out) and the process's
+peak resident memory.
 
 Whole (--whole): the program's text is parsed (core/gcode.py), made a tool path (blend arcs at every corner)
 and planned (core/feed_planning.py); the seconds of each stage, per block, and the peak memory.
@@ -48,7 +49,8 @@ def peak_mib() -> float:
 
 
 def streamed(blocks: int) -> str:
-    from contouring_ros.core.feed_stream import LOOKAHEAD_BLOCKS, stream_program
+    from contouring_ros.core.feed_planning import LOOKAHEAD_BLOCKS
+    from contouring_ros.core.feed_stream import stream_program
     start = time.perf_counter()
     plan = stream_program(lines(blocks), 2, acceleration=1.0, jerk=10.0, lookahead_blocks=LOOKAHEAD_BLOCKS)
     samples = plan.samples(1e-3)

@@ -42,7 +42,7 @@ import numpy as np
 from .curves import ToolPath
 
 __all__ = ["FeedPlan", "BlockLimit", "LimitBounds", "block_limits", "span_profile", "profile_time", "scurve_time",
-           "scurve_distance", "reach", "tolerance_feed", "junction_speed", "TANGENT_COSINE"]
+           "scurve_distance", "reach", "tolerance_feed", "junction_speed", "TANGENT_COSINE", "LOOKAHEAD_BLOCKS"]
 
 TANGENT_COSINE = math.cos(1e-6)      # two blocks meet tangentially when their tangents differ by under 1 urad
 
@@ -312,6 +312,10 @@ def profile_time(trajectory, distance: float) -> float:
             hi = mid
     return hi
 
+
+#: blocks the feed plan looks ahead by default (a block of the tool path: a program's block or a blend arc),
+#: within the range controls keep (LinuxCNC 2000 segments, TwinCAT 120-500 blocks, Heidenhain up to 5000)
+LOOKAHEAD_BLOCKS = 1000
 
 #: a span's profile is planned over this fraction of its length less, so that none overshoots its end
 SPARE = 1e-9

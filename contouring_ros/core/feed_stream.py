@@ -23,14 +23,10 @@ from collections import deque
 from dataclasses import dataclass
 
 from .curves import ToolPath, segment_columns
-from .feed_planning import SPARE, LimitBounds, profile_time, reach, span_profile
+from .feed_planning import LOOKAHEAD_BLOCKS, SPARE, LimitBounds, profile_time, reach, span_profile
 from .gcode import ProgramError, ProgramReader, merge_collinear
 
-__all__ = ["PlannedSpan", "StreamingPlan", "stream_program", "LOOKAHEAD_BLOCKS"]
-
-#: the default look-ahead [tool path stretches]: within the range controls keep (see the module docstring)
-LOOKAHEAD_BLOCKS = 1000
-
+__all__ = ["PlannedSpan", "StreamingPlan", "stream_program"]
 
 @dataclass(frozen=True)
 class PlannedSpan:
