@@ -116,3 +116,22 @@ def test_refusals_name_the_line_or_the_option():
     with pytest.raises(ValueError, match="lookahead_blocks: 0"):
         stream("G1 X1 F100\n", 2, 0)
     assert [s.length for s in stream("%\nG1 X1 F100\nM30\n%\n", 2, 10).spans()] == [pytest.approx(1e-3)]
+
+
+def test_memory_is_bounded_by_the_window_not_the_program():
+    """The peak of the memory Python allocates while a program streams through the plan and its reference is
+    sampled is the same for 500 and 5,000 chords (a whole-program plan holds about 4 kB a block)."""
+    import tracemalloc
+
+    def peak(chords):
+        lines = (f"X{10 * math.cos(5e-4 * i):.6f} Y{10 * math.sin(5e-4 * i):.6f}" if i else "G64 P0.001 G1 X10 F1200"
+                 for i in range(chords + 1))
+        tracemalloc.start()
+        for _ in stream_program(lines, 2, lookahead_blocks=200, **BOUNDS).samples(1e-3):
+            pass
+        _, top = tracemalloc.get_traced_memory()
+        tracemalloc.stop()
+        return top
+    peak(500)                                   # once before: what the first run allocates for good
+    short, long = peak(500), peak(5000)
+    assert long < 1.2 * short and long < 2e6    # a window of the whole program: about 13 MB for 5,000 chords
