@@ -26,12 +26,34 @@ def chord_circle(chords: int, radius_mm: float = 10.0) -> str:
     return "\n".join(rows) + "\n"
 
 
+#: path control of every kind: G64 P with Q merging, a dwell, G9, an arc, a rapid, exact stop, feed changes
+MIXED = """%
+G21 G90 G64 P0.01 Q0.005
+G1 X1 Y0 F600
+X2 Y0.001
+X3 Y0
+G4 P0.2
+G1 X3 Y2 F1200
+G9 X1 Y3
+G2 X0 Y2 R1.5 F900
+G0 X0 Y0
+G64 P0.005
+G1 X0.5 Y0.2 F300
+X1 Y0
+X1.5 Y0.2 F450
+G61 X2 Y0
+G3 X2 Y1 I0 J0.5
+M30
+%
+"""
+
+
 def stream(text, dimension, window, **bounds):
     return stream_program(iter(text.splitlines()), dimension, lookahead_blocks=window, **{**BOUNDS, **bounds})
 
 
 @pytest.mark.parametrize("text, dimension, window", [(chord_circle(720), 2, 50), (chord_circle(720), 2, 7),
-                                                     (PART, 3, 2), (PART, 3, 4)])
+                                                     (PART, 3, 2), (PART, 3, 4), (MIXED, 2, 3), (MIXED, 2, 6)])
 def test_the_stream_is_the_windowed_plan_span_for_span_and_sample_for_sample(text, dimension, window):
     path = ToolPath.from_program(parse_program(text))
     assert window < len(path.blocks)              # FeedPlan windows only a shorter look-ahead than the path
@@ -53,7 +75,8 @@ def test_the_stream_is_the_windowed_plan_span_for_span_and_sample_for_sample(tex
 
 
 @pytest.mark.parametrize("text, dimension, windows, slower", [(chord_circle(720), 2, (4, 20, 100, 400, 2000), True),
-                                                              (PART, 3, (2, 4, 8), False)])
+                                                              (PART, 3, (2, 4, 8), False),
+                                                              (MIXED, 2, (2, 5, 40), None)])
 def test_the_window_is_never_faster_than_the_whole_plan_block_by_block_and_holds_every_bound(text, dimension,
                                                                                             windows, slower):
     """The chord circle's short windows are slower (they brake for a stop they cannot see past); the example
@@ -82,7 +105,8 @@ def test_the_window_is_never_faster_than_the_whole_plan_block_by_block_and_holds
         assert np.abs(np.diff(rate)).max() / 1e-4 <= BOUNDS["jerk"] * (1 + 1e-6)
         assert np.all(np.diff(theta) >= 0.0)
     assert durations[-1] >= whole.duration * (1 - 1e-12)
-    assert (durations[0] > durations[-1] * 1.5) == slower
+    if slower is not None:
+        assert (durations[0] > durations[-1] * 1.5) == slower
 
 
 def test_the_program_is_read_no_further_than_the_window_ahead():
