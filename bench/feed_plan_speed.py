@@ -4,6 +4,7 @@
     python bench/feed_plan_speed.py --whole [N ...]   # the whole-program plan (default 1000 10000 100000)
     python bench/feed_plan_speed.py --window       # the look-ahead window against the whole program's plan
     python bench/feed_plan_speed.py --merge        # G64 Q: blocks and G1 time of a 720-chord circle
+    python bench/feed_plan_speed.py --stages [N]   # where a streamed block's time goes (default 20000)
 
 Each N runs in a fresh process on a program of N chords of 5 um (round and round a circle of radius 10 mm at
 F1200, G64 P0.001, in mm as CAM systems write them), with the bounds of config/gcode_example_part.yaml.
@@ -63,6 +64,37 @@ def streamed(blocks: int) -> str:
     return (f"{blocks:>9} blocks streamed: {blocks / total:,.0f} blocks/s ({1e6 * total / blocks:.1f} us per block, "
             f"{total:.1f} s), first motion after {latency:.3f} s, peak memory {peak_mib():.0f} MiB; "
             f"{count} reference samples to t = {last[0]:.3f} s (look-ahead {LOOKAHEAD_BLOCKS} stretches)")
+
+
+def stages(blocks: int) -> None:
+    """Where a streamed block's time goes: the pipeline run on ``blocks`` chords up to each stage in turn
+    (best of 3), each stage's microseconds per chord the difference from the one before."""
+    from contouring_ros.core.curves import ToolPath, _blend, _program_items
+    from contouring_ros.core.feed_stream import stream_program
+    from contouring_ros.core.gcode import ProgramReader, merge_collinear
+
+    def reader():
+        return merge_collinear(ProgramReader().blocks(lines(blocks)))
+    pipeline = [("generate the lines", lambda: lines(blocks)),
+                ("read them into blocks (gcode.ProgramReader, merge_collinear)", reader),
+                ("each block's segment (curves._program_items)", lambda: _program_items(reader(), 2, 0.0)),
+                ("each corner's blend arc (curves._blend)", lambda: _blend(_program_items(reader(), 2, 0.0))),
+                ("each stretch's tangents and curvature (ToolPath.stream)", lambda: ToolPath.stream(reader(), 2)),
+                ("limits, junctions, spans, profiles (StreamingPlan.spans)",
+                 lambda: stream_program(lines(blocks), 2, acceleration=1.0, jerk=10.0).spans()),
+                ("the reference every ms (StreamingPlan.samples)",
+                 lambda: stream_program(lines(blocks), 2, acceleration=1.0, jerk=10.0).samples(1e-3))]
+    before = 0.0
+    for name, make in pipeline:
+        best = math.inf
+        for _ in range(3):
+            start = time.perf_counter()
+            for _ in make():
+                pass
+            best = min(best, time.perf_counter() - start)
+        cost = 1e6 * best / blocks
+        print(f"{cost - before:7.1f} us per block  {name}  ({cost:.1f} us per block so far)", flush=True)
+        before = cost
 
 
 def measure(blocks: int) -> str:
@@ -141,6 +173,9 @@ if __name__ == "__main__":
         raise SystemExit(0)
     if sys.argv[1:] == ["--merge"]:
         merges()
+        raise SystemExit(0)
+    if sys.argv[1:2] == ["--stages"]:
+        stages(int(float(sys.argv[2])) if len(sys.argv) > 2 else 20000)
         raise SystemExit(0)
     if len(sys.argv) == 4 and sys.argv[1] == "--one":
         print((measure if sys.argv[2] == "whole" else streamed)(int(sys.argv[3])), flush=True)
