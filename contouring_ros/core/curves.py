@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ["Curve", "Parabola", "Line", "Circle", "Ellipse", "FigureEight", "Saddle", "Helix", "Butterfly", "SplineCurve", "ToolPath",
-           "PathBlock", "MAX_PATH_LENGTH"]
+           "PathBlock", "MAX_PATH_LENGTH", "segment_columns"]
 
 
 def _scalar_or_array(scalar, array):
@@ -584,98 +584,45 @@ class ToolPath(Curve):
         planner stops there, as G61).
         """
         self = cls.__new__(cls)
-        d = program.dimension
-        self.dimension = d
+        self.dimension = program.dimension
         self.dwell = program.dwell
-        items = []                     # (segment, length, kind, feed, line)
-        for block in program.blocks:
-            start, end = block.start[:d], block.end[:d]
-            tolerance = blend_tolerance if block.tolerance is None else block.tolerance
-            if block.kind in ("line", "rapid"):
-                length = float(np.linalg.norm(end - start))
-                items.append([("line", start, (end - start) / length, 0.0, 0.0, 0.0), length, block.kind,
-                              block.feed, block.line, tolerance, block.dwell])
-                continue
-            first, second, normal = block.plane
-            centre = block.centre
-            a = np.array([block.start[first] - centre[first], block.start[second] - centre[second]])
-            b = np.array([block.end[first] - centre[first], block.end[second] - centre[second]])
-            radius = float(np.linalg.norm(a))
-            turn = -1.0 if block.clockwise else 1.0
-            a0, a1 = math.atan2(a[1], a[0]), math.atan2(b[1], b[0])
-            sweep = (turn * (a1 - a0)) % (2 * np.pi) or 2 * np.pi
-            e1, e2, w = np.zeros(3), np.zeros(3), np.zeros(3)
-            e1[first], e1[second] = 1.0, 0.0
-            e2[first], e2[second] = 0.0, 1.0
-            rise = float(block.end[normal] - block.start[normal])
-            rho = math.hypot(radius, rise / sweep)
-            length = rho * sweep
-            w[normal] = rise / length
-            base = centre.copy()
-            base[normal] = block.start[normal]
-            items.append([("helix", base[:d], (e1[:d], e2[:d], w[:d], rho), radius, a0, turn), length, "arc",
-                          block.feed, block.line, tolerance, block.dwell])
-        for item in items:            # every derived length and radius finite (a NaN passes the guard below)
-            _, origin, direction, radius, *_ = item[0]
-            numbers = [item[1], radius, *np.ravel(origin), *np.ravel(direction[:3] if item[0][0] == "helix"
-                                                                    else direction)]
-            if not all(math.isfinite(float(v)) for v in numbers):
-                raise ValueError(f"line {item[4]}: the move's length or radius is not a finite number "
-                                 "(coordinates or offsets too large)")
-        items = _blend(items)
+        items = list(_blend(_program_items(program.blocks, program.dimension, blend_tolerance)))
         total = sum(item[1] for item in items)
         if not math.isfinite(total) or total > MAX_PATH_LENGTH:
             raise ValueError(f"the path is {total:.4g} m long (at most {MAX_PATH_LENGTH:g} m): check the units "
                              "(G1 X50 is 50 mm under G21, the default, and 50 inch = 1.27 m under G20)")
-        self.segments = [item[0] for item in items]
+        self.segments = [_arrays(item[0]) for item in items]
         self._finish([item[1] for item in items], [(item[2], item[3], item[4], item[5], item[6]) for item in items])
         return self
+
+    @staticmethod
+    def stream(blocks, dimension: int, blend_tolerance: float = 0.0):
+        """The tool path of a stream of part-program blocks (:class:`contouring_ros.core.gcode.Block`, any
+        iterable), as :meth:`from_program` makes it, one stretch at a time: each a (segment, :class:`PathBlock`)
+        pair, the segment what :func:`segment_columns` evaluates. At most two blocks are held (a corner's blend
+        needs the block after it), so a program of any length streams in constant memory; the total length is
+        not capped (:data:`MAX_PATH_LENGTH` guards a whole program's units)."""
+        start = 0.0
+        for segment, length, kind, feed, line, deviation, dwell, _ in _blend(_program_items(blocks, dimension,
+                                                                                             blend_tolerance)):
+            plain = (segment[1], segment[2]) if segment[0] == "line" else (segment[1], *segment[2])
+            yield (segment, plain), _path_block(segment, plain, dimension, start, length, kind, feed, line,
+                                                deviation, dwell)
+            start += length
 
     def _finish(self, lengths, kinds):
         self._starts = np.concatenate([[0.0], np.cumsum(lengths)])
         self._start_list = [float(v) for v in self._starts]
-        plain = []                   # each segment's vectors as tuples of floats (the scalar path)
-        for kind, origin, direction, *_ in self.segments:
-            if kind == "line":
-                plain.append((_floats(origin), _floats(direction)))
-            elif kind == "helix":
-                plain.append((_floats(origin), *(_floats(v) for v in direction[:3]), float(direction[3])))
-            else:
-                plain.append(None)
-        self._plain = plain
+        self._plain = [_plain(segment) for segment in self.segments]   # each segment's vectors as float tuples
         self.domain = (0.0, float(self._starts[-1]))
         self.closed = False
-        blocks = []
-        for i, (kind, feed, line, deviation, dwell) in enumerate(kinds):
-            begin, end = self._segment(i, 0.0), self._segment(i, float(lengths[i]))
-            d1, d2 = np.array(begin[1]), np.array(begin[2])
-            curvature = float(np.linalg.norm(d2)) if kind != "line" and kind != "rapid" else 0.0
-            blocks.append(PathBlock(kind, float(self._starts[i]), float(lengths[i]), feed, line,
-                                    d1 / np.linalg.norm(d1), np.array(end[1]) / np.linalg.norm(end[1]), curvature,
-                                    float(deviation), float(dwell)))
-        self.blocks = blocks
+        self.blocks = [_path_block(self.segments[i], self._plain[i], self.dimension, float(self._starts[i]),
+                                   float(lengths[i]), kind, feed, line, deviation, dwell)
+                       for i, (kind, feed, line, deviation, dwell) in enumerate(kinds)]
 
     def _segment(self, i: int, u: float) -> list:
         """[R, dR, d2R, d3R] at distance u into segment i, as tuples of floats (the estimators' scalar path)."""
-        kind, origin, direction, radius, a0, turn = self.segments[i]
-        n = self.dimension
-        if kind == "line":
-            o, d = self._plain[i]
-            zero = (0.0,) * n
-            return [tuple(o[k] + u * d[k] for k in range(n)), d, zero, zero]
-        if kind == "helix":
-            o, e1, e2, w, rho = self._plain[i]
-            a = a0 + turn * u / rho
-            c, si = math.cos(a), math.sin(a)
-            k1, k2, k3 = radius * turn / rho, radius / rho**2, radius * turn / rho**3
-            return [tuple(o[k] + radius * (c * e1[k] + si * e2[k]) + w[k] * u for k in range(n)),
-                    tuple(k1 * (c * e2[k] - si * e1[k]) + w[k] for k in range(n)),
-                    tuple(-k2 * (c * e1[k] + si * e2[k]) for k in range(n)),
-                    tuple(k3 * (si * e1[k] - c * e2[k]) for k in range(n))]
-        a = a0 + turn * u / radius
-        c, si = _cos(a), _sin(a)
-        return [(origin[0] + radius * c, origin[1] + radius * si), (-turn * si, turn * c),
-                (-c / radius, -si / radius), (turn * si / radius**2, -turn * c / radius**2)]
+        return segment_columns(self.segments[i], self._plain[i], self.dimension, u)
 
     def _one(self, s: float) -> list:
         i = min(max(bisect.bisect_right(self._start_list, s) - 1, 0), len(self.segments) - 1)
@@ -718,23 +665,136 @@ class ToolPath(Curve):
                 np.column_stack([turn * si / radius**2, -turn * c / radius**2])]
 
 
+def segment_columns(segment, plain, n: int, u: float) -> list:
+    """[R, dR, d2R, d3R] at distance u into a tool path's segment (a line, a helix or a planar arc of an inline
+    path; ``plain`` its vectors as tuples of floats, :func:`_plain`) of dimension n, as tuples of floats."""
+    kind, origin, direction, radius, a0, turn = segment
+    if kind == "line":
+        o, d = plain
+        zero = (0.0,) * n
+        return [tuple(o[k] + u * d[k] for k in range(n)), d, zero, zero]
+    if kind == "helix":
+        o, e1, e2, w, rho = plain
+        a = a0 + turn * u / rho
+        c, si = math.cos(a), math.sin(a)
+        k1, k2, k3 = radius * turn / rho, radius / rho**2, radius * turn / rho**3
+        return [tuple(o[k] + radius * (c * e1[k] + si * e2[k]) + w[k] * u for k in range(n)),
+                tuple(k1 * (c * e2[k] - si * e1[k]) + w[k] for k in range(n)),
+                tuple(-k2 * (c * e1[k] + si * e2[k]) for k in range(n)),
+                tuple(k3 * (si * e1[k] - c * e2[k]) for k in range(n))]
+    a = a0 + turn * u / radius
+    c, si = _cos(a), _sin(a)
+    return [(origin[0] + radius * c, origin[1] + radius * si), (-turn * si, turn * c),
+            (-c / radius, -si / radius), (turn * si / radius**2, -turn * c / radius**2)]
+
+
+def _plain(segment):
+    """A segment's vectors as tuples of floats (the scalar path of :func:`segment_columns`)."""
+    kind, origin, direction, *_ = segment
+    if kind == "line":
+        return _floats(origin), _floats(direction)
+    if kind == "helix":
+        return (_floats(origin), *(_floats(v) for v in direction[:3]), float(direction[3]))
+    return None
+
+
+def _arrays(segment) -> tuple:
+    """A program segment (its vectors tuples of floats, as :func:`_program_items` and :func:`_blend` make
+    them) with numpy vectors (what :meth:`ToolPath._segment_array` evaluates)."""
+    kind, origin, direction, *rest = segment
+    if kind == "line":
+        return (kind, np.array(origin), np.array(direction), *rest)
+    return (kind, np.array(origin), (*(np.array(v) for v in direction[:3]), direction[3]), *rest)
+
+
+def _path_block(segment, plain, n, start, length, kind, feed, line, deviation, dwell) -> PathBlock:
+    """The :class:`PathBlock` of one segment beginning at arc length ``start``."""
+    if segment[0] == "line":                 # one direction: its tangent at both ends
+        tangent = _unit(plain[1])
+        return PathBlock(kind, float(start), float(length), feed, line, np.array(tangent), np.array(tangent), 0.0,
+                         float(deviation), float(dwell))
+    begin, end = segment_columns(segment, plain, n, 0.0), segment_columns(segment, plain, n, float(length))
+    curvature = _norm(begin[2]) if kind != "line" and kind != "rapid" else 0.0
+    return PathBlock(kind, float(start), float(length), feed, line, np.array(_unit(begin[1])),
+                     np.array(_unit(end[1])), curvature, float(deviation), float(dwell))
+
+
+def _norm(vector) -> float:
+    """The length of a vector of floats, as np.linalg.norm computes it (the square root of the sum of the
+    squares, in order) without numpy's overhead on 2 or 3 elements."""
+    total = 0.0
+    for x in vector:
+        total += x * x
+    return math.sqrt(total)
+
+
+def _unit(vector) -> tuple:
+    length = _norm(vector)
+    return tuple(x / length for x in vector)
+
+
+def _program_items(blocks, d: int, blend_tolerance: float):
+    """Each part-program block's segment as :func:`_blend` takes it: [segment, length, kind, feed, line,
+    tolerance, dwell] (a generator; the segment's vectors as tuples of floats)."""
+    for block in blocks:
+        tolerance = blend_tolerance if block.tolerance is None else block.tolerance
+        if block.kind in ("line", "rapid"):
+            start, end = block.start[:d].tolist(), block.end[:d].tolist()
+            chord = [e - s for s, e in zip(start, end)]
+            length = _norm(chord)
+            item = [("line", tuple(start), tuple(x / length for x in chord), 0.0, 0.0, 0.0), length, block.kind,
+                    block.feed, block.line, tolerance, block.dwell]
+        else:
+            first, second, normal = block.plane
+            centre = block.centre
+            a = np.array([block.start[first] - centre[first], block.start[second] - centre[second]])
+            b = np.array([block.end[first] - centre[first], block.end[second] - centre[second]])
+            radius = float(np.linalg.norm(a))
+            turn = -1.0 if block.clockwise else 1.0
+            a0, a1 = math.atan2(a[1], a[0]), math.atan2(b[1], b[0])
+            sweep = (turn * (a1 - a0)) % (2 * np.pi) or 2 * np.pi
+            e1, e2, w = np.zeros(3), np.zeros(3), np.zeros(3)
+            e1[first], e1[second] = 1.0, 0.0
+            e2[first], e2[second] = 0.0, 1.0
+            rise = float(block.end[normal] - block.start[normal])
+            rho = math.hypot(radius, rise / sweep)
+            length = rho * sweep
+            w[normal] = rise / length
+            base = centre.copy()
+            base[normal] = block.start[normal]
+            item = [("helix", _floats(base[:d]), (_floats(e1[:d]), _floats(e2[:d]), _floats(w[:d]), rho), radius, a0,
+                     turn), length, "arc", block.feed, block.line, tolerance, block.dwell]
+        # every derived length and radius finite (a NaN passes the length guard)
+        _, origin, direction, radius, *_ = item[0]
+        vectors = direction[:3] if item[0][0] == "helix" else (direction,)
+        if not all(math.isfinite(v) for v in (item[1], radius, *origin, *(x for v in vectors for x in v))):
+            raise ValueError(f"line {item[4]}: the move's length or radius is not a finite number "
+                             "(coordinates or offsets too large)")
+        yield item
+
+
 def _floats(vector) -> tuple:
-    return tuple(float(x) for x in vector)
+    return tuple(np.asarray(vector, dtype=float).tolist())
 
 
-def _blend(items) -> list:
+def _blend(items):
     """Insert a tangent arc at each corner between two G1 lines whose first has a tolerance and no dwell
-    (see :meth:`ToolPath.from_program`)."""
-    items = [list(item) + [item[1]] for item in items]
-    out = [items[0]]
-    for item in items[1:]:
-        previous = out[-1]
+    (see :meth:`ToolPath.from_program`); a generator holding one item back (its end is cut by the corner's
+    blend). Vectors are tuples of floats, each component computed as numpy would compute it elementwise."""
+    previous = None
+    for item in items:
+        item = list(item) + [item[1]]
+        if previous is None:
+            previous = item
+            continue
+        arc = None
         (_, _, u1, *_), length0 = previous[0], previous[1]
         (_, p1, u2, *_), length1 = item[0], item[1]
         tolerance = previous[5]
         if previous[2] == "line" and item[2] == "line" and tolerance > 0.0 and not previous[6]:
-            chord = float(np.linalg.norm(u2 - u1))
-            phi = 2.0 * math.atan2(chord, float(np.linalg.norm(u2 + u1)))     # the turn, accurate at any angle
+            difference = tuple(b - a for a, b in zip(u1, u2))
+            chord = _norm(difference)
+            phi = 2.0 * math.atan2(chord, _norm([a + b for a, b in zip(u1, u2)]))     # the turn, at any angle
             if 1e-9 < phi < math.pi - 1e-6:
                 half = phi / 2.0       # 1 / cos(half) - 1 = 2 sin^2(half / 2) / cos(half), exact for tiny turns
                 radius = tolerance * math.cos(half) / (2.0 * math.sin(half / 2.0) ** 2)
@@ -743,16 +803,18 @@ def _blend(items) -> list:
                 if cut > limit:
                     cut, radius = limit, limit / math.tan(half)
                 corner = p1
-                centre_side = (u2 - u1) / chord
-                centre = corner + centre_side * radius / math.cos(half)
-                begin = corner - u1 * cut
-                e1 = (begin - centre) / radius
+                cosine = math.cos(half)
+                centre = tuple(c + x / chord * radius / cosine for c, x in zip(corner, difference))
+                e1 = tuple((c - u * cut - m) / radius for c, u, m in zip(corner, u1, centre))
                 previous[1] = length0 - cut
                 feeds = [f for f in (previous[3], item[3]) if f is not None]
-                arc = ("helix", centre, (e1, u1.copy(), np.zeros_like(u1), radius), radius, 0.0, 1.0)
-                out.append([arc, radius * phi, "blend", min(feeds) if feeds else None, item[4], tolerance, 0.0,
-                            radius * phi])
-                item[0] = ("line", corner + u2 * cut, u2, 0.0, 0.0, 0.0)
+                arc = [("helix", centre, (e1, u1, (0.0,) * len(u1), radius), radius, 0.0, 1.0), radius * phi,
+                       "blend", min(feeds) if feeds else None, item[4], tolerance, 0.0, radius * phi]
+                item[0] = ("line", tuple(c + u * cut for c, u in zip(corner, u2)), u2, 0.0, 0.0, 0.0)
                 item[1] = length1 - cut
-        out.append(item)
-    return out
+        yield previous
+        if arc is not None:
+            yield arc
+        previous = item
+    if previous is not None:
+        yield previous

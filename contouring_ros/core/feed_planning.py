@@ -22,7 +22,8 @@ parameter is s itself: theta = s, theta_dot = v (the feed), theta_ddot = dv/dt.
    (:func:`reach`, in closed form). Both passes are linear in the number of blocks. With a look-ahead of W
    blocks (``lookahead_blocks``, a control's block queue) spans are at most W / 2 blocks and each span's
    exit speed is fixed from the W blocks ahead of its start alone, the last taken to end in a stop
-   (:meth:`FeedPlan._windowed`): never faster than the whole program's plan.
+   (:meth:`FeedPlan._windowed`): never faster than the whole program's plan. :mod:`.feed_stream` makes the
+   same plan while it reads the program, holding only the window.
 4. One time-optimal jerk-limited profile per span between its boundary speeds (zero acceleration at both
    ends, so acceleration is continuous across spans), computed by Ruckig (Berscheid and Kroeger,
    "Jerk-limited Real-time Trajectory Generation with Arbitrary Target States", RSS 2021), bounded by the
@@ -40,8 +41,8 @@ import numpy as np
 
 from .curves import ToolPath
 
-__all__ = ["FeedPlan", "BlockLimit", "block_limits", "scurve_time", "scurve_distance", "reach", "tolerance_feed",
-           "junction_speed", "TANGENT_COSINE"]
+__all__ = ["FeedPlan", "BlockLimit", "LimitBounds", "block_limits", "span_profile", "profile_time", "scurve_time",
+           "scurve_distance", "reach", "tolerance_feed", "junction_speed", "TANGENT_COSINE", "LOOKAHEAD_BLOCKS"]
 
 TANGENT_COSINE = math.cos(1e-6)      # two blocks meet tangentially when their tangents differ by under 1 urad
 
@@ -172,43 +173,77 @@ def block_limits(path: ToolPath, acceleration: float, jerk: float, feedrate: flo
                  tracking_lag=None, feed_override: float = 1.0) -> list:
     """Step 1 of the module docstring: one :class:`BlockLimit` per block of ``path``; ``feed_override``
     scales every programmed feed (rapids included, as LinuxCNC's feed override with rapids scaled)."""
-    n = path.dimension
-    per_axis = [np.full(n, np.inf) if v is None else np.broadcast_to(np.asarray(v, dtype=float), (n,))
-                for v in (axis_feedrate, axis_acceleration, axis_jerk)]
-    out = []
-    for block in path.blocks:
+    bounds = LimitBounds(path.dimension, acceleration, jerk, feedrate, rapid_feedrate, normal_acceleration,
+                         axis_feedrate, axis_acceleration, axis_jerk, contour_tolerance, tracking_lag, feed_override)
+    return [bounds.limit(block) for block in path.blocks]
+
+
+class LimitBounds:
+    """The bounds of :func:`block_limits`, made once, giving each block's :class:`BlockLimit` (:meth:`limit`)
+    and each junction's speed (:meth:`corner`): what the whole program's plan and a streaming plan
+    (:mod:`contouring_ros.core.feed_stream`) share."""
+
+    def __init__(self, dimension: int, acceleration: float, jerk: float, feedrate: float | None = None,
+                 rapid_feedrate: float | None = None, normal_acceleration: float = 0.0, axis_feedrate=None,
+                 axis_acceleration=None, axis_jerk=None, contour_tolerance: float = 0.0, tracking_lag=None,
+                 feed_override: float = 1.0):
+        n = dimension
+        self.per_axis = [np.full(n, np.inf) if v is None else np.broadcast_to(np.asarray(v, dtype=float), (n,))
+                         for v in (axis_feedrate, axis_acceleration, axis_jerk)]
+        self.unbounded = all(np.isposinf(limit).all() for limit in self.per_axis)
+        self.acceleration, self.jerk, self.feedrate, self.rapid_feedrate = acceleration, jerk, feedrate, rapid_feedrate
+        self.normal_acceleration, self.feed_override = normal_acceleration, feed_override
+        self.axis_acceleration, self.axis_jerk = axis_acceleration, axis_jerk
+        self.contour_tolerance = contour_tolerance
+        self.lags = np.broadcast_to(np.asarray(tracking_lag, dtype=float), (n,)) if contour_tolerance > 0.0 else None
+
+    def limit(self, block) -> BlockLimit:
+        """Step 1 of the module docstring for one block (a :class:`~contouring_ros.core.curves.PathBlock`)."""
+        feed_override = self.feed_override
         if block.kind == "rapid":
-            if not rapid_feedrate:
+            if not self.rapid_feedrate:
                 raise ValueError(f"line {block.line}: a rapid move (G0) needs the schedule's rapid_feedrate")
-            feed, bound = rapid_feedrate * feed_override, "rapid"
+            feed, bound = self.rapid_feedrate * feed_override, "rapid"
         elif block.feed is not None:
             feed, bound = block.feed * feed_override, "F"
-        elif feedrate:
-            feed, bound = feedrate * feed_override, "feedrate"
+        elif self.feedrate:
+            feed, bound = self.feedrate * feed_override, "feedrate"
         else:
             raise ValueError(f"line {block.line}: no feed rate (an F word, or the schedule's feedrate)")
-        a, j = acceleration, jerk
-        if block.curvature == 0.0:
+        a, j = self.acceleration, self.jerk
+        if self.unbounded:          # no per-axis bounds: each is infinite in every direction
+            axis_v = axis_a = axis_j = math.inf
+        elif block.curvature == 0.0:
             u = np.abs(block.tangent_in)
             with np.errstate(divide="ignore"):
-                axis_v, axis_a, axis_j = (float(np.min(limit / u)) for limit in per_axis)
+                axis_v, axis_a, axis_j = (float(np.min(limit / u)) for limit in self.per_axis)
         else:       # the tangent turns: the tightest axis bounds every direction
-            axis_v, axis_a, axis_j = (float(np.min(limit)) for limit in per_axis)
+            axis_v, axis_a, axis_j = (float(np.min(limit)) for limit in self.per_axis)
         a, j = min(a, axis_a), min(j, axis_j)
         if axis_v < feed:
             feed, bound = axis_v, "axis"
         if block.curvature > 0.0:
             kappa = block.curvature
-            centripetal = min(math.sqrt((normal_acceleration or a) / kappa), (j / kappa**2) ** (1.0 / 3.0))
+            centripetal = min(math.sqrt((self.normal_acceleration or a) / kappa), (j / kappa**2) ** (1.0 / 3.0))
             if centripetal < feed:
                 feed, bound = centripetal, "centripetal"
-        if contour_tolerance > 0.0:
-            lags = np.broadcast_to(np.asarray(tracking_lag, dtype=float), (n,))
-            capped = tolerance_feed(contour_tolerance, lags, block.tangent_in, block.curvature)
+        if self.contour_tolerance > 0.0:
+            capped = tolerance_feed(self.contour_tolerance, self.lags, block.tangent_in, block.curvature)
             if capped < feed:
                 feed, bound = capped, "tolerance"
-        out.append(BlockLimit(feed, a, j, bound))
-    return out
+        return BlockLimit(feed, a, j, bound)
+
+    def corner(self, before, after, limit_before: BlockLimit, limit_after: BlockLimit) -> float:
+        """Step 2 of the module docstring: the speed limit where block ``before`` meets ``after`` (0 before a
+        dwell)."""
+        if before.dwell > 0.0:
+            return 0.0
+        if float(np.dot(before.tangent_out, after.tangent_in)) >= TANGENT_COSINE:
+            return min(limit_before.feed, limit_after.feed)
+        return min(limit_before.feed, limit_after.feed, junction_speed(
+            before.tangent_out, after.tangent_in, before.deviation,
+            min(limit_before.acceleration, limit_after.acceleration), min(limit_before.jerk, limit_after.jerk),
+            self.axis_acceleration, self.axis_jerk))
 
 
 class _PathFrom:
@@ -233,6 +268,54 @@ class _PathFrom:
     def point(self, theta):
         return self.path.point(theta)
 
+
+def span_profile(v0: float, v1: float, length: float, cap: float, acceleration: float, jerk: float, line: int,
+                 entry=(0.0, 0.0)):
+    """Step 4 of the module docstring: the time-optimal jerk-limited profile (a Ruckig ``Trajectory`` of one
+    degree of freedom, the distance along the span) over a span of ``length`` from speed v0 to v1 at zero
+    acceleration, within ``cap``, ``acceleration`` and ``jerk``; ``entry``: the state (feed, its rate) of a
+    plan entered while moving (its acceleration is the profile's start; v0 is its feed). ValueError naming the
+    span's first ``line`` where no profile exists or one would reverse along the path."""
+    from ruckig import InputParameter, Result, Ruckig, RuckigError, Trajectory
+    inp = InputParameter(1)
+    inp.current_position, inp.current_velocity = [0.0], [v0]
+    inp.current_acceleration = [entry[1]]
+    if entry != (0.0, 0.0):
+        # from a moving state the way down to the span's feed limit must not undershoot into reverse (a
+        # jerk-limited brake from F to 10 % of it would otherwise overshoot below zero and come back)
+        inp.min_velocity = [0.0]
+    inp.target_position, inp.target_velocity, inp.target_acceleration = [length], [v1], [0.0]
+    inp.max_velocity, inp.max_acceleration, inp.max_jerk = [cap], [acceleration], [jerk]
+    trajectory = Trajectory(1)
+    try:
+        result = Ruckig(1).calculate(inp, trajectory)
+    except RuckigError as error:          # no profile from this entry state (a feed override)
+        raise ValueError(f"line {line}: no jerk-limited profile for this block ({error})".splitlines()[0]) \
+            from None
+    if result not in (Result.Working, Result.Finished):
+        raise ValueError(f"line {line}: no jerk-limited profile for this block ({result})")
+    extrema = trajectory.position_extrema[0]
+    if extrema.min < -1e-12 or extrema.max > length * (1.0 + 1e-9) + 1e-12:
+        raise ValueError(f"line {line}: the planned profile would reverse along the path")
+    return trajectory
+
+
+def profile_time(trajectory, distance: float) -> float:
+    """When a span's profile (:func:`span_profile`) has covered ``distance`` (bisection: the position rises
+    monotonically along it)."""
+    lo, hi = 0.0, trajectory.duration
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        if trajectory.at_time(mid)[0][0] < distance:
+            lo = mid
+        else:
+            hi = mid
+    return hi
+
+
+#: blocks the feed plan looks ahead by default (a block of the tool path: a program's block or a blend arc),
+#: within the range controls keep (LinuxCNC 2000 segments, TwinCAT 120-500 blocks, Heidenhain up to 5000)
+LOOKAHEAD_BLOCKS = 1000
 
 #: a span's profile is planned over this fraction of its length less, so that none overshoots its end
 SPARE = 1e-9
@@ -310,9 +393,10 @@ class FeedPlan:
         self.feed_override = float(feed_override)
         self.theta_start, self.theta_end = path.domain
         blocks = path.blocks
-        self.limits = block_limits(path, acceleration, jerk, feedrate, rapid_feedrate, normal_acceleration,
-                                   axis_feedrate, axis_acceleration, axis_jerk, contour_tolerance, tracking_lag,
-                                   feed_override)
+        bounds = LimitBounds(path.dimension, acceleration, jerk, feedrate, rapid_feedrate, normal_acceleration,
+                             axis_feedrate, axis_acceleration, axis_jerk, contour_tolerance, tracking_lag,
+                             feed_override)
+        self.limits = [bounds.limit(block) for block in blocks]
         m = len(blocks)
         feed = np.array([limit.feed for limit in self.limits])
         acc = np.array([limit.acceleration for limit in self.limits])
@@ -325,14 +409,8 @@ class FeedPlan:
         hold[m] = blocks[-1].dwell
         for i in range(1, m):
             before, after = blocks[i - 1], blocks[i]
-            if before.dwell > 0.0:
-                hold[i] = before.dwell
-            elif float(np.dot(before.tangent_out, after.tangent_in)) >= TANGENT_COSINE:
-                corner[i] = min(feed[i - 1], feed[i])
-            else:
-                corner[i] = min(feed[i - 1], feed[i], junction_speed(
-                    before.tangent_out, after.tangent_in, before.deviation, min(acc[i - 1], acc[i]),
-                    min(jer[i - 1], jer[i]), axis_acceleration, axis_jerk))
+            hold[i] = before.dwell
+            corner[i] = bounds.corner(before, after, self.limits[i - 1], self.limits[i])
             if corner[i] == 0.0:
                 hold[i] += float(dwell)
         # spans: blocks of equal limits joined where the junction allows their whole feed and nothing holds
@@ -422,29 +500,10 @@ class FeedPlan:
         cached = vars(self).setdefault("_cached", {})
         if i in cached:
             return cached[i]
-        from ruckig import InputParameter, Result, Ruckig, RuckigError, Trajectory
         _, start, length, cap, acc, jerk, v, _ = self._span
-        inp = InputParameter(1)
-        inp.current_position, inp.current_velocity = [0.0], [float(v[i])]
-        inp.current_acceleration = [self.entry[1] if i == 0 else 0.0]
-        if i == 0 and self.entry != (0.0, 0.0):
-            # from a moving state the way down to the span's feed limit must not undershoot into reverse (a
-            # jerk-limited brake from F to 10 % of it would otherwise overshoot below zero and come back)
-            inp.min_velocity = [0.0]
-        inp.target_position, inp.target_velocity, inp.target_acceleration = [float(length[i])], [float(v[i + 1])], [0.0]
-        inp.max_velocity, inp.max_acceleration, inp.max_jerk = [float(cap[i])], [float(acc[i])], [float(jerk[i])]
-        trajectory = Trajectory(1)
-        line = self.curve.blocks[int(self._span[0][i])].line
-        try:
-            result = Ruckig(1).calculate(inp, trajectory)
-        except RuckigError as error:          # no profile from this entry state (a feed override)
-            raise ValueError(f"line {line}: no jerk-limited profile for this block ({error})".splitlines()[0]) \
-                from None
-        if result not in (Result.Working, Result.Finished):
-            raise ValueError(f"line {line}: no jerk-limited profile for this block ({result})")
-        extrema = trajectory.position_extrema[0]
-        if extrema.min < -1e-12 or extrema.max > length[i] * (1.0 + 1e-9) + 1e-12:
-            raise ValueError(f"line {line}: the planned profile would reverse along the path")
+        trajectory = span_profile(float(v[i]), float(v[i + 1]), float(length[i]), float(cap[i]), float(acc[i]),
+                                  float(jerk[i]), self.curve.blocks[int(self._span[0][i])].line,
+                                  self.entry if i == 0 else (0.0, 0.0))
         if len(cached) >= CACHED_SPANS:
             del cached[next(iter(cached))]
         cached[i] = trajectory
@@ -491,15 +550,7 @@ class FeedPlan:
         into = theta - start[i]
         if into <= 0.0:
             return float(self._span_times[i])
-        trajectory = self._profile(i)
-        lo, hi = 0.0, trajectory.duration
-        for _ in range(60):                      # the position rises monotonically along the profile
-            mid = 0.5 * (lo + hi)
-            if trajectory.at_time(mid)[0][0] < into:
-                lo = mid
-            else:
-                hi = mid
-        return float(self._span_times[i] + hold[i] + hi)
+        return float(self._span_times[i] + hold[i] + profile_time(self._profile(i), into))
 
     @property
     def block_times(self) -> np.ndarray:

@@ -36,7 +36,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-__all__ = ["Block", "Program", "ProgramError", "parse_program", "merge_collinear", "MM", "INCH", "JUNCTION_DEVIATION",
+__all__ = ["Block", "Program", "ProgramError", "ProgramReader", "parse_program", "merge_collinear", "MM", "INCH", "JUNCTION_DEVIATION",
            "SETUP_WORDS", "MAX_MERGED"]
 
 MM, INCH = 1e-3, 25.4e-3          # metres per unit
@@ -142,6 +142,8 @@ class Program:
 
 
 def _strip_comments(text: str, number: int) -> str:
+    if "(" not in text and ")" not in text and ";" not in text:
+        return text
     out, depth = [], 0
     for char in text:
         if char == "(":
@@ -202,157 +204,208 @@ def parse_program(text: str, start=(0.0, 0.0, 0.0), strict: bool = False) -> Pro
         One line naming the source line and the word: an unsupported word, a move without a feed rate in a
         program with F words, an arc whose end is not on its circle, a word given twice ...
     """
-    position = np.array(list(start) + [0.0] * (3 - len(start)), dtype=float)
-    unit, absolute, plane, motion, feed = MM, True, _PLANES[17], None, None
-    tolerance = None                            # the path control mode: None (the experiment's), 0 (G61), P
-    naive = 0.0                                 # G64 Q: the naive CAM tolerance [m] (0: no merging)
-    blocks, has_feed, ended, warnings, first_dwell = [], False, None, {}, 0.0
-    first_unit = None                           # the unit of the first motion (results are reported in it)
-    moved_z = bool(position[2] != 0.0)         # a start off the XY plane keeps Z
     lines = text.splitlines()
-    for number, raw in enumerate(lines, start=1):
-        body = _strip_comments(raw, number).strip()
-        if not body or (body == "%" and number in (1, len(lines))):     # % marks a program's start and end
-            continue
-        if ended is not None:
-            raise ProgramError(f"line {number}: after the program end (M{ended} on an earlier line)")
-        if body.startswith("/"):
-            raise ProgramError(f"line {number}: block delete '/' is not supported")
-        axes, centre, radius, seen, words = {}, {}, None, set(), {}
-        block_motion, exact_once, dwell, blend = None, False, False, False
-        for letter, value, word in _words(body, number):
-            if letter in "XYZIJKRFNPQSTO" and letter in seen:
-                raise ProgramError(f"line {number}: {letter} given twice")
-            seen.add(letter)
-            words[letter] = (value, word)
-            name = _name(letter, value) if letter in "GM" else letter
-            if name in _REFUSED:
-                raise ProgramError(f"line {number}: unsupported word {word} ({_REFUSED[name]}: the project runs "
-                                   "the programmed path as it is, in either mode)")
-            if name in _SETUP_KIND:
-                kind = _SETUP_KIND[name]
-                meaning = SETUP_WORDS[kind][0]
-                if strict:
-                    raise ProgramError(f"line {number}: {word} ({meaning}) is a setup word; strict: true refuses "
-                                       "them (leave strict out to read and report them)")
-                warnings.setdefault(name, (word, number))
-                continue
-            if letter in "NPQ":
-                continue
-            if letter == "G":
-                code = _code(value)
-                if code in (0, 1, 2, 3):
-                    if block_motion is not None:
-                        raise ProgramError(f"line {number}: two motion words (G{block_motion} and {word})")
-                    block_motion = code
-                elif code in _PLANES:
-                    plane = _PLANES[code]
-                elif code in (20, 21):
-                    unit = INCH if code == 20 else MM
-                elif code in (90, 91):
-                    absolute = code == 90
-                elif name in ("G61", "G61.1"):
-                    tolerance, naive = 0.0, 0.0
-                elif code == 64:
-                    blend = True
-                elif code == 9:
-                    exact_once = True
-                elif code == 4:
-                    dwell = True
-                else:
-                    raise ProgramError(f"line {number}: unsupported word {word} (supported: G0 G1 G2 G3 G4 G9 G17 "
-                                       "G18 G19 G20 G21 G61 G61.1 G64 G90 G91 and the setup words G40 G49 "
-                                       "G54-G59 G80 G94)")
-            elif letter == "M":
-                code = _code(value)
-                if code not in (2, 30):
-                    raise ProgramError(f"line {number}: unsupported word {word} (supported: M2 M30 and the setup "
-                                       "words M3 M4 M5 M6 M7 M8 M9)")
-                ended = code
-            elif letter in "XYZ":
-                axes["XYZ".index(letter)] = value
-            elif letter in "IJK":
-                centre["IJK".index(letter)] = value
-            elif letter == "R":
-                radius = value
-            elif letter == "F":
-                if value <= 0.0:
-                    raise ProgramError(f"line {number}: {word}: the feed rate must be positive")
-                feed, has_feed = value, True
-            else:
-                raise ProgramError(f"line {number}: unsupported word {word}")
-        if dwell and blend:
-            raise ProgramError(f"line {number}: G4 and G64 on one line (both take P)")
-        if "P" in words and not (dwell or blend):
-            raise ProgramError(f"line {number}: {words['P'][1]} without G4 or G64")
-        if "Q" in words and not blend:
-            raise ProgramError(f"line {number}: {words['Q'][1]} without G64")
-        if blend:
-            p = words.get("P", (None,))[0]
-            if p is not None and p < 0.0:
-                raise ProgramError(f"line {number}: {words['P'][1]}: the blending tolerance must not be negative")
-            tolerance = JUNCTION_DEVIATION if p is None else p * unit
-            q = words.get("Q", (0.0,))[0]
-            if q < 0.0:
-                raise ProgramError(f"line {number}: {words['Q'][1]}: the naive CAM tolerance must not be negative")
-            naive = q * unit
-        if dwell:
-            if "P" not in words:
-                raise ProgramError(f"line {number}: G4 needs its dwell P (seconds)")
-            seconds = words["P"][0]
-            if not 0.0 <= seconds <= 3600.0:
-                raise ProgramError(f"line {number}: {words['P'][1]}: a dwell of 0 to 3600 s")
-            if axes:
-                raise ProgramError(f"line {number}: G4 with a motion on one line (give the dwell its own line)")
-            if blocks:
-                blocks[-1] = replace(blocks[-1], dwell=blocks[-1].dwell + seconds)
-            else:
-                first_dwell += seconds
-        if block_motion is not None:
-            motion = block_motion
-        if not axes:
-            if centre or radius is not None:
-                raise ProgramError(f"line {number}: arc words without an end point (X, Y or Z)")
-            continue
-        if motion is None:
-            raise ProgramError(f"line {number}: coordinates without a motion mode (G0, G1, G2 or G3)")
-        end = position.copy()
-        for axis, value in axes.items():
-            end[axis] = (value * unit) if absolute else position[axis] + value * unit
-        if (2 in axes and end[2] != position[2]) or (motion in (2, 3) and plane != _PLANES[17]):
-            moved_z = True                                  # an arc in the ZX or YZ plane moves Z
-        block_feed = None if motion == 0 or feed is None else feed * unit / 60.0
-        block_tolerance = 0.0 if exact_once else tolerance
-        label = _code(words["N"][0]) if "N" in words else None
-        if first_unit is None:
-            first_unit = unit
-        if motion in (0, 1):
-            if centre or radius is not None:
-                raise ProgramError(f"line {number}: {'I, J, K' if centre else 'R'} on a G{motion} line")
-            if np.array_equal(end, position):
-                continue                                    # a move to where the tool is: no motion
-            blocks.append(Block("rapid" if motion == 0 else "line", position, end, block_feed, number,
-                                tolerance=block_tolerance, number=label,
-                                merge_tolerance=naive if motion == 1 and block_tolerance else 0.0))
-        else:
-            blocks.append(replace(_arc(number, motion, plane, position, end, centre, radius, unit, block_feed),
-                                  tolerance=block_tolerance, number=label))
-        position = end
-    if not blocks:
-        raise ProgramError("the program has no motion")
+    reader = ProgramReader(start, strict)
+    blocks = list(reader.blocks(lines, last=len(lines)))
     for block in blocks:                # F words given: every feed move needs one (none: the schedule's feed)
-        if has_feed and block.kind != "rapid" and block.feed is None:
-            code = "G1" if block.kind == "line" else "G2" if block.clockwise else "G3"
-            raise ProgramError(f"line {block.line}: {code} before any feed rate (F)")
-    return Program(merge_collinear(blocks), 3 if moved_z else 2, has_feed, _setup_summary(warnings), first_dwell,
-                   first_unit or MM)
+        if reader.has_feed and block.kind != "rapid" and block.feed is None:
+            raise ProgramError(f"line {block.line}: {_code_of(block)} before any feed rate (F)")
+    return Program(list(merge_collinear(blocks)), reader.dimension, reader.has_feed, reader.warnings,
+                   reader.first_dwell, reader.unit)
+
+
+def _code_of(block: Block) -> str:
+    return "G1" if block.kind == "line" else "G2" if block.clockwise else "G3"
+
+
+class ProgramReader:
+    """Reads a part program line by line into its motion blocks (:meth:`blocks`, a generator: a program of
+    any length is read in constant memory), keeping what :class:`Program` states about the whole program as
+    far as it has been read: ``dimension``, ``has_feed``, ``warnings``, ``first_dwell``, ``unit``."""
+
+    def __init__(self, start=(0.0, 0.0, 0.0), strict: bool = False):
+        self.start, self.strict = start, strict
+        self.has_feed, self.first_dwell, self._seen, self._first_unit = False, 0.0, {}, None
+        self._moved_z = False
+
+    @property
+    def dimension(self) -> int:
+        return 3 if self._moved_z else 2
+
+    @property
+    def warnings(self) -> tuple:
+        return _setup_summary(self._seen)
+
+    @property
+    def unit(self) -> float:
+        return self._first_unit or MM
+
+    def blocks(self, lines, last: int | None = None):
+        """The motion blocks of ``lines`` (an iterable of the program's lines), each yielded once the next
+        line that could change it (a G4 dwell adds to the block before it) has been read. ``last``: the number
+        of lines, where known (a ``%`` on it ends the program); None (a stream): a ``%`` on any line after the
+        first ends it, and a feed move before the first F word is refused when an F word follows (the move
+        has already run at the schedule's feed)."""
+        position = np.array(list(self.start) + [0.0] * (3 - len(self.start)), dtype=float)
+        unit, absolute, plane, motion, feed = MM, True, _PLANES[17], None, None
+        tolerance = None                            # the path control mode: None (the experiment's), 0 (G61), P
+        naive = 0.0                                 # G64 Q: the naive CAM tolerance [m] (0: no merging)
+        strict, warnings = self.strict, self._seen
+        pending, ended, feedless, moved = None, None, None, False
+        self._moved_z = bool(position[2] != 0.0)   # a start off the XY plane keeps Z
+        number = 0
+        for number, raw in enumerate(lines, start=1):
+            body = _strip_comments(raw, number).strip()
+            if not body:
+                continue
+            if body == "%" and (number == 1 or number == last or (last is None and ended != "%")):
+                if number != 1 and last is None:
+                    ended = "%"                     # a stream's closing %
+                continue                            # % marks a program's start and end
+            if ended is not None:
+                mark = "%" if ended == "%" else f"M{ended}"
+                raise ProgramError(f"line {number}: after the program end ({mark} on an earlier line)")
+            if body.startswith("/"):
+                raise ProgramError(f"line {number}: block delete '/' is not supported")
+            axes, centre, radius, seen, words = {}, {}, None, set(), {}
+            block_motion, exact_once, dwell, blend = None, False, False, False
+            for letter, value, word in _words(body, number):
+                if letter in "XYZIJKRFNPQSTO" and letter in seen:
+                    raise ProgramError(f"line {number}: {letter} given twice")
+                seen.add(letter)
+                words[letter] = (value, word)
+                name = _name(letter, value) if letter in "GM" else letter
+                if name in _REFUSED:
+                    raise ProgramError(f"line {number}: unsupported word {word} ({_REFUSED[name]}: the project runs "
+                                       "the programmed path as it is, in either mode)")
+                if name in _SETUP_KIND:
+                    kind = _SETUP_KIND[name]
+                    meaning = SETUP_WORDS[kind][0]
+                    if strict:
+                        raise ProgramError(f"line {number}: {word} ({meaning}) is a setup word; strict: true "
+                                           "refuses them (leave strict out to read and report them)")
+                    warnings.setdefault(name, (word, number))
+                    continue
+                if letter in "NPQ":
+                    continue
+                if letter == "G":
+                    code = _code(value)
+                    if code in (0, 1, 2, 3):
+                        if block_motion is not None:
+                            raise ProgramError(f"line {number}: two motion words (G{block_motion} and {word})")
+                        block_motion = code
+                    elif code in _PLANES:
+                        plane = _PLANES[code]
+                    elif code in (20, 21):
+                        unit = INCH if code == 20 else MM
+                    elif code in (90, 91):
+                        absolute = code == 90
+                    elif name in ("G61", "G61.1"):
+                        tolerance, naive = 0.0, 0.0
+                    elif code == 64:
+                        blend = True
+                    elif code == 9:
+                        exact_once = True
+                    elif code == 4:
+                        dwell = True
+                    else:
+                        raise ProgramError(f"line {number}: unsupported word {word} (supported: G0 G1 G2 G3 G4 G9 "
+                                           "G17 G18 G19 G20 G21 G61 G61.1 G64 G90 G91 and the setup words G40 G49 "
+                                           "G54-G59 G80 G94)")
+                elif letter == "M":
+                    code = _code(value)
+                    if code not in (2, 30):
+                        raise ProgramError(f"line {number}: unsupported word {word} (supported: M2 M30 and the "
+                                           "setup words M3 M4 M5 M6 M7 M8 M9)")
+                    ended = code
+                elif letter in "XYZ":
+                    axes["XYZ".index(letter)] = value
+                elif letter in "IJK":
+                    centre["IJK".index(letter)] = value
+                elif letter == "R":
+                    radius = value
+                elif letter == "F":
+                    if value <= 0.0:
+                        raise ProgramError(f"line {number}: {word}: the feed rate must be positive")
+                    if last is None and feedless is not None:
+                        raise ProgramError(f"line {feedless.line}: {_code_of(feedless)} before any feed rate (F)")
+                    feed, self.has_feed = value, True
+                else:
+                    raise ProgramError(f"line {number}: unsupported word {word}")
+            if dwell and blend:
+                raise ProgramError(f"line {number}: G4 and G64 on one line (both take P)")
+            if "P" in words and not (dwell or blend):
+                raise ProgramError(f"line {number}: {words['P'][1]} without G4 or G64")
+            if "Q" in words and not blend:
+                raise ProgramError(f"line {number}: {words['Q'][1]} without G64")
+            if blend:
+                p = words.get("P", (None,))[0]
+                if p is not None and p < 0.0:
+                    raise ProgramError(f"line {number}: {words['P'][1]}: the blending tolerance must not be "
+                                       "negative")
+                tolerance = JUNCTION_DEVIATION if p is None else p * unit
+                q = words.get("Q", (0.0,))[0]
+                if q < 0.0:
+                    raise ProgramError(f"line {number}: {words['Q'][1]}: the naive CAM tolerance must not be "
+                                       "negative")
+                naive = q * unit
+            if dwell:
+                if "P" not in words:
+                    raise ProgramError(f"line {number}: G4 needs its dwell P (seconds)")
+                seconds = words["P"][0]
+                if not 0.0 <= seconds <= 3600.0:
+                    raise ProgramError(f"line {number}: {words['P'][1]}: a dwell of 0 to 3600 s")
+                if axes:
+                    raise ProgramError(f"line {number}: G4 with a motion on one line (give the dwell its own line)")
+                if pending is not None:
+                    pending = replace(pending, dwell=pending.dwell + seconds)
+                elif not moved:
+                    self.first_dwell += seconds
+            if block_motion is not None:
+                motion = block_motion
+            if not axes:
+                if centre or radius is not None:
+                    raise ProgramError(f"line {number}: arc words without an end point (X, Y or Z)")
+                continue
+            if motion is None:
+                raise ProgramError(f"line {number}: coordinates without a motion mode (G0, G1, G2 or G3)")
+            end = position.copy()
+            for axis, value in axes.items():
+                end[axis] = (value * unit) if absolute else position[axis] + value * unit
+            if (2 in axes and end[2] != position[2]) or (motion in (2, 3) and plane != _PLANES[17]):
+                self._moved_z = True                            # an arc in the ZX or YZ plane moves Z
+            block_feed = None if motion == 0 or feed is None else feed * unit / 60.0
+            block_tolerance = 0.0 if exact_once else tolerance
+            label = _code(words["N"][0]) if "N" in words else None
+            if self._first_unit is None:
+                self._first_unit = unit
+            if motion in (0, 1):
+                if centre or radius is not None:
+                    raise ProgramError(f"line {number}: {'I, J, K' if centre else 'R'} on a G{motion} line")
+                if (end == position).all():
+                    continue                                    # a move to where the tool is: no motion
+                block = Block("rapid" if motion == 0 else "line", position, end, block_feed, number,
+                              tolerance=block_tolerance, number=label,
+                              merge_tolerance=naive if motion == 1 and block_tolerance else 0.0)
+            else:
+                block = replace(_arc(number, motion, plane, position, end, centre, radius, unit, block_feed),
+                                tolerance=block_tolerance, number=label)
+            if block.kind != "rapid" and block.feed is None and feedless is None:
+                feedless = block
+            if pending is not None:
+                yield pending
+            pending, moved = block, True
+            position = end
+        if pending is None:
+            raise ProgramError("the program has no motion")
+        yield pending
 
 
 #: at most this many G1 blocks are merged into one (LinuxCNC's emccanon.cc: linkable, over 100 chained points)
 MAX_MERGED = 100
 
 
-def merge_collinear(blocks: list) -> list:
+def merge_collinear(blocks):
     """``blocks`` with runs of consecutive G1 blocks under G64 Q q merged into one line, as LinuxCNC's canonical
     layer does (src/emc/task/emccanon.cc: see_segment, linkable, flush_segments): a G1 block joins the run
     when its feed, path tolerance and q are the run's, no exact stop or dwell ends the run before it, the
@@ -360,26 +413,26 @@ def merge_collinear(blocks: list) -> list:
     within q of the straight line from the run's start to its end (the distance to that segment, the
     projection clamped to it). The merged line runs from the first block's start to the last's end, with the
     first's line and N number, the last's tolerance and dwell. Anything else (G0, arcs, a feed change) ends a
-    run."""
-    out, run = [], []
+    run. A generator over any iterable of blocks: it holds at most one run (:data:`MAX_MERGED` blocks)."""
+    run = []
 
-    def flush():
-        if run:
-            last = run[-1]
-            out.append(replace(run[0], end=last.end, tolerance=last.tolerance, dwell=last.dwell, merged=len(run))
-                       if len(run) > 1 else last)
-            run.clear()
+    def merged():
+        last = run[-1]
+        return replace(run[0], end=last.end, tolerance=last.tolerance, dwell=last.dwell, merged=len(run)) \
+            if len(run) > 1 else last
     for block in blocks:
         if run and _linkable(run, block):
             run.append(block)
             continue
-        flush()
+        if run:
+            yield merged()
+            run.clear()
         if block.kind == "line" and block.merge_tolerance > 0.0:
             run.append(block)
         else:
-            out.append(block)
-    flush()
-    return out
+            yield block
+    if run:
+        yield merged()
 
 
 def _linkable(run: list, block: Block) -> bool:

@@ -3,7 +3,7 @@ the curve parameter advances in time."""
 from __future__ import annotations
 
 from ...core import curves
-from ...core.feed_planning import FeedPlan
+from ...core.feed_planning import LOOKAHEAD_BLOCKS, FeedPlan
 from ...core.interpolation import FeedrateSchedule, UniformSchedule
 from ...errors import ConfigError
 from ...notices import note_while_slow
@@ -15,8 +15,6 @@ __all__ = ["SCHEDULES"]
 SCHEDULES = Role("schedule", description="schedule type")
 
 _THETA_RANGE = (-1e6, 1e6)
-#: blocks the feed plan looks ahead by default (a block of the tool path: a program's block or a blend arc)
-LOOKAHEAD_BLOCKS = 1000
 _S = "[s]"
 #: the keys of the jerk-limited feed plan of a tool path (core/feed_planning.py)
 _PLAN_KEYS = ("rapid_feedrate", "axis_feedrate", "axis_acceleration", "axis_jerk", "contour_tolerance", "tracking_lag",

@@ -1,0 +1,254 @@
+"""A streaming feed plan: a part program read, made a tool path and planned while it runs, over a look-ahead
+window of blocks, as a CNC control's block queue does (LinuxCNC's trajectory planner keeps 2000 segments,
+TwinCAT 120 to 500 blocks, Heidenhain up to 5000).
+
+The pipeline is lazy from end to end: the program's lines (any iterable: a file read line by line) become
+blocks (:class:`~contouring_ros.core.gcode.ProgramReader`, G64 Q merged by
+:func:`~contouring_ros.core.gcode.merge_collinear`), the blocks tool-path stretches with their corner blends
+(:meth:`~contouring_ros.core.curves.ToolPath.stream`), and :class:`StreamingPlan` plans the stretches as
+:class:`~contouring_ros.core.feed_planning.FeedPlan` does with ``lookahead_blocks`` W (its module docstring,
+steps 1-4, and ``FeedPlan._windowed``): a span's exit speed is fixed when its entry is, from the W stretches
+ahead of its start alone, the last taken to end in a stop. That needs nothing beyond the W + 1 stretches
+ahead, so the plan holds at most those, whatever the program's length; the first span is planned, and the
+first reference sample leaves, once the first W + 1 stretches are read. On a program of more than W
+stretches the plan it makes is ``FeedPlan(path, lookahead_blocks=W)``'s span for span and sample for sample
+(tested; on a shorter one FeedPlan plans the whole program at once, the stream still in spans of at most
+W / 2): never faster than the whole program's plan, and within every bound.
+"""
+from __future__ import annotations
+
+import bisect
+import math
+from collections import deque
+from dataclasses import dataclass
+
+from .curves import ToolPath, segment_columns
+from .feed_planning import LOOKAHEAD_BLOCKS, SPARE, LimitBounds, profile_time, reach, span_profile
+from .gcode import ProgramError, ProgramReader, merge_collinear
+
+__all__ = ["PlannedSpan", "StreamingPlan", "stream_program"]
+
+@dataclass(frozen=True)
+class PlannedSpan:
+    """One planned span: consecutive stretches run by one jerk-limited profile.
+
+    Attributes
+    ----------
+    index : int
+        Its number from 0; ``first`` the number of its first stretch.
+    start, length : float
+        [m] Arc length where it begins, and its length.
+    time : float
+        [s] When the hold before it (``hold`` s, an exact stop's dwell or a G4) begins; its motion begins at
+        ``time + hold`` and lasts ``trajectory.duration``.
+    entry, exit, cap, acceleration, jerk : float
+        Its boundary speeds and bounds [m/s, m/s, m/s, m/s^2, m/s^3].
+    trajectory : ruckig.Trajectory
+        Distance along the span against time from the end of the hold.
+    stretches : tuple
+        Its ((segment, plain), :class:`~contouring_ros.core.curves.PathBlock`) pairs, for the reference.
+    """
+
+    index: int
+    first: int
+    start: float
+    length: float
+    time: float
+    hold: float
+    entry: float
+    exit: float
+    cap: float
+    acceleration: float
+    jerk: float
+    trajectory: object
+    stretches: tuple
+
+    def time_at(self, theta: float) -> float:
+        """When the plan reaches arc length ``theta`` within the span (the start of its hold at its start)."""
+        into = theta - self.start
+        return self.time if into <= 0.0 else self.time + self.hold + profile_time(self.trajectory, into)
+
+    @property
+    def end_time(self) -> float:
+        return self.time + (self.hold + self.trajectory.duration)      # as the next span's time is summed
+
+
+class StreamingPlan:
+    """The windowed feed plan of a stream of tool-path stretches (see the module docstring).
+
+    Parameters
+    ----------
+    stretches : iterable
+        ((segment, plain), PathBlock) pairs in order, as :meth:`ToolPath.stream` yields them.
+    dimension : int
+        The path's axes.
+    acceleration, jerk, feedrate, rapid_feedrate, normal_acceleration, axis_feedrate, axis_acceleration,
+    axis_jerk, contour_tolerance, tracking_lag, dwell, feed_override :
+        As :class:`~contouring_ros.core.feed_planning.FeedPlan`'s.
+    lookahead_blocks : int
+        W >= 1: the stretches seen ahead.
+    first_dwell : float or callable
+        [s] G4 before the first motion (a callable: asked once the first stretch is read).
+    """
+
+    def __init__(self, stretches, dimension: int, acceleration: float, jerk: float, feedrate: float | None = None,
+                 rapid_feedrate: float | None = None, normal_acceleration: float = 0.0, axis_feedrate=None,
+                 axis_acceleration=None, axis_jerk=None, contour_tolerance: float = 0.0, tracking_lag=None,
+                 dwell: float = 0.0, feed_override: float = 1.0, lookahead_blocks: int = LOOKAHEAD_BLOCKS,
+                 first_dwell: float = 0.0):
+        if acceleration <= 0.0 or jerk <= 0.0:
+            raise ValueError("acceleration and jerk must be positive")
+        if feed_override <= 0.0:
+            raise ValueError("the feed override must be positive")
+        if contour_tolerance > 0.0 and tracking_lag is None:
+            raise ValueError("a contour_tolerance needs the axes' tracking_lag")
+        if int(lookahead_blocks) < 1:
+            raise ValueError(f"lookahead_blocks: {lookahead_blocks} (a streaming plan sees at least 1 block ahead)")
+        self.dimension = int(dimension)
+        self.window = int(lookahead_blocks)
+        self.bounds = LimitBounds(dimension, acceleration, jerk, feedrate, rapid_feedrate, normal_acceleration,
+                                  axis_feedrate, axis_acceleration, axis_jerk, contour_tolerance, tracking_lag,
+                                  feed_override)
+        self.dwell, self._first_dwell = float(dwell), first_dwell
+        self._source = iter(stretches)
+        self.blocks_read = 0          # stretches read so far
+        self.end_hold = 0.0           # [s] the last stretch's dwell (known once the stream has ended)
+
+    def _read(self, buffer: deque, previous):
+        """Read one stretch into ``buffer`` as [pair, block, limit, corner, hold, starts_span]; False at the
+        stream's end."""
+        try:
+            pair, block = next(self._source)
+        except StopIteration:
+            return False
+        limit = self.bounds.limit(block)
+        b = self.blocks_read
+        if previous is None:
+            dwell = self._first_dwell
+            corner, hold, starts = 0.0, float(dwell() if callable(dwell) else dwell), True
+        else:
+            _, before, before_limit, *_ = previous
+            corner = self.bounds.corner(before, block, before_limit, limit)
+            hold = before.dwell + (self.dwell if corner == 0.0 else 0.0)
+            joined = (limit.feed == before_limit.feed and limit.acceleration == before_limit.acceleration
+                      and limit.jerk == before_limit.jerk and corner >= limit.feed and hold == 0.0)
+            starts = not joined or b % max(1, self.window // 2) == 0
+        buffer.append([pair, block, limit, corner, hold, starts])
+        self.blocks_read = b + 1
+        return True
+
+    def spans(self):
+        """The planned spans in order (a generator; each is planned once the window ahead of it is read).
+
+        Span i (its first stretch ``base``) sees stretches base .. base + W - 1 (``FeedPlan._windowed``):
+        forward, the exit speed span i reaches from its entry; backward, from a stop at the window's end (at
+        the path's end where that is in sight) over the spans beginning in the window, each brought to what
+        it can brake to; the exit speed the lower, kept to the previous window's where span i could not brake
+        to the new one."""
+        window = self.window
+        buffer, previous = deque(), None          # the stretches from the current span's first on
+        ended, base = False, 0                    # base: the number of buffer[0]
+        v_entry, safe, t, index = 0.0, math.nan, 0.0, 0
+        while True:
+            while not ended and self.blocks_read <= base + window:         # stretches base .. base + W
+                if self._read(buffer, previous):
+                    previous = buffer[-1]
+                else:
+                    ended = True                  # the path's end is in the window
+                    self.end_hold = buffer[-1][1].dwell if buffer else 0.0
+            if not buffer:
+                return
+            view = len(buffer) if ended else window          # stretches in the window
+            firsts = [0] + [n for n in range(1, view) if buffer[n][5]]     # spans beginning in it
+            count = len(firsts)
+            if ended:
+                tail = buffer[-1][1]
+                horizon = tail.start + tail.length           # where the window's stop is: the path's end
+            else:
+                horizon = buffer[window][1].start            # the start of the first stretch beyond it
+            starts = [buffer[n][1].start for n in firsts] + [horizon]
+            head = buffer[0]
+            acc, jerk, cap = head[2].acceleration, head[2].jerk, head[2].feed
+            length = starts[1] - starts[0]
+            room = length * (1.0 - SPARE)
+            if count > 1:
+                v_next, stop = buffer[firsts[1]][3], firsts[1]
+            else:
+                v_next, stop = (0.0, len(buffer)) if ended else (buffer[window][3], window)
+            v_next = min(v_next, reach(v_entry, room, max(v_next, v_entry), acc, jerk))
+            back = 0.0
+            safe_next = back if count == 2 else math.nan
+            for j in range(count - 1, 0, -1):
+                record = buffer[firsts[j]]
+                seen = (starts[j + 1] - starts[j]) * (1.0 - SPARE)
+                v_j = v_next if j == 1 else record[3]
+                back = min(v_j, reach(back, seen, max(v_j, back), record[2].acceleration, record[2].jerk))
+                if j == 2:
+                    safe_next = back
+            v_next = min(v_next, back)
+            if v_entry > reach(v_next, room, max(v_entry, v_next), acc, jerk) * (1.0 + 1e-12):
+                if math.isnan(safe):
+                    raise ValueError("the entry feed cannot be brought down to the look-ahead's speed within the "
+                                     "first span")
+                v_next = min(v_next, safe)
+            stretches = tuple((buffer[n][0], buffer[n][1]) for n in range(stop))
+            trajectory = span_profile(v_entry, v_next, length, cap, acc, jerk, head[1].line)
+            yield PlannedSpan(index, base, starts[0], length, t, head[4], v_entry, v_next, cap, acc, jerk,
+                              trajectory, stretches)
+            t = t + (head[4] + trajectory.duration)
+            for _ in range(stop):
+                buffer.popleft()
+            base += stop
+            index += 1
+            v_entry, safe = v_next, safe_next
+
+    def samples(self, sample_time: float):
+        """The reference every ``sample_time`` s from t = 0 (a generator of (t, theta, theta_dot, theta_ddot,
+        point) tuples, theta the arc length and point a tuple of the axes' positions), as
+        :class:`~contouring_ros.core.feed_planning.FeedPlan` gives it at the same times, until the motion and
+        the last hold end."""
+        k, span = 0, None
+        for span in self.spans():
+            starts = [block.start for _, block in span.stretches]
+            motion = span.time + span.hold
+            while True:
+                t = k * sample_time
+                if t >= span.end_time:
+                    break
+                into = t - motion
+                if into <= 0.0:
+                    theta, v, a = span.start, 0.0, 0.0
+                else:
+                    p, vel, accel = span.trajectory.at_time(into)
+                    theta, v, a = span.start + min(max(p[0], 0.0), span.length), vel[0], accel[0]
+                yield t, theta, v, a, self._point(span, starts, theta)
+                k += 1
+        if span is None:
+            return
+        end = span.start + span.length
+        final = span.end_time + self.end_hold
+        while k * sample_time < final:
+            yield k * sample_time, end, 0.0, 0.0, self._point(span, [b.start for _, b in span.stretches], end)
+            k += 1
+
+    def _point(self, span, starts, theta):
+        n = min(max(bisect.bisect_right(starts, theta) - 1, 0), len(starts) - 1)
+        (segment, plain), block = span.stretches[n]
+        return segment_columns(segment, plain, self.dimension, theta - block.start)[0]
+
+
+def stream_program(lines, dimension: int, start=(0.0, 0.0, 0.0), strict: bool = False,
+                   blend_tolerance: float = 0.0, **plan) -> StreamingPlan:
+    """The streaming plan of a part program's ``lines`` (any iterable of strings, read as the plan needs
+    them), on ``dimension`` axes; ``plan``: :class:`StreamingPlan`'s bounds and look-ahead. A block that
+    leaves the XY plane of a 2-axis stream is refused (:class:`~contouring_ros.core.gcode.ProgramError`)."""
+    reader = ProgramReader(start, strict)
+
+    def blocks():
+        for block in merge_collinear(reader.blocks(lines)):
+            if dimension < 3 and (block.start[2] != 0.0 or block.end[2] != 0.0 or
+                                  (block.kind == "arc" and block.plane != (0, 1, 2))):
+                raise ProgramError(f"line {block.line}: the program moves Z; the stream has {dimension} axes")
+            yield block
+    return StreamingPlan(ToolPath.stream(blocks(), dimension, blend_tolerance), dimension,
+                         first_dwell=lambda: reader.first_dwell, **plan)
