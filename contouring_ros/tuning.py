@@ -72,7 +72,7 @@ from .experiment.build import build_controller, build_curve, build_plant, build_
 from .experiment.catalogue import CONTROLLERS, PLANTS, SERVOS
 from .experiment.validate import experiment_from_data
 from .experiment.schema import GLOBAL_SECTION
-from .core.margins import axis_loop, coupled_loop, margins, quick_robustness
+from .core.margins import GainScaledLoops, axis_loop, coupled_loop, margins, quick_robustness
 from .core.tuning_space import Space, TuningContext, combine, gain_magnitude, log_box
 from .errors import ConfigError
 from .learning import passes, simulate_last_passes
@@ -480,11 +480,44 @@ def loop_robustness(experiment) -> tuple | None:
     return worst
 
 
-def tuning_space(data: dict, sections: dict, keys: tuple, protocol: Protocol, where: str = "tuning") -> tuple:
+def _scaled_loops(data: dict, sections: dict, machine: dict, where: str) -> GainScaledLoops | None:
+    """The coupled loops of a combination whose contour controller is a linear PID, as its gains are scaled
+    together (:class:`contouring_ros.core.margins.GainScaledLoops`): built from the loops with the controller's
+    gains at 0 and with each gain alone (a per-axis list keeping its proportions); None where a loop is
+    not linear or the controller has no kp, ki and kd."""
+    ccc = sections.get("/ccc") or {}
+    if not all(key in ccc for key in ("kp", "ki", "kd")):
+        return None
+    # each gain's loop at a scale comparable to the servo's own gains (a unit gain beside a servo's 1e7 would
+    # be lost in the loop polynomials' rounding), then per unit of that gain
+    servo = next((v for k, v in sections.items() if k.endswith("/servo")), {}) or {}
+    scale = gain_magnitude(servo.get("kp", 0.0)) or gain_magnitude(ccc.get("kp", 0.0)) or 1.0
+    sizes = {"kp": scale, "ki": scale * 2 * math.pi * 10.0, "kd": scale * 1e-3}
+    try:
+        zero = _loops(experiment_for(data, sections_with_gains(sections, {"kp": 0.0, "ki": 0.0, "kd": 0.0}), machine,
+                                     where))
+        unit = {g: _loops(experiment_for(data, sections_with_gains(sections, {k: (size if k == g else 0.0) for k in sizes}),
+                                         machine, where)) for g, size in sizes.items()}
+    except (ConfigError, ValueError):
+        return None
+    axes = []
+    for axis, loops in zero.items():
+        if loops["coupled"] is None or loops["axis"] is None or any(unit[g][axis]["coupled"] is None for g in sizes):
+            return None
+        allowed = max(MS_LIMIT, quick_robustness(loops["axis"])[0])
+        axes.append((loops["coupled"], {g: (unit[g][axis]["coupled"], sizes[g]) for g in sizes}, allowed))
+    experiment = experiment_for(data, sections, machine, where)
+    return GainScaledLoops(axes, float(experiment.sample_time), MS_LIMIT)
+
+
+def tuning_space(data: dict, sections: dict, keys: tuple, protocol: Protocol, where: str = "tuning",
+                 machine: dict | None = None) -> tuple:
     """(the space a combination is tuned in, the validated sections its file point is read from): its
     controller's catalogue ``tuning`` space (else the log box of its raw gains ``keys``,
     :func:`contouring_ros.core.tuning_space.log_box`; none without either), with the space of the servos
-    added where their law states one (the ZPETC's PID)."""
+    added where their law states one (the ZPETC's PID). A linear PID contour controller is searched at a chosen
+    Ms of its coupled loops on the ``machine`` (grid settings; :func:`_scaled_loops`), where the protocol
+    bounds Ms."""
     experiment = experiment_for(data, sections, {}, where)
     axes = list(experiment.axes)
     responses = {}
@@ -492,7 +525,8 @@ def tuning_space(data: dict, sections: dict, keys: tuple, protocol: Protocol, wh
         plant = experiment.plants[a]
         entry = PLANTS.entry(plant["model"])
         responses[a] = (lambda w, e=entry, s=plant: e.response(s, w)) if entry.response else None
-    context = TuningContext(float(experiment.sample_time), dict(experiment.plants), dict(experiment.servos), responses)
+    context = TuningContext(float(experiment.sample_time), dict(experiment.plants), dict(experiment.servos), responses,
+                            _scaled_loops(data, sections, machine or {}, where) if protocol.ms_limit else None)
     validated = {"/ccc": experiment.controller, **{f"/{a}/servo": experiment.servos[a] for a in axes}}
     entry = CONTROLLERS.entry(experiment.controller["type"])
     space = entry.tuning(experiment.controller, context) if entry.tuning else None
@@ -583,7 +617,7 @@ class Tuning:
                  protocol: Protocol, where: str = "tuning", robust_floor: float = 0.0, space: Space | None = None):
         self.data, self.sections, self.machine, self.where = data, sections, machine, where
         self.noise_limit, self.from_time, self.protocol, self.robust_floor = noise_limit, from_time, protocol, robust_floor
-        self.space, self.validated = tuning_space(data, sections, keys, protocol, where)
+        self.space, self.validated = tuning_space(data, sections, keys, protocol, where, machine)
         if space is not None:
             self.space = space
         self.checks = perturbations(data, protocol.perturbation)

@@ -469,3 +469,75 @@ def quick_robustness(loop: control.TransferFunction, points: int = 4096) -> tupl
     stable = bool(np.all(np.abs(np.roots(characteristic)) < 1.0)) if len(characteristic) > 1 else True
     return ms, stable
 
+
+
+class GainScaledLoops:
+    """The coupled loops of every axis as a linear contour controller's PID gains are scaled together: axis a's
+    loop is L_a(k) = L_a(0) + k (s_p U_a^p + s_i U_a^i + s_d U_a^d), with U_a^g the loop's change for a unit
+    gain g (the controller enters the position filter additively, :func:`coupled_loop`) and s the gains'
+    shape. :meth:`largest_scale` is the largest k at which every axis' Ms = max 1 / |1 + L_a(k)| stays within
+    its target, in closed form per frequency, so that a search can ask it at every point (a PID at a chosen
+    Ms: Åström & Hägglund, Advanced PID Control, 2006, ch. 7, the MIGO design).
+
+    Parameters
+    ----------
+    axes : list of (L0, units, allowed)
+        Per axis: the loop without the contour controller, {gain name: (the loop with that gain alone,
+        that gain)} (control.TransferFunction; a gain of the servo's own size keeps the loop polynomials'
+        rounding small), and the Ms the axis may reach (:data:`MS_LIMIT`, or the axis' own where its
+        servo alone exceeds it).
+    sample_time : float
+        Ts [s].
+    limit : float
+        The Ms a linear loop may reach (the tuning's MS_LIMIT); a search's Ms coordinate is a share of it.
+    points : int
+        Frequencies, spaced logarithmically up to Nyquist, as :func:`quick_robustness`'s.
+    """
+
+    def __init__(self, axes: list, sample_time: float, limit: float, points: int = 4096):
+        theta = np.pi * np.logspace(-5.0, 0.0, points)
+        self.limit, self.sample_time = float(limit), float(sample_time)
+        self.axes = []
+        for loop, units, allowed in axes:
+            base = self._at(loop, theta)
+            self.axes.append((1.0 + base, {g: (self._at(u, theta) - base) / size for g, (u, size) in units.items()},
+                              float(allowed)))
+
+    @staticmethod
+    def _at(loop, theta) -> np.ndarray:
+        num, den = _trim(loop.num[0][0]), _trim(loop.den[0][0])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return _response(num, den, theta)
+
+    def _direction(self, units: dict, shape: dict) -> np.ndarray:
+        return sum(float(shape.get(g, 0.0)) * u for g, u in units.items())
+
+    def peak(self, shape: dict, scale: float = 1.0) -> float:
+        """The largest Ms / allowed over the axes with the gains ``scale`` x ``shape``."""
+        worst = 0.0
+        for one, units, allowed in self.axes:
+            with np.errstate(divide="ignore", invalid="ignore"):
+                ms = float(np.nanmax(1.0 / np.abs(one + scale * self._direction(units, shape))))
+            worst = max(worst, ms / allowed)
+        return worst
+
+    def largest_scale(self, shape: dict, share: float) -> float:
+        """The largest k >= 0 with every axis' Ms at most ``share`` x its allowed Ms on the way from k = 0
+        (0 where k = 0 already exceeds it, inf where no k does): per frequency, |1 + L(k)|^2 is a quadratic
+        in k, below the bound on the interval between its roots; k is the smallest positive first root.
+        Stability is not decided here (a pole the controller adds, e.g. its integrator's, can leave the unit
+        circle without a peak of |S|): :func:`quick_robustness` on the loop itself still decides it."""
+        best = math.inf
+        for one, units, allowed in self.axes:
+            b = self._direction(units, shape)
+            floor = 1.0 / (share * allowed)
+            qa, qb, qc = np.abs(b) ** 2, 2.0 * np.real(one * np.conj(b)), np.abs(one) ** 2 - floor ** 2
+            if np.nanmin(qc) < 0.0:
+                return 0.0
+            disc = qb * qb - 4.0 * qa * qc
+            with np.errstate(divide="ignore", invalid="ignore"):
+                first = (-qb - np.sqrt(np.where(disc >= 0.0, disc, np.nan))) / (2.0 * qa)
+            first = first[np.isfinite(first) & (first > 0.0)]
+            if first.size:
+                best = min(best, float(first.min()) * (1.0 - 1e-6))   # inside: the boundary's rounding either way
+        return best

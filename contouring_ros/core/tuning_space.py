@@ -83,6 +83,7 @@ class TuningContext:
     plants: dict                     # axis -> plant section
     servos: dict                     # axis -> servo section
     responses: dict = field(default_factory=dict)     # axis -> w -> |P(jw)| (position per command unit), or None
+    scaled_loops: object = None      # margins.GainScaledLoops of the contour controller's PID, where linear
 
     @property
     def nyquist(self) -> float:
@@ -218,13 +219,42 @@ def _pid_point(kp: float, ki: float, kd: float, response: Callable, prefix: str 
             f"{prefix}r_d": kd * w_p / kp if kp > 0 else 0.0}
 
 
+def pid_at_ms_space(context: TuningContext) -> Space:
+    """A linear PID contour controller searched at a chosen peak sensitivity (the MIGO design: Åström &
+    Hägglund, Advanced PID Control, 2006, ch. 7): its PI corner frequency f_c = ki / (2 pi kp) (0.01 Hz to
+    an eighth of the sample rate, or off), its derivative time t_d = kd / kp (10 us to 0.1 s, or off), and
+    the Ms its coupled loops reach (1.2 to the bound); the gain scale is the largest that keeps every axis'
+    coupled loop at that Ms (``context.scaled_loops``, a :class:`contouring_ros.core.margins.GainScaledLoops`).
+    Every point is a stable loop within the bound, and the bound is an edge of the box."""
+    loops = context.scaled_loops
+    top_gain = 1.0 / context.response(2 * math.pi * context.nyquist / 4.0)
+
+    def gains(values):
+        shape = {"kp": 1.0, "ki": 2 * math.pi * values["f_c"], "kd": values["t_d"]}
+        scale = min(loops.largest_scale(shape, values["ms"] / loops.limit), top_gain)
+        return {key: scale * value for key, value in shape.items()}
+
+    def point(sections):
+        ccc = sections["/ccc"]
+        kp, ki, kd = (gain_magnitude(ccc.get(k, 0.0)) for k in ("kp", "ki", "kd"))
+        if kp <= 0:
+            return {"f_c": context.nyquist / 4.0, "t_d": 0.0, "ms": loops.limit}
+        return {"f_c": ki / (2 * math.pi * kp), "t_d": kd / kp,
+                "ms": loops.limit * loops.peak({"kp": kp, "ki": ki, "kd": kd})}
+    return Space((_hz("f_c", 0.01, context.nyquist / 4.0, off=True), Dimension("t_d", "s", 1e-5, 0.1, "log", off=True),
+                  Dimension("ms", "", 1.2, loops.limit, "log")), gains, point)
+
+
 def pid_contour_space(section: dict, context: TuningContext) -> Space | None:
     """A PID contour controller (Koren's CCC, Koren & Lo's variable gain, paper 000's unit vector): the
     proportional and integral terms' crossover frequencies f_p, f_i (0.1 Hz to an eighth of the sample
     rate, or off) through the axes' mean plant, and the derivative-to-proportional ratio r_d at f_p
-    (0.01 to 3, or off). None where a plant states no response."""
+    (0.01 to 3, or off). None where a plant states no response. Where the coupled loops are linear
+    (``context.scaled_loops``), the search is at a chosen Ms instead (:func:`pid_at_ms_space`)."""
     if context.response(1.0) is None:
         return None
+    if context.scaled_loops is not None:
+        return pid_at_ms_space(context)
 
     def gains(values):
         return _pid_gains(values, context.response)

@@ -487,3 +487,26 @@ def test_two_runs_compared_row_by_row_name_what_a_protocol_change_moved(tmp_path
     text = "\n".join(lines)
     assert f"{tuned[1]['estimator']} + {tuned[1]['controller']} / {tuned[1]['servo']}: higher" in text
     assert "ok -> not robust" in text and "(changed)" in text
+
+
+def test_a_linear_pid_contour_controller_is_searched_at_a_chosen_ms():
+    """Where the coupled loops are linear, a PID contour controller's space is its PI corner, its derivative
+    time and the Ms its loops reach: every point of the box is a loop at that Ms (the exact check agrees,
+    and Ms 2 is the bound's edge), and the file's gains map back to themselves."""
+    family = {f.name: f for f in scenario_families()}["paper001_caseIII"]
+    data = family.data[family.proposed]
+    combo = next(c for c in plan(family)[0] if c.label == "tangent_line + variable_gain / pid")
+    machine = tuning.machine_settings(data, "realistic", (1.0, 1.0))
+    sections = tuning.fit_to_machine(data, combo.sections, machine)
+    search = tuning.Tuning(data, sections, combo.gain_keys, machine, math.inf, family.from_time, Protocol(), "test")
+    assert [d.name for d in search.space.dimensions] == ["f_c", "t_d", "ms"]
+    rng = np.random.default_rng(3)
+    for u in [list(rng.uniform(0.05, 1.0, 3)) for _ in range(6)] + [[0.6, 0.6, 1.0]]:
+        values, gains = search.space.decode(u)
+        ms, stable, allowed = tuning.loop_robustness(
+            tuning.experiment_for(data, search.with_gains(gains), machine, "test"))
+        if gains["kp"] > 0:          # a target below the drive's own Ms leaves the controller off
+            assert ms == pytest.approx(values["ms"] * allowed / tuning.MS_LIMIT, rel=1e-3)
+    back = search.space.point(search.with_gains(gains))
+    assert back["f_c"] == pytest.approx(values["f_c"], rel=1e-9) and back["t_d"] == pytest.approx(values["t_d"], rel=1e-9)
+    assert back["ms"] == pytest.approx(values["ms"], rel=1e-4) and values["ms"] == pytest.approx(tuning.MS_LIMIT)

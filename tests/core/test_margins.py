@@ -364,3 +364,20 @@ def test_sample_times_must_agree():
         margins(integrator_loop(0.5), 2 * TS)
     with pytest.raises(ValueError, match="continuous"):
         margins(control.tf([1.0], [1.0, 0.0]), TS)
+
+
+def test_the_largest_gain_scale_at_a_chosen_ms_has_its_known_answer():
+    """K Ts / (z - 1) alone: |S| peaks at Nyquist, 2 / (2 - K Ts), so Ms = 2 at K Ts = 1 and Ms = 1.5 at
+    K Ts = 2/3; the scale found is that K, and the loop there has that Ms."""
+    import control
+    from contouring_ros.core.margins import GainScaledLoops, quick_robustness
+    ts = 1e-3
+    zero, unit = control.tf([0.0], [1.0], ts), control.tf([ts], [1.0, -1.0], ts)
+    loops = GainScaledLoops([(zero, {"kp": (unit, 1.0)}, 2.0)], ts, 2.0)
+    for ms, k_ts in ((2.0, 1.0), (1.5, 2.0 / 3.0)):
+        k = loops.largest_scale({"kp": 1.0}, ms / 2.0)
+        assert k * ts == pytest.approx(k_ts, rel=1e-5)
+        assert quick_robustness(control.tf([k * ts], [1.0, -1.0], ts))[0] == pytest.approx(ms, rel=1e-4)
+        assert loops.peak({"kp": 1.0}, k) * 2.0 == pytest.approx(ms, rel=1e-4)
+    # a loop already beyond the target without the controller: no scale
+    assert loops.largest_scale({"kp": 0.0}, 0.4) == 0.0

@@ -1,0 +1,74 @@
+"""Tune one benchmark combination in-process and print what each of its independent searches ended with.
+
+How a row of the benchmark converges, or why it does not: the scenario's reference (machine, noise bound,
+robustness floor) as the benchmark makes it, then ``--searches`` searches of the row side by side
+(``Tuning.search``), each line giving the search's chosen nominal TACE, its point in the tuning space and its
+evaluations by outcome (admissible, not checked for robustness because they could not be chosen, over the Ms
+bound, refused unrun, ...), then the agreement rule's verdict.
+
+    python tools/tune_row.py paper001_caseIII "tangent_line + variable_gain / pid"
+    python tools/tune_row.py paper000_h50 "newton + unit_vector / ismc" --searches 4 --budget 300
+"""
+from __future__ import annotations
+
+import argparse
+import collections
+import dataclasses
+import math
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+from contouring_ros.benchmark import fit_to_machine, plan, reference_job, scenario_families  # noqa: E402
+from contouring_ros.tuning import Protocol, Tuning, searches_agreement  # noqa: E402
+
+
+def kind(evaluation) -> str:
+    if evaluation.admissible:
+        return "admissible"
+    failure = evaluation.outcome.failure
+    if failure:
+        return failure.split(":")[0].split(" ")[0].replace("Ms", "over Ms")
+    if evaluation.outcome.ok and not math.isfinite(evaluation.worst):
+        return "not checked"
+    return "noisy or saturated"
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("scenario")
+    parser.add_argument("combination", help="a combination's label as the report gives it")
+    parser.add_argument("--searches", type=int, default=Protocol.searches)
+    parser.add_argument("--budget", type=int, default=Protocol.evaluations, help="evaluations of each search")
+    args = parser.parse_args(argv)
+    families = {f.name: f for f in scenario_families()}
+    if args.scenario not in families:
+        parser.error(f"no scenario {args.scenario!r} (scenarios: {', '.join(families)})")
+    family = families[args.scenario]
+    combos = {c.label: c for c in plan(family)[0]}
+    if args.combination not in combos:
+        parser.error(f"no combination {args.combination!r} in {args.scenario} (combinations: {'; '.join(combos)})")
+    combo = combos[args.combination]
+    protocol = dataclasses.replace(Protocol(), evaluations=args.budget, searches=args.searches)
+    data = family.data[family.proposed]
+    reference = reference_job(data, family.from_time, family.name, protocol)
+    noise_limit = protocol.noise_factor * reference.published.noise if reference.published.ok else math.inf
+    tuning = Tuning(data, fit_to_machine(data, combo.sections, reference.machine), combo.gain_keys, reference.machine,
+                    noise_limit, family.from_time, protocol, f"{family.name} {combo.label}",
+                    reference.worst if math.isfinite(reference.worst) else 0.0)
+    print(f"{family.name} {combo.label}: {tuning.space.describe()}")
+    started = time.process_time()
+    searches = tuning.search(list(range(args.searches)))
+    for i, found in enumerate(searches):
+        mine = [e for e in tuning.tuned.evaluations if e.search == i]
+        counts = ", ".join(f"{n} {k}" for k, n in collections.Counter(kind(e) for e in mine).most_common())
+        where = tuning.space.text(found.chosen.point) if found.chosen is not None else found.status
+        print(f"search {i}: {found.tace * 1e6:.4g} um at {where} ({counts})")
+    print(f"{searches_agreement(searches, protocol).describe()}; {time.process_time() - started:.1f} s of CPU")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
