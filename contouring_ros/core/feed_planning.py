@@ -187,6 +187,12 @@ class LimitBounds:
                  rapid_feedrate: float | None = None, normal_acceleration: float = 0.0, axis_feedrate=None,
                  axis_acceleration=None, axis_jerk=None, contour_tolerance: float = 0.0, tracking_lag=None,
                  feed_override: float = 1.0):
+        if acceleration <= 0.0 or jerk <= 0.0:
+            raise ValueError("acceleration and jerk must be positive")
+        if feed_override <= 0.0:
+            raise ValueError("the feed override must be positive")
+        if contour_tolerance > 0.0 and tracking_lag is None:
+            raise ValueError("a contour_tolerance needs the axes' tracking_lag")
         n = dimension
         self.per_axis = [np.full(n, np.inf) if v is None else np.broadcast_to(np.asarray(v, dtype=float), (n,))
                          for v in (axis_feedrate, axis_acceleration, axis_jerk)]
@@ -377,12 +383,6 @@ class FeedPlan:
                  rapid_feedrate: float | None = None, normal_acceleration: float = 0.0, axis_feedrate=None,
                  axis_acceleration=None, axis_jerk=None, contour_tolerance: float = 0.0, tracking_lag=None,
                  dwell: float = 0.0, feed_override: float = 1.0, lookahead_blocks: int = 0, entry=(0.0, 0.0)):
-        if acceleration <= 0.0 or jerk <= 0.0:
-            raise ValueError("acceleration and jerk must be positive")
-        if feed_override <= 0.0:
-            raise ValueError("the feed override must be positive")
-        if contour_tolerance > 0.0 and tracking_lag is None:
-            raise ValueError("a contour_tolerance needs the axes' tracking_lag")
         self.curve = path
         self._arguments = dict(acceleration=acceleration, jerk=jerk, feedrate=feedrate, rapid_feedrate=rapid_feedrate,
                                normal_acceleration=normal_acceleration, axis_feedrate=axis_feedrate,

@@ -96,12 +96,6 @@ class StreamingPlan:
                  axis_acceleration=None, axis_jerk=None, contour_tolerance: float = 0.0, tracking_lag=None,
                  dwell: float = 0.0, feed_override: float = 1.0, lookahead_blocks: int = LOOKAHEAD_BLOCKS,
                  first_dwell: float = 0.0):
-        if acceleration <= 0.0 or jerk <= 0.0:
-            raise ValueError("acceleration and jerk must be positive")
-        if feed_override <= 0.0:
-            raise ValueError("the feed override must be positive")
-        if contour_tolerance > 0.0 and tracking_lag is None:
-            raise ValueError("a contour_tolerance needs the axes' tracking_lag")
         if int(lookahead_blocks) < 1:
             raise ValueError(f"lookahead_blocks: {lookahead_blocks} (a streaming plan sees at least 1 block ahead)")
         self.dimension = int(dimension)
