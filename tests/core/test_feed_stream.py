@@ -158,4 +158,6 @@ def test_memory_is_bounded_by_the_window_not_the_program():
         return top
     peak(500)                                   # once before: what the first run allocates for good
     short, long = peak(500), peak(5000)
-    assert long < 1.2 * short and long < 2e6    # a window of the whole program: about 13 MB for 5,000 chords
+    # ten times the program, not ten times the memory (what else the process has cached moves the peak a
+    # little); a window of the whole program holds about 13 MB for 5,000 chords
+    assert long < 1.5 * short + 1e5 and long < 2e6
