@@ -506,8 +506,7 @@ def _scaled_loops(data: dict, sections: dict, machine: dict, where: str) -> Gain
             return None
         allowed = max(MS_LIMIT, quick_robustness(loops["axis"])[0])
         axes.append((loops["coupled"], {g: (unit[g][axis]["coupled"], sizes[g]) for g in sizes}, allowed))
-    experiment = experiment_for(data, sections, machine, where)
-    return GainScaledLoops(axes, float(experiment.sample_time), MS_LIMIT)
+    return GainScaledLoops(axes, MS_LIMIT)
 
 
 def tuning_space(data: dict, sections: dict, keys: tuple, protocol: Protocol, where: str = "tuning",
@@ -632,7 +631,7 @@ class Tuning:
     #: choice, then the rest of those that still could (an admissible point among the first lowers the bar)
     STAGES = (2, math.inf)
 
-    def measure(self, points: list, thresholds: list | None = None, groups: list | None = None) -> list:
+    def measure(self, points: list, groups: list | None = None, best: dict | None = None) -> list:
         """An Evaluation per (unit point, values, gains): every point on the nominal plant in one batch, then,
         in :attr:`STAGES`, the points that could become their search's choice with each plant parameter at
         +-perturbation (:func:`perturbations`), each batch run as one where the classes allow. A point is
@@ -641,14 +640,15 @@ class Tuning:
         floor), too noisy or saturated it is inadmissible, its objective paying for it continuously across
         each bound (:func:`_objective`), so that a search can settle on an optimum on a bound.
 
-        ``thresholds[i]``: point i's search's best admissible objective so far (inf: none yet, the default);
-        ``groups[i]``: which search point i belongs to (default: all one). A point whose nominal objective is
+        ``groups[i]``: which search point i belongs to (default: all one); ``best[group]``: that search's best
+        admissible objective so far (default, or a search not named: none yet). A point whose nominal objective is
         not below its search's best admissible objective (the points of this batch checked before it
         included) cannot become that search's choice: an admissible point's objective is its nominal one,
         and the penalties only add. Its robustness runs are not made; its objective is the nominal one (a
         lower bound) and it is not admissible (:attr:`Evaluation.worst` nan). Every point that could be
         chosen is run at every perturbation, so a search chooses what it would were every point checked."""
-        thresholds = [math.inf] * len(points) if thresholds is None else thresholds
+        groups = [0] * len(points) if groups is None else groups
+        best = {group: (best or {}).get(group, math.inf) for group in groups}
         out, nominal, owners, loops = [], [], [], {}
         for unit, values, gains in points:
             out.append(Evaluation(gains, Outcome(), 100.0, False, unit=unit, point=values))
@@ -668,10 +668,6 @@ class Tuning:
         outcomes = dict(zip(owners, _outcomes(nominal, self.from_time, [self.limits[0]] * len(nominal))))
         for i, outcome in outcomes.items():
             self._judge(out[i], outcome, None, loops[i])
-        groups = [0] * len(points) if groups is None else groups
-        best = {}                                # each search's best admissible objective so far
-        for i, group in enumerate(groups):
-            best[group] = min(best.get(group, math.inf), thresholds[i])
         waiting = sorted((i for i, o in outcomes.items() if o.ok and not out[i].outcome.failure.startswith("Ms")),
                          key=lambda i: out[i].objective)
         for stage in self.STAGES:
@@ -691,7 +687,8 @@ class Tuning:
                 self._judge(out[i], outcomes[i], runs[k * n:(k + 1) * n], loops[i])
                 if out[i].admissible:
                     best[groups[i]] = min(best[groups[i]], out[i].objective)
-            waiting = [i for i in waiting if i not in set(checked)]
+            done = set(checked)
+            waiting = [i for i in waiting if i not in done]
         return out
 
     def _judge(self, evaluation: Evaluation, nominal: Outcome, perturbed: list | None, ms: tuple | None) -> None:
@@ -723,11 +720,11 @@ class Tuning:
     def evaluate(self, runs: list, asked: list) -> list:
         """One round of searches side by side: every search's points (``asked[i]`` of ``runs[i]``, unit points)
         measured in one batch (:meth:`measure`). Returns each search's objectives."""
-        thresholds = [min((e.objective for e in run.evaluations if e.admissible), default=math.inf)
-                      for run, units in zip(runs, asked) for _ in units]
+        best = {run.index: min((e.objective for e in run.evaluations if e.admissible), default=math.inf)
+                for run in runs}
         groups = [run.index for run, units in zip(runs, asked) for _ in units]
         evaluations = self.measure([(list(u), *self.space.decode(u)) for units in asked for u in units],
-                                   thresholds, groups)
+                                   groups, best)
         out, at = [], 0
         for run, units in zip(runs, asked):
             mine = evaluations[at:at + len(units)]

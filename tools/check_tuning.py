@@ -30,11 +30,12 @@ from contouring_ros.core.tuning_space import Dimension, Space  # noqa: E402
 from contouring_ros.tuning import Protocol, fit_to_machine, interval, tune, tuning_space  # noqa: E402
 
 
-def raw_space(data: dict, sections: dict, keys: tuple, protocol: Protocol, decades: float) -> Space:
+def raw_space(data: dict, sections: dict, keys: tuple, protocol: Protocol, decades: float, machine: dict) -> Space:
     """Every raw gain the row's own tuning space sets, each log-scaled ``decades`` either side of its file
-    value (a gain that is 0 in the file: of the value at the middle of the physical space), the lowest end
+    value (a gain that is 0 in the file: of the value at the middle of the physical space, on the
+    ``machine``, whose loops a space at a chosen Ms is solved on), the lowest end
     meaning off; integers (a horizon, a lead) over the same range as the physical space's."""
-    space, validated = tuning_space(data, sections, keys, protocol)
+    space, validated = tuning_space(data, sections, keys, protocol, machine=machine)
     file_values = space.gains(space.point(validated))
     middle = space.gains(space.decode([0.5] * len(space.dimensions))[0])
     integers = {d.name: d for d in space.dimensions if d.scale == "int"}
@@ -76,7 +77,7 @@ def _retune(name: str, label: str, factor: float, decades: float):
     sections = fit_to_machine(data, combo.sections, reference.machine)
     budget = int(factor * protocol.evaluations * protocol.searches)
     checked = Protocol(evaluations=budget, searches=1, max_searches=1)
-    space = raw_space(data, sections, combo.gain_keys, protocol, decades)
+    space = raw_space(data, sections, combo.gain_keys, protocol, decades, reference.machine)
     return tune(data, sections, combo.gain_keys, reference.machine, limit, family.from_time, checked,
                 f"{name} {label}", optimiser=differential_evolution,
                 robust_floor=reference.worst if math.isfinite(reference.worst) else 0.0, space=space)

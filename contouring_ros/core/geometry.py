@@ -11,7 +11,6 @@ import hashlib
 import math
 from dataclasses import dataclass
 
-
 import numpy as np
 
 from .curves import Curve

@@ -455,20 +455,29 @@ def margins(loop: control.TransferFunction, sample_time: float) -> LoopMargins:
                        stable=stable)
 
 
+def _frequencies(points: int) -> np.ndarray:
+    """theta = w Ts [rad] of a quick check: ``points`` spaced logarithmically from 1e-5 Nyquist to Nyquist."""
+    return np.pi * np.logspace(-5.0, 0.0, points)
+
+
+def _loop_response(loop: control.TransferFunction, theta) -> np.ndarray:
+    """L(e^(j theta)) of a discrete-time loop (inf or nan where a pole lies on the grid)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return _response(_trim(loop.num[0][0]), _trim(loop.den[0][0]), theta)
+
+
 def quick_robustness(loop: control.TransferFunction, points: int = 4096) -> tuple:
     """(Ms, stable) of a discrete-time loop in about a millisecond, for a search that asks it at every point:
     Ms = max 1 / |1 + L| on ``points`` frequencies spaced logarithmically up to Nyquist (without the
     refinement of :func:`margins`, so at most a few per cent low at a sharp peak), stable when every root of
     the characteristic polynomial den + num lies inside the unit circle."""
     num, den = _trim(loop.num[0][0]), _trim(loop.den[0][0])
-    theta = np.pi * np.logspace(-5.0, 0.0, points)
     with np.errstate(divide="ignore", invalid="ignore"):
-        sensitivity = 1.0 / np.abs(1.0 + _response(num, den, theta))
+        sensitivity = 1.0 / np.abs(1.0 + _loop_response(loop, _frequencies(points)))
     ms = float(np.nanmax(sensitivity)) if np.isfinite(sensitivity).any() else math.inf
     characteristic = np.polyadd(den, num)
     stable = bool(np.all(np.abs(np.roots(characteristic)) < 1.0)) if len(characteristic) > 1 else True
     return ms, stable
-
 
 
 class GainScaledLoops:
@@ -486,28 +495,20 @@ class GainScaledLoops:
         that gain)} (control.TransferFunction; a gain of the servo's own size keeps the loop polynomials'
         rounding small), and the Ms the axis may reach (:data:`MS_LIMIT`, or the axis' own where its
         servo alone exceeds it).
-    sample_time : float
-        Ts [s].
     limit : float
         The Ms a linear loop may reach (the tuning's MS_LIMIT); a search's Ms coordinate is a share of it.
     points : int
         Frequencies, spaced logarithmically up to Nyquist, as :func:`quick_robustness`'s.
     """
 
-    def __init__(self, axes: list, sample_time: float, limit: float, points: int = 4096):
-        theta = np.pi * np.logspace(-5.0, 0.0, points)
-        self.limit, self.sample_time = float(limit), float(sample_time)
+    def __init__(self, axes: list, limit: float, points: int = 4096):
+        theta = _frequencies(points)
+        self.limit = float(limit)
         self.axes = []
         for loop, units, allowed in axes:
-            base = self._at(loop, theta)
-            self.axes.append((1.0 + base, {g: (self._at(u, theta) - base) / size for g, (u, size) in units.items()},
+            base = _loop_response(loop, theta)
+            self.axes.append((1.0 + base, {g: (_loop_response(u, theta) - base) / size for g, (u, size) in units.items()},
                               float(allowed)))
-
-    @staticmethod
-    def _at(loop, theta) -> np.ndarray:
-        num, den = _trim(loop.num[0][0]), _trim(loop.den[0][0])
-        with np.errstate(divide="ignore", invalid="ignore"):
-            return _response(num, den, theta)
 
     def _direction(self, units: dict, shape: dict) -> np.ndarray:
         return sum(float(shape.get(g, 0.0)) * u for g, u in units.items())

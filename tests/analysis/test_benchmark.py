@@ -381,7 +381,7 @@ def test_the_robustness_floor_and_every_point_that_could_be_chosen_checked(monke
     # ... so checking every point gives the same choice
     measure = tuning.Tuning.measure
     monkeypatch.setattr(tuning.Tuning, "STAGES", (math.inf,))
-    monkeypatch.setattr(tuning.Tuning, "measure", lambda self, points, thresholds=None, groups=None:
+    monkeypatch.setattr(tuning.Tuning, "measure", lambda self, points, groups=None, best=None:
                         measure(self, points))
     everything = _small_tune(robust_floor=math.inf)
     assert everything.gains == tuned.gains and everything.nominal.tace == tuned.nominal.tace

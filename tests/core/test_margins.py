@@ -373,7 +373,7 @@ def test_the_largest_gain_scale_at_a_chosen_ms_has_its_known_answer():
     from contouring_ros.core.margins import GainScaledLoops, quick_robustness
     ts = 1e-3
     zero, unit = control.tf([0.0], [1.0], ts), control.tf([ts], [1.0, -1.0], ts)
-    loops = GainScaledLoops([(zero, {"kp": (unit, 1.0)}, 2.0)], ts, 2.0)
+    loops = GainScaledLoops([(zero, {"kp": (unit, 1.0)}, 2.0)], 2.0)
     for ms, k_ts in ((2.0, 1.0), (1.5, 2.0 / 3.0)):
         k = loops.largest_scale({"kp": 1.0}, ms / 2.0)
         assert k * ts == pytest.approx(k_ts, rel=1e-5)
