@@ -23,7 +23,7 @@ from .interpolation import Reference, ahead_times, reference, reference_rows
 from .simulation import ControlLoop, SimulationResult, step_time
 from .progress import EVERY, add as count_steps
 
-__all__ = ["NotBatchable", "stack", "batch_problem", "batchable", "batch_minimum", "structure", "simulate_batch"]
+__all__ = ["NotBatchable", "deep_equal", "stack", "batch_problem", "batchable", "batch_minimum", "structure", "simulate_batch"]
 
 
 class NotBatchable(Exception):
@@ -43,7 +43,7 @@ def _same(values) -> bool:
     return True
 
 
-def _equal(a, b) -> bool:
+def deep_equal(a, b) -> bool:
     """Whether two values are equal all the way down (arrays by value, containers and plain objects by
     their contents): for the attributes a class shares across a batch."""
     if a is b:
@@ -53,11 +53,11 @@ def _equal(a, b) -> bool:
     if isinstance(a, np.ndarray):
         return a.shape == b.shape and np.array_equal(a, b)
     if isinstance(a, (list, tuple)):
-        return len(a) == len(b) and all(_equal(x, y) for x, y in zip(a, b))
+        return len(a) == len(b) and all(deep_equal(x, y) for x, y in zip(a, b))
     if isinstance(a, dict):
-        return a.keys() == b.keys() and all(_equal(a[k], b[k]) for k in a)
+        return a.keys() == b.keys() and all(deep_equal(a[k], b[k]) for k in a)
     if hasattr(a, "__dict__") and not inspect.isroutine(a):
-        return _equal(vars(a), vars(b))
+        return deep_equal(vars(a), vars(b))
     return bool(a == b)
 
 
@@ -113,7 +113,7 @@ def stack(objects: list):
         return cls.batch_of(objects)
     shared = tuple(getattr(cls, "batch_shared", ()))
     for name in shared:
-        if not all(_equal(vars(o).get(name), vars(first).get(name)) for o in objects[1:]):
+        if not all(deep_equal(vars(o).get(name), vars(first).get(name)) for o in objects[1:]):
             raise NotBatchable(f"{cls.__name__}.{name} must be the same across a batch")
     kept = shared + tuple(getattr(cls, "batch_kept", ()))
     out = copy.copy(first)

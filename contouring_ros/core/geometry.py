@@ -367,16 +367,28 @@ class ExactContourError:
         self.window = float(curve.contour_error_window if window is None else window)
 
     def _nearest_in_window(self, points, near) -> np.ndarray:
-        """Index of each point's nearest sample among those within +-window of its ``near`` parameter."""
-        _, candidates = self._tree.query(points, k=min(self.CANDIDATES, self._grid.size))
-        offset = self._grid[candidates] - np.asarray(near, dtype=float).reshape(-1, 1)
+        """Index of each point's nearest sample among those within +-window of its ``near`` parameter: the
+        nearest sample where it lies inside (most points), else the nearest of :attr:`CANDIDATES` inside,
+        else the nearest."""
+        near = np.asarray(near, dtype=float).reshape(-1)
+        _, nearest = self._tree.query(points)
+        outside = np.flatnonzero(~self._inside(nearest, near))
+        if outside.size:
+            _, candidates = self._tree.query(points[outside], k=min(self.CANDIDATES, self._grid.size))
+            candidates = candidates.reshape(outside.size, -1)
+            inside = self._inside(candidates, near[outside].reshape(-1, 1))
+            first = np.argmax(inside, axis=1)                 # candidates come nearest first
+            chosen = candidates[np.arange(outside.size), first]
+            nearest[outside] = np.where(inside.any(axis=1), chosen, candidates[:, 0])
+        return nearest
+
+    def _inside(self, samples, near) -> np.ndarray:
+        """Whether the grid ``samples`` (indices) lie within +-window of the parameters ``near``."""
+        offset = self._grid[samples] - near
         if self.curve.closed:
             period = self.curve.domain[1] - self.curve.domain[0]
             offset = (offset + period / 2) % period - period / 2
-        inside = np.abs(offset) <= self.window
-        first = np.argmax(inside, axis=1)                 # candidates come nearest first
-        chosen = candidates[np.arange(len(points)), first]
-        return np.where(inside.any(axis=1), chosen, candidates[:, 0])
+        return np.abs(offset) <= self.window
 
     def __call__(self, points, near=None) -> FootPoints:
         """Exact contour error of ``points`` (shape (m, n) or (n,)); ``near`` gives each point's reference

@@ -138,3 +138,21 @@ def test_tool_path_of_lines_and_arcs():
 def test_tool_path_refuses_bad_moves(moves, message):
     with pytest.raises(ValueError, match=message):
         ToolPath([0.0, 0.0], moves)
+
+
+def test_equal_curves_share_one_exact_solver_and_it_gives_what_a_fresh_one_gives():
+    """A tuning scores thousands of runs of one curve, each run with its own curve object: equal curves share
+    one solver (its dense samples made once); an unequal curve gets its own; the distances are a fresh
+    solver's, with a window around each point's reference parameter too."""
+    from contouring_ros.core.metrics import exact_solver
+    first, same, other = Parabola(0.02, 0.05), Parabola(0.02, 0.05), Parabola(0.02, 0.1)
+    assert exact_solver(first) is exact_solver(same) and exact_solver(other) is not exact_solver(first)
+    rng = np.random.default_rng(4)
+    points = first.point(np.sort(rng.uniform(*first.domain, 300))) + rng.normal(0.0, 1e-4, (300, 2))
+    assert np.array_equal(exact_solver(same)(points).distance, ExactContourError(Parabola(0.02, 0.05))(points).distance)
+    loop = Butterfly(0.01)
+    loop.contour_error_window = 0.3
+    theta = np.sort(rng.uniform(*loop.domain, 200))
+    points = loop.point(theta) + rng.normal(0.0, 3e-4, (200, 2))
+    fresh = ExactContourError(Butterfly(0.01), window=0.3)(points, near=theta)
+    assert np.array_equal(exact_solver(loop)(points, near=theta).distance, fresh.distance)
