@@ -755,8 +755,8 @@ def main(argv=None):
                         "the robust result with the lowest nominal TACE is kept, the same for every method "
                         f"(1 to {MAX_SEARCHES}, default {Protocol.searches})")
     p.add_argument("--max-searches", type=_whole(1, MAX_SEARCHES, "searches"),
-                   help="while a row's searches do not agree, more run one at a time up to this many, the same cap "
-                        f"for every method (at least --searches, at most {MAX_SEARCHES}; default "
+                   help="while a row's searches do not agree, as many more as the agreement lacks run side by side, up to "
+                        f"this many, the same cap for every method (at least --searches, at most {MAX_SEARCHES}; default "
                         f"{Protocol.max_searches})")
     p.add_argument("--out", default="reports", help="folder for benchmark.md, .csv and the figures (default: reports/)")
     p.add_argument("--workers", type=_whole(1, MAX_WORKERS, "processes"),

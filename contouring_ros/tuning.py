@@ -24,9 +24,9 @@ gains, evaluated first, the others from uniform random points of the box), each 
 (:func:`contouring_ros.search.ipop_cmaes`: restarts with a doubled population, every population run as one
 vectorised batch, robustness checks batched too) of at most :attr:`Protocol.evaluations` evaluations. The
 row is *converged* when at least :attr:`Protocol.agree` searches end within :attr:`Protocol.agreement` of the
-best nominal TACE (:func:`searches_agreement`); while it is not, more searches run, up to
-:attr:`Protocol.max_searches`, the same cap for every method. The best search is kept (:func:`best_search`);
-the draws run once, for its gains.
+best nominal TACE (:func:`searches_agreement`); while it is not, as many more searches as the agreement
+lacks run side by side (seeds continuing), up to :attr:`Protocol.max_searches`, the same cap for every
+method. The best search is kept (:func:`best_search`); the draws run once, for its gains.
 
 Constraints (the same for every method of a scenario, measured in simulation):
 
@@ -36,7 +36,7 @@ Constraints (the same for every method of a scenario, measured in simulation):
   same machine and seed;
 - saturation: at most :attr:`Protocol.saturation_share` of the steady-state steps with an axis' command
   at or beyond its limit;
-- peak sensitivity, where the loop is linear (PID, PID + feedforward and cascade servos with a linear
+- peak sensitivity, where the loop is linear (PID, PID + feedforward, ZPETC and cascade servos with a linear
   contour controller; :func:`loop_robustness`): the closed loop stable and Ms at most :data:`MS_LIMIT`
   (Åström & Hägglund's 1.4-2), or the drive's own Ms where its servo alone already exceeds that; a point
   beyond it is refused before it runs;
@@ -66,6 +66,7 @@ import dataclasses
 import math
 from dataclasses import dataclass, field
 
+import control
 import numpy as np
 
 from .experiment.build import build_controller, build_curve, build_plant, build_servo
@@ -73,6 +74,7 @@ from .experiment.catalogue import CONTROLLERS, PLANTS, SERVOS
 from .experiment.validate import experiment_from_data
 from .experiment.schema import GLOBAL_SECTION
 from .core.margins import GainScaledLoops, axis_loop, coupled_loop, margins, quick_robustness
+from .core.servo import PIDServo
 from .core.tuning_space import Space, TuningContext, combine, gain_magnitude, log_box
 from .errors import ConfigError
 from .learning import passes, simulate_last_passes
@@ -103,7 +105,7 @@ class Protocol:
     popsize: int = 8               # the first CMA-ES run's population; each restart doubles it (IPOP)
     step: float = 0.25             # CMA-ES's first step [share of each coordinate's range]
     searches: int = 3              # independent searches per combination (seeds seed, seed + 1, ...)
-    max_searches: int = 6          # ... more, one at a time, while they do not agree, up to this many
+    max_searches: int = 6          # ... more, side by side, while they do not agree, up to this many
     agreement: float = 0.05        # searches agree when they end within this share of the best nominal TACE
     agree: int = 3                 # ... and a row is converged when at least this many do
     decades: float = 8.0           # the log box of a plugin that states no space: each gain's span either side
@@ -462,18 +464,22 @@ def _objective(outcome: Outcome, noise_limit: float, protocol: Protocol) -> tupl
     return value + PENALTY * excess, admissible
 
 
-def loop_robustness(experiment) -> tuple | None:
+def loop_robustness(experiment, servo_tuned: bool = False) -> tuple | None:
     """(Ms, stable, allowed Ms) of the least robust linear loop of an experiment, fast enough to ask at every
     point of a search (:func:`contouring_ros.core.margins.quick_robustness`); None when no loop is linear.
     The loop is each axis coupled with a linear contour controller (:func:`experiment_margins`'s "coupled");
     allowed is :data:`MS_LIMIT`, or the axis loop's own Ms where the drive's servo alone already exceeds it
-    (a contour controller must then not make it worse)."""
+    (a contour controller must then not make it worse), unless the servo's own gains are tuned
+    (``servo_tuned``: then its loop is held to the bound too, and where the contour controller is not linear,
+    the axis loop alone is the loop judged)."""
     worst = None
     for loops in _loops(experiment).values():
-        if loops["coupled"] is None:
+        loop = loops["coupled"] if loops["coupled"] is not None or not servo_tuned else loops["axis"]
+        if loop is None:
             continue
-        ms, stable = quick_robustness(loops["coupled"])
-        allowed = max(MS_LIMIT, quick_robustness(loops["axis"])[0]) if loops["axis"] is not None else MS_LIMIT
+        ms, stable = quick_robustness(loop)
+        allowed = max(MS_LIMIT, quick_robustness(loops["axis"])[0]) \
+            if loops["axis"] is not None and not servo_tuned else MS_LIMIT
         here = (ms if stable else math.inf, stable, allowed)
         if worst is None or here[0] / here[2] > worst[0] / worst[2]:
             worst = here
@@ -509,6 +515,37 @@ def _scaled_loops(data: dict, sections: dict, machine: dict, where: str) -> Gain
     return GainScaledLoops(axes, MS_LIMIT)
 
 
+def _servo_loops(experiment) -> dict:
+    """{axis: its loop alone as its servo's PID gains are scaled together
+    (:class:`contouring_ros.core.margins.GainScaledLoops`, the loop zero without them)}: each gain's loop that
+    of a PID servo with that gain alone (the servos whose PID this serves, the ZPETC's, run the same loop,
+    :func:`contouring_ros.core.margins.axis_loop`), at the size of the servo's own kp; {} where an axis' loop
+    is not linear."""
+    ts = float(experiment.sample_time)
+    out = {}
+    for axis in experiment.axes:
+        plant = build_plant(experiment, axis, 0.0, 0.0)
+        size = gain_magnitude(experiment.servos[axis].get("kp", 0.0)) or 1.0
+        sizes = {"kp": size, "ki": size * 2 * math.pi * 10.0, "kd": size * 1e-3}
+        units = {}
+        for gain, value in sizes.items():
+            loop = axis_loop(plant, PIDServo(*(value if g == gain else 0.0 for g in sizes), ts), ts)
+            if loop is None:
+                return {}
+            units[gain] = (loop, value)
+        out[axis] = GainScaledLoops([(control.tf([0.0], [1.0], ts), units, MS_LIMIT, lambda gains, plant=plant: axis_loop(
+            plant, PIDServo(gains["kp"], gains["ki"], gains["kd"], ts), ts))], MS_LIMIT)
+    return out
+
+
+def _tuned_servo(experiment):
+    """The catalogue entry of the experiment's servo law where every axis has the same law and that law
+    states a tuning space of its own (the ZPETC's PID), else None."""
+    laws = {experiment.servos[a]["law"] for a in experiment.axes}
+    entry = SERVOS.entry(laws.pop()) if len(laws) == 1 else None
+    return entry if entry is not None and entry.tuning is not None else None
+
+
 def tuning_space(data: dict, sections: dict, keys: tuple, protocol: Protocol, where: str = "tuning",
                  machine: dict | None = None) -> tuple:
     """(the space a combination is tuned in, the validated sections its file point is read from): its
@@ -516,7 +553,8 @@ def tuning_space(data: dict, sections: dict, keys: tuple, protocol: Protocol, wh
     :func:`contouring_ros.core.tuning_space.log_box`; none without either), with the space of the servos
     added where their law states one (the ZPETC's PID). A linear PID contour controller is searched at a chosen
     Ms of its coupled loops on the ``machine`` (grid settings; :func:`_scaled_loops`), where the protocol
-    bounds Ms."""
+    bounds Ms and the servos' gains stay the file's; a servo law's PID that is tuned too (the ZPETC's) at a
+    chosen Ms of each axis' own loop on the machine (:func:`_servo_loops`)."""
     experiment = experiment_for(data, sections, {}, where)
     axes = list(experiment.axes)
     responses = {}
@@ -524,18 +562,19 @@ def tuning_space(data: dict, sections: dict, keys: tuple, protocol: Protocol, wh
         plant = experiment.plants[a]
         entry = PLANTS.entry(plant["model"])
         responses[a] = (lambda w, e=entry, s=plant: e.response(s, w)) if entry.response else None
+    servo_entry = _tuned_servo(experiment)
+    scaled = _scaled_loops(data, sections, machine or {}, where) if protocol.ms_limit and servo_entry is None else None
+    servo_loops = _servo_loops(experiment_for(data, sections, machine or {}, where)) \
+        if protocol.ms_limit and servo_entry is not None else {}
     context = TuningContext(float(experiment.sample_time), dict(experiment.plants), dict(experiment.servos), responses,
-                            _scaled_loops(data, sections, machine or {}, where) if protocol.ms_limit else None)
+                            scaled, servo_loops)
     validated = {"/ccc": experiment.controller, **{f"/{a}/servo": experiment.servos[a] for a in axes}}
     entry = CONTROLLERS.entry(experiment.controller["type"])
     space = entry.tuning(experiment.controller, context) if entry.tuning else None
     if space is None and keys:
         space = log_box(experiment.controller, keys, protocol.decades)
-    laws = {experiment.servos[a]["law"] for a in axes}
-    if len(laws) == 1:
-        servo_entry = SERVOS.entry(laws.pop())
-        if servo_entry.tuning is not None:
-            space = combine(space, servo_entry.tuning(experiment.servos[axes[0]], context))
+    if servo_entry is not None:
+        space = combine(space, servo_entry.tuning(experiment.servos[axes[0]], context))
     return space or Space((), lambda values: {}, lambda sections: {}, "none"), validated
 
 
@@ -617,6 +656,7 @@ class Tuning:
         self.data, self.sections, self.machine, self.where = data, sections, machine, where
         self.noise_limit, self.from_time, self.protocol, self.robust_floor = noise_limit, from_time, protocol, robust_floor
         self.space, self.validated = tuning_space(data, sections, keys, protocol, where, machine)
+        self.servo_tuned = _tuned_servo(experiment_for(data, sections, {}, where)) is not None
         if space is not None:
             self.space = space
         self.checks = perturbations(data, protocol.perturbation)
@@ -657,7 +697,7 @@ class Tuning:
             except ConfigError as error:
                 out[-1].outcome = Outcome(failure=f"refused: {error}")
                 continue
-            robustness = loop_robustness(here) if self.protocol.ms_limit else None
+            robustness = loop_robustness(here, self.servo_tuned) if self.protocol.ms_limit else None
             if robustness is not None and not robustness[1]:
                 out[-1].outcome = Outcome(failure="refused: its linear loop is unstable")
                 out[-1].objective = 50.0 + PENALTY * 3.0
@@ -803,8 +843,13 @@ class Tuning:
             searches = self.search([0], optimiser)
         else:
             searches = self.search(list(range(p.searches)), optimiser)
-            while not searches_agreement(searches, p).converged and len(searches) < max(p.max_searches, p.searches):
-                searches += self.search([len(searches)], optimiser)
+            cap = max(p.max_searches, p.searches)
+            while len(searches) < cap:
+                agreed = searches_agreement(searches, p)
+                if agreed.converged:
+                    break
+                more = min(max(p.agree - agreed.agreed, 1), cap - len(searches))
+                searches += self.search(list(range(len(searches), len(searches) + more)), optimiser)
         kept = best_search(searches)
         # nothing to tune: no search to agree with, the file's gains are the answer
         tuned.agreement = searches_agreement(searches, p) if self.space.dimensions else Agreement(1, 1, 1.0, True)

@@ -21,7 +21,8 @@ output limits, Coulomb friction, encoder quantisation and measurement noise are 
 reference feedforward, which does not act on the loop.
 
 Linear time-invariant feedback laws: ``pid`` (:class:`~.servo.PIDServo`), ``pid_feedforward``
-(:class:`~.servo.PIDFeedforwardServo`) and ``cascade`` (:class:`~.servo.CascadeServo`). Not linear
+(:class:`~.servo.PIDFeedforwardServo`), ``zpetc`` (:class:`~.servo.ZPETCServo`: its PID; the feedforward filter
+makes the loop's reference and does not act on the loop) and ``cascade`` (:class:`~.servo.CascadeServo`). Not linear
 time-invariant feedback, so without a loop transfer function here (None): integral sliding mode
 (:class:`~.servo.IntegralSlidingModeServo`, its switching term and disturbance observer),
 ESO sliding mode (:class:`~.servo.ESOSlidingModeServo`) and ``direct``
@@ -40,7 +41,7 @@ from scipy.optimize import brentq, minimize_scalar
 
 from .contouring import NoCoupling, UnitVectorCCC, VariableGainCCC
 from .plants import FirstOrderVelocityAxis, MassDamperAxis
-from .servo import CascadeServo, PIDFeedforwardServo, PIDServo
+from .servo import CascadeServo, PIDFeedforwardServo, PIDServo, ZPETCServo
 
 __all__ = ["LoopMargins", "plant_transfer", "axis_loop", "coupled_loop", "margins", "quick_robustness"]
 
@@ -229,8 +230,9 @@ def _servo_filters(servo, ts: float, ccc: tuple = _ZERO):
     """(F_p, F_v): the servo's command is -(F_p position + F_v velocity) + (terms in the reference), with a
     linear contour correction ccc(z) acting on the position error normal to the path. None if the law is
     not linear time-invariant feedback."""
-    if isinstance(servo, (PIDServo, PIDFeedforwardServo)):
+    if isinstance(servo, (PIDServo, PIDFeedforwardServo, ZPETCServo)):
         # T = kp e + ki I(e) + kd (R' - V) [+ feedforward] + correction: the derivative is the velocity error
+        # (the ZPETC's: kp e + ki I(e) - kd V on the error from its filtered reference, the same loop)
         pid = servo.pid
         _check_sample_time(pid, ts, "servo")
         return _add(_pid(pid.kp, pid.ki, 0.0, ts), ccc), (np.array([pid.kd]), np.ones(1))
@@ -256,7 +258,7 @@ def _loop(plant, filters, ts: float) -> control.TransferFunction | None:
 def axis_loop(plant, servo, sample_time: float) -> control.TransferFunction | None:
     """The loop transfer function L(z) = C(z) P(z) of one axis' feedback, broken at the plant input.
 
-    C(z) follows the servo's difference equations exactly: ``pid`` and ``pid_feedforward`` are
+    C(z) follows the servo's difference equations exactly: ``pid``, ``pid_feedforward`` and ``zpetc`` are
     kp + ki Ts z / (z - 1) on the position and kd on the velocity reading (the derivative term is the
     velocity error R' - V, not a difference of the position error); ``cascade`` is
     (kp_v + ki_v Ts z / (z - 1)) (kp_position P_p + P_v). Feedforward terms do not act on the loop.
@@ -265,7 +267,7 @@ def axis_loop(plant, servo, sample_time: float) -> control.TransferFunction | No
     ----------
     plant : FirstOrderVelocityAxis or MassDamperAxis
         See :func:`plant_transfer` (its ``command_delay`` and ``velocity_measurement`` are included).
-    servo : PIDServo, PIDFeedforwardServo or CascadeServo
+    servo : PIDServo, PIDFeedforwardServo, ZPETCServo or CascadeServo
         Any other law gives None: integral sliding mode (switching term and disturbance observer), ESO
         sliding mode and ``direct`` are not linear time-invariant feedback on the axis alone.
     sample_time : float
@@ -481,20 +483,22 @@ def quick_robustness(loop: control.TransferFunction, points: int = 4096) -> tupl
 
 
 class GainScaledLoops:
-    """The coupled loops of every axis as a linear contour controller's PID gains are scaled together: axis a's
-    loop is L_a(k) = L_a(0) + k (s_p U_a^p + s_i U_a^i + s_d U_a^d), with U_a^g the loop's change for a unit
-    gain g (the controller enters the position filter additively, :func:`coupled_loop`) and s the gains'
-    shape. :meth:`largest_scale` is the largest k at which every axis' Ms = max 1 / |1 + L_a(k)| stays within
-    its target, in closed form per frequency, so that a search can ask it at every point (a PID at a chosen
-    Ms: Åström & Hägglund, Advanced PID Control, 2006, ch. 7, the MIGO design).
+    """The loops of every axis as a PID's gains are scaled together: axis a's loop is
+    L_a(k) = L_a(0) + k (s_p U_a^p + s_i U_a^i + s_d U_a^d), with U_a^g the loop's change for a unit gain g and
+    s the gains' shape: a linear contour controller's (it enters the position filter additively,
+    :func:`coupled_loop`; L_a(0) the servo's loop) or a servo's own PID (L_a(0) = 0). :meth:`largest_scale`
+    is the largest k at which every axis' Ms = max 1 / |1 + L_a(k)| stays within its target, in closed form
+    per frequency, so that a search can ask it at every point (a PID at a chosen Ms: Åström & Hägglund,
+    Advanced PID Control, 2006, ch. 7, the MIGO design).
 
     Parameters
     ----------
-    axes : list of (L0, units, allowed)
-        Per axis: the loop without the contour controller, {gain name: (the loop with that gain alone,
-        that gain)} (control.TransferFunction; a gain of the servo's own size keeps the loop polynomials'
-        rounding small), and the Ms the axis may reach (:data:`MS_LIMIT`, or the axis' own where its
-        servo alone exceeds it).
+    axes : list of (L0, units, allowed) or (L0, units, allowed, loop_of)
+        Per axis: the loop without the PID (zero for a servo's own), {gain name: (the loop with that gain
+        alone, that gain)} (control.TransferFunction; a gain of the servo's own size keeps the loop
+        polynomials' rounding small), the Ms the axis may reach (:data:`MS_LIMIT`, or the axis' own where
+        its servo alone exceeds it), and for a servo's own PID ``loop_of(gains)``: the loop with those gains
+        ({name: value}), built exactly, whose stability decides a range of k (:meth:`largest_scale`).
     limit : float
         The Ms a linear loop may reach (the tuning's MS_LIMIT); a search's Ms coordinate is a share of it.
     points : int
@@ -505,10 +509,10 @@ class GainScaledLoops:
         theta = _frequencies(points)
         self.limit = float(limit)
         self.axes = []
-        for loop, units, allowed in axes:
+        for loop, units, allowed, *loop_of in axes:
             base = _loop_response(loop, theta)
             self.axes.append((1.0 + base, {g: (_loop_response(u, theta) - base) / size for g, (u, size) in units.items()},
-                              float(allowed)))
+                              float(allowed), loop_of[0] if loop_of else None))
 
     def _direction(self, units: dict, shape: dict) -> np.ndarray:
         return sum(float(shape.get(g, 0.0)) * u for g, u in units.items())
@@ -516,29 +520,71 @@ class GainScaledLoops:
     def peak(self, shape: dict, scale: float = 1.0) -> float:
         """The largest Ms / allowed over the axes with the gains ``scale`` x ``shape``."""
         worst = 0.0
-        for one, units, allowed in self.axes:
+        for one, units, allowed, _ in self.axes:
             with np.errstate(divide="ignore", invalid="ignore"):
                 ms = float(np.nanmax(1.0 / np.abs(one + scale * self._direction(units, shape))))
             worst = max(worst, ms / allowed)
         return worst
 
-    def largest_scale(self, shape: dict, share: float) -> float:
-        """The largest k >= 0 with every axis' Ms at most ``share`` x its allowed Ms on the way from k = 0
-        (0 where k = 0 already exceeds it, inf where no k does): per frequency, |1 + L(k)|^2 is a quadratic
-        in k, below the bound on the interval between its roots; k is the smallest positive first root.
-        Stability is not decided here (a pole the controller adds, e.g. its integrator's, can leave the unit
-        circle without a peak of |S|): :func:`quick_robustness` on the loop itself still decides it."""
-        best = math.inf
-        for one, units, allowed in self.axes:
+    def largest_scale(self, shape: dict, share: float, cap: float = math.inf) -> float:
+        """The largest k >= 0, at most ``cap``, with every axis' Ms at most ``share`` x its allowed Ms (0 where
+        k = 0 already exceeds it or no k qualifies, ``cap`` where no k exceeds it). Per frequency,
+        |1 + L(k)|^2 is a quadratic in k, above the bound outside the interval between its roots: the k that
+        keep the bound are ranges (:func:`_allowed_ranges`). Between two ranges no closed-loop pole can cross
+        the unit circle without |1 + L| = 0 on the way, so each range is stable or unstable as a whole.
+
+        An axis without ``loop_of`` (a contour controller around a stable servo loop: stable from k = 0 on)
+        takes the top of its lowest range, the k where the bound is first reached on the way from 0. An axis
+        with ``loop_of`` (a servo's own PID, whose loop can be unstable at small gains, as an integral on an
+        integrating axis is, and can keep the bound again at higher ones) takes the top of its highest range
+        below ``cap`` that is stable, one loop in it deciding (:func:`quick_robustness`). The frequency grid
+        decides where the ranges lie, so a narrow peak between two of its frequencies can be missed:
+        :func:`quick_robustness` on the loop itself still decides stability."""
+        best = cap
+        for one, units, allowed, loop_of in self.axes:
             b = self._direction(units, shape)
             floor = 1.0 / (share * allowed)
             qa, qb, qc = np.abs(b) ** 2, 2.0 * np.real(one * np.conj(b)), np.abs(one) ** 2 - floor ** 2
             if np.nanmin(qc) < 0.0:
                 return 0.0
-            disc = qb * qb - 4.0 * qa * qc
-            with np.errstate(divide="ignore", invalid="ignore"):
-                first = (-qb - np.sqrt(np.where(disc >= 0.0, disc, np.nan))) / (2.0 * qa)
-            first = first[np.isfinite(first) & (first > 0.0)]
-            if first.size:
-                best = min(best, float(first.min()) * (1.0 - 1e-6))   # inside: the boundary's rounding either way
+            ranges = _allowed_ranges(qa, qb, qc)
+            if loop_of is None:
+                best = min(best, ranges[0][1] * (1.0 - 1e-6))     # inside: the boundary's rounding either way
+                continue
+            for low, high in reversed(ranges):
+                if low >= best:
+                    continue
+                top = min(high * (1.0 - 1e-6), best)
+                if quick_robustness(loop_of({g: _inside(low, top) * float(shape.get(g, 0.0)) for g in units}))[1]:
+                    best = top
+                    break
+            else:
+                return 0.0
         return best
+
+
+def _allowed_ranges(qa: np.ndarray, qb: np.ndarray, qc: np.ndarray) -> list:
+    """The ranges [low, high] of k >= 0 (high inf for the last) where qa k^2 + qb k + qc >= 0 at every
+    frequency, lowest first (qc >= 0: k = 0 is in the first): the complement of the union of the intervals
+    between each frequency's two roots."""
+    disc = qb * qb - 4.0 * qa * qc
+    with np.errstate(divide="ignore", invalid="ignore"):
+        root = np.sqrt(np.where(disc >= 0.0, disc, np.nan))
+        first, second = (-qb - root) / (2.0 * qa), (-qb + root) / (2.0 * qa)
+    keep = np.isfinite(first) & np.isfinite(second) & (second > 0.0)
+    bad = sorted(zip(np.maximum(first[keep], 0.0), second[keep]))
+    ranges, low = [], 0.0
+    for start, end in bad:
+        if start > low:
+            ranges.append((low, float(start)))
+        low = max(low, float(end))
+    ranges.append((low, math.inf))
+    return ranges
+
+
+def _inside(low: float, high: float) -> float:
+    """A scale inside the range [low, high]: its geometric middle (its middle from 0, twice its start or 1
+    where it is open)."""
+    if math.isinf(high):
+        return 2.0 * low if low > 0.0 else 1.0
+    return math.sqrt(low * high) if low > 0.0 else 0.5 * high

@@ -23,8 +23,8 @@ from dataclasses import dataclass, field
 from typing import Callable
 
 __all__ = ["Dimension", "Space", "TuningContext", "OFF_SHARE", "first_order_response", "mass_damper_response",
-           "pid_contour_space", "pid_servo_space", "task_frame_space", "tvt_space", "adaptive_tnb_space",
-           "ilc_space", "mpcc_space", "log_box", "combine", "crossover", "gain_magnitude"]
+           "pid_contour_space", "pid_at_ms_space", "pid_servo_space", "pid_servo_at_ms_space", "task_frame_space",
+           "tvt_space", "adaptive_tnb_space", "ilc_space", "mpcc_space", "log_box", "combine", "crossover", "gain_magnitude"]
 
 OFF_SHARE = 0.02     # the lowest this share of a range that can be off means off (0)
 
@@ -84,6 +84,7 @@ class TuningContext:
     servos: dict                     # axis -> servo section
     responses: dict = field(default_factory=dict)     # axis -> w -> |P(jw)| (position per command unit), or None
     scaled_loops: object = None      # margins.GainScaledLoops of the contour controller's PID, where linear
+    servo_loops: dict = field(default_factory=dict)   # axis -> margins.GainScaledLoops of its servo's PID alone
 
     @property
     def nyquist(self) -> float:
@@ -266,11 +267,46 @@ def pid_contour_space(section: dict, context: TuningContext) -> Space | None:
     return Space(_pid_dimensions(context), gains, point)
 
 
+def pid_servo_at_ms_space(context: TuningContext, prefix: str = "servo ") -> Space:
+    """The PID of a servo on every axis searched at a chosen peak sensitivity of each axis' loop, as
+    :func:`pid_at_ms_space` searches a contour controller's: its PI corner frequency f_c = ki / (2 pi kp), its
+    derivative time t_d = kd / kp and the Ms every axis' loop reaches (1.2 to the bound); each axis' gain scale
+    is the largest that keeps its own loop stable at that Ms (``context.servo_loops``), at most the gain whose
+    proportional term alone crosses over at an eighth of the sample rate through that axis' plant (none where
+    no gain does: the point is refused)."""
+    axes = list(context.servos)
+    loops = context.servo_loops
+    limit = loops[axes[0]].limit
+    top = {a: 1.0 / context.response(2 * math.pi * context.nyquist / 4.0, [a]) for a in axes}
+
+    def gains(values):
+        shape = {"kp": 1.0, "ki": 2 * math.pi * values[f"{prefix}f_c"], "kd": values[f"{prefix}t_d"]}
+        out = {}
+        for axis in axes:
+            scale = loops[axis].largest_scale(shape, values[f"{prefix}ms"] / limit, top[axis])
+            out.update({f"{axis}/servo.{k}": scale * v for k, v in shape.items()})
+        return out
+
+    def point(sections):
+        first = sections[f"/{axes[0]}/servo"]
+        kp, ki, kd = (float(first.get(k, 0.0)) for k in ("kp", "ki", "kd"))
+        if kp <= 0:
+            return {f"{prefix}f_c": context.nyquist / 4.0, f"{prefix}t_d": 0.0, f"{prefix}ms": limit}
+        return {f"{prefix}f_c": ki / (2 * math.pi * kp), f"{prefix}t_d": kd / kp,
+                f"{prefix}ms": limit * loops[axes[0]].peak({"kp": kp, "ki": ki, "kd": kd})}
+    return Space((_hz(f"{prefix}f_c", 0.01, context.nyquist / 4.0, off=True),
+                  Dimension(f"{prefix}t_d", "s", 1e-5, 0.1, "log", off=True),
+                  Dimension(f"{prefix}ms", "", 1.2, limit, "log")), gains, point)
+
+
 def pid_servo_space(section: dict, context: TuningContext) -> Space | None:
     """The PID of a servo on every axis (the ZPETC's feedback, Tomizuka 1987): f_p, f_i, r_d as
-    :func:`pid_contour_space`'s, each axis' gains through its own plant."""
+    :func:`pid_contour_space`'s, each axis' gains through its own plant; where every axis' loop is linear
+    (``context.servo_loops``), at a chosen Ms instead (:func:`pid_servo_at_ms_space`)."""
     if context.response(1.0) is None:
         return None
+    if context.servo_loops and set(context.servo_loops) == set(context.servos):
+        return pid_servo_at_ms_space(context)
     prefix = "servo "
     axes = list(context.servos)
 

@@ -5,6 +5,7 @@ import math
 
 import numpy as np
 import pytest
+from scipy.stats import qmc
 
 from contouring_ros import benchmark, tuning
 from contouring_ros.benchmark import plan, run_benchmark, scenario_families, select_families, verdict
@@ -510,3 +511,40 @@ def test_a_linear_pid_contour_controller_is_searched_at_a_chosen_ms():
     back = search.space.point(search.with_gains(gains))
     assert back["f_c"] == pytest.approx(values["f_c"], rel=1e-9) and back["t_d"] == pytest.approx(values["t_d"], rel=1e-9)
     assert back["ms"] == pytest.approx(values["ms"], rel=1e-4) and values["ms"] == pytest.approx(tuning.MS_LIMIT)
+
+
+@pytest.mark.parametrize("scenario", ["paper000_h50", "paper001_caseIII"])
+def test_the_zpetc_pid_is_searched_at_a_chosen_ms_of_each_axis_loop(scenario):
+    """The ZPETC's PID (its feedback loop is linear: core/margins.axis_loop) is searched by its PI corner, its
+    derivative time and the Ms each axis' loop reaches: every point either has a stable loop on every axis
+    at that Ms (the highest gain of the lowest stable range, also where the loop is unstable at small gains,
+    as a PI on paper 001's almost double-integrating axes is), or none and is refused unrun; the file's gains
+    map back to themselves; the Ms bound holds for the servo's own loop (no allowance for a drive already
+    beyond it: its gains are the ones tuned)."""
+    family = {f.name: f for f in scenario_families()}[scenario]
+    data = family.data[family.proposed]
+    combo = next(c for c in plan(family)[0] if c.label.endswith("none / zpetc"))
+    machine = tuning.machine_settings(data, "realistic", (1.0, 1.0))
+    sections = tuning.fit_to_machine(data, combo.sections, machine)
+    search = tuning.Tuning(data, sections, combo.gain_keys, machine, math.inf, family.from_time, Protocol(), "test")
+    assert [d.name for d in search.space.dimensions] == ["servo f_c", "servo t_d", "servo ms"] and search.servo_tuned
+    stable_points, conditionally = 0, 0
+    for u in qmc.Sobol(3, seed=5).random(16):
+        values, gains = search.space.decode(list(u))
+        if not all(v for k, v in gains.items() if k.endswith(".kp")):
+            with pytest.raises(ConfigError, match="kp or ki must be positive"):
+                tuning.experiment_for(data, search.with_gains(gains), machine, "test")
+            continue
+        experiment = tuning.experiment_for(data, search.with_gains(gains), machine, "test")
+        ms, stable, allowed = tuning.loop_robustness(experiment, servo_tuned=True)
+        assert stable and allowed == tuning.MS_LIMIT
+        assert ms == pytest.approx(values["servo ms"], rel=2e-3)
+        stable_points += 1
+        small = tuning.experiment_for(data, search.with_gains({k: 1e-3 * v for k, v in gains.items()}), machine, "test")
+        conditionally += not tuning.loop_robustness(small, servo_tuned=True)[1]
+    assert stable_points >= 4 and (conditionally >= 1 or scenario == "paper000_h50")
+    file_point = search.space.point(search.validated)
+    _, file_gains = search.space.decode(search.space.start(search.validated))
+    if file_point["servo ms"] > 1.2:          # inside the box: the file's gains come back
+        for axis in ("x",):
+            assert file_gains[f"{axis}/servo.kp"] == pytest.approx(search.validated[f"/{axis}/servo"]["kp"], rel=1e-3)

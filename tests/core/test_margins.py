@@ -44,6 +44,13 @@ def pd_001():      # paper 001's x axis PD
     return servos.PIDServo(19610586.489482205, 0.0, 490264.66223705513, TS)
 
 
+def zpetc(kp, ki, kd, command_delay=0):
+    """The ZPETC servo on paper 000's x axis, its preview of the reference held at zero."""
+    law = servos.ZPETCServo(kp, ki, kd, 10.3, 0.040, TS, command_delay=command_delay)
+    law.look_ahead([0.0] * law.preview)
+    return law
+
+
 def cascade():
     return servos.CascadeServo(60.0, 400.0, 20000.0, TS)
 
@@ -272,6 +279,7 @@ def code_impulse_response(plant, law, n: int) -> np.ndarray:
     lambda: (mass_damper(), pd_001()),
     lambda: (mass_damper(1.0, 200.0, 1.0), cascade()),
     lambda: (mass_damper(2.0, 0.0, 1.0), servos.PIDServo(4000.0, 2000.0, 100.0, TS)),     # undamped
+    lambda: (first_order(command_delay=1), zpetc(8.08, 93.2, 0.24, command_delay=1)),   # the feedforward's loop
 ])
 def test_axis_loop_is_the_code_difference_equations(make):
     loop = axis_loop(*make(), TS)
