@@ -485,9 +485,9 @@ class ZPETCServo:
         move on the starting motion y(j) = c0 + c1 j + c2 j^2 (:meth:`_start`): with the axis' P/U = N_p / D_p
         (:func:`closed_loop`), pu u(j+1) + q u(j) = y(j+2) - (1 + alpha) y(j+1) + alpha y(j) has the
         solution u(j) = u0 + u1 j, and the command computed now acts after ``command_delay`` steps
-        (no integral: nothing to set)."""
+        (no integral: nothing to set; in a batch, the members with one)."""
         pid = self.pid
-        if pid.ki:
+        if np.any(pid.ki):
             alpha, pv, vu, pu = first_order_hold_terms(self.gain, self.time_constant, self.sample_time)
             q = pv * vu - alpha * pu
             c0, c1, c2 = motion
@@ -498,7 +498,12 @@ class ZPETCServo:
             first, second = moved(0), moved(1)
             u1 = (second - first) / (pu + q)
             wanted = (first - pu * u1) / (pu + q) + u1 * delay
-            pid.integral = (wanted - pid.kp * error + pid.kd * velocity) / pid.ki - pid.sample_time * error
+            if np.ndim(pid.ki) == 0:
+                pid.integral = (wanted - pid.kp * error + pid.kd * velocity) / pid.ki - pid.sample_time * error
+            else:
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    start = (wanted - pid.kp * error + pid.kd * velocity) / pid.ki - pid.sample_time * error
+                pid.integral = np.where(pid.ki != 0, start, pid.integral)
 
     def step(self, ref_pos, ref_vel, ref_acc, position, velocity, correction) -> float:
         motion = self._start(ref_pos, ref_vel, ref_acc) if not self.window else None

@@ -127,14 +127,16 @@ def test_an_axis_that_starts_moving_on_its_reference_starts_without_a_bump():
     assert max(abs(e) for e in errors) <= 1.05 * abs(steady)        # a past held still gave millimetres
 
 
-def test_a_batch_of_zpetc_loops_with_different_gains_gives_each_run_alone_bit_for_bit():
+@pytest.mark.parametrize("key,values", [("kp", (8.08, 12.0, 5.0)), ("ki", (93.2, 0.0, 200.0)), ("kd", (0.24, 0.0, 0.5))])
+def test_a_batch_of_zpetc_loops_with_different_gains_gives_each_run_alone_bit_for_bit(key, values):
     from contouring_ros.core.batch import simulate_batch
     from contouring_ros.core.simulation import simulate
     from contouring_ros.experiment.build import build_loop
     from contouring_ros.experiment.validate import parse_experiment
     from conftest import CONFIG, shortened
     text = shortened(CONFIG / "zpetc_ellipse.yaml", 0.2)
-    experiments = [parse_experiment(text.replace("kp: 8.08", f"kp: {kp}")) for kp in (8.08, 12.0, 5.0)]
+    assert f"{key}: {values[0]}" in text
+    experiments = [parse_experiment(text.replace(f"{key}: {values[0]}", f"{key}: {v}")) for v in values]
     loops = [build_loop(experiment) for experiment in experiments]
     assert loops[0].preview == 4
     batch = simulate_batch(loops)
