@@ -44,8 +44,11 @@ def exact_solver(curve) -> ExactContourError:
     (:func:`~contouring_ros.core.batch.deep_equal`): a tuning scores thousands of runs of one curve, each run
     building its own curve object, and the solver's dense samples of the curve cost more than a run's query."""
     for known, solver in _SOLVERS:
-        if known is curve or deep_equal(known, curve):
-            return solver
+        try:
+            if known is curve or deep_equal(known, curve):
+                return solver
+        except RecursionError:      # a plugin's curve that refers back to itself: its own solver
+            break
     solver = ExactContourError(curve)
     _SOLVERS.insert(0, (curve, solver))
     del _SOLVERS[_SOLVERS_KEPT:]

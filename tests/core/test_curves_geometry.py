@@ -156,3 +156,11 @@ def test_equal_curves_share_one_exact_solver_and_it_gives_what_a_fresh_one_gives
     points = loop.point(theta) + rng.normal(0.0, 3e-4, (200, 2))
     fresh = ExactContourError(Butterfly(0.01), window=0.3)(points, near=theta)
     assert np.array_equal(exact_solver(loop)(points, near=theta).distance, fresh.distance)
+
+
+def test_a_curve_that_refers_back_to_itself_gets_its_own_solver():
+    from contouring_ros.core.metrics import exact_solver
+    first, second = Parabola(0.02, 0.05), Parabola(0.02, 0.05)
+    first.owner, second.owner = first, second         # a plugin's curve may keep a reference to itself
+    exact_solver(first)
+    assert exact_solver(second).curve is second
