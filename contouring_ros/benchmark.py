@@ -37,12 +37,14 @@ import math
 import os
 import time
 from collections import Counter
+from concurrent.futures import as_completed
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 import yaml
 
+from .checkpoints import Checkpoints, row_key
 from .claims import claim_files, load_claims
 from .experiment.build import build_loop
 from .experiment.catalogue import CONTROLLERS, ESTIMATORS, SERVOS
@@ -466,13 +468,16 @@ def _is_proposed(family: Family, combination: Combination) -> bool:
 
 
 def run_benchmark(families: list, protocol: Protocol | None = None, workers: int | None = None,
-                  progress: bool = False, say=None, scheduler: str | None = None, methods=()) -> list:
+                  progress: bool = False, say=None, scheduler: str | None = None, methods=(),
+                  checkpoints: Checkpoints | None = None) -> list:
     """Every row (one per scenario x combination, the excluded ones included) of ``families``, on local
     processes or the Dask cluster at ``scheduler`` (:func:`contouring_ros.executors.pool`). ``methods``
     (globs, :func:`matches_methods`): only those combinations, and each scenario's proposed one (the ratios
-    are to it)."""
+    are to it). With ``checkpoints``, a row kept there from an earlier run of the same inputs and code is
+    taken as it is, and each row tuned now is kept there as it finishes."""
     from tqdm import tqdm
     protocol = protocol or Protocol()
+    checkpoints = checkpoints or Checkpoints(None, Tuned)
     say = say or (lambda message: None)
     catalogue = _catalogue_estimators(scenario_families() if families else [])
     plans, matched = {}, 0
@@ -502,19 +507,28 @@ def run_benchmark(families: list, protocol: Protocol | None = None, workers: int
                 jobs.append(row)
             rows += [Row(family, None, e, status=f"cannot be paired: {e.reason}") for e in excluded]
         # the longest first (a learning controller runs every pass per evaluation), so that none starts last
-        futures = [None] * len(jobs)
-        for i in sorted(range(len(jobs)), key=lambda i: -int(jobs[i].combination.sections["/ccc"].get("passes", 1) or 1)):
-            row = jobs[i]
-            family, combo, reference = row.family, row.combination, row.bound
-            futures[i] = (row, pool.submit(
-                _tune_job, family.data[family.proposed], fit_to_machine(family.data[family.proposed], combo.sections,
-                                                                        reference.machine),
-                combo.gain_keys, reference.machine, reference.noise_limit, family.from_time, protocol,
-                f"{family.name} {combo.label}", reference.worst if math.isfinite(reference.worst) else 0.0))
+        running = {}
         with tqdm(total=len(jobs), desc="benchmark", disable=not progress, leave=False) as bar:
-            for row, job in futures:
+            for row in sorted(jobs, key=lambda r: -int(r.combination.sections["/ccc"].get("passes", 1) or 1)):
+                family, combo, reference = row.family, row.combination, row.bound
+                data = family.data[family.proposed]
+                args = (data, fit_to_machine(data, combo.sections, reference.machine), combo.gain_keys,
+                        reference.machine, reference.noise_limit, family.from_time, protocol)
+                floor = reference.worst if math.isfinite(reference.worst) else 0.0
+                key = row_key(*args, floor)
+                row.tuned = checkpoints.get(key)
+                if row.tuned is not None:
+                    row.status = row.tuned.status
+                    bar.update(1)
+                    continue
+                running[pool.submit(_tune_job, *args, f"{family.name} {combo.label}", floor)] = row, key
+            if checkpoints.taken:
+                say(f"{checkpoints.taken} of {len(jobs)} rows taken from {checkpoints.folder}")
+            for job in as_completed(running):
+                row, key = running[job]
                 row.tuned = job.result()
                 row.status = row.tuned.status
+                checkpoints.put(key, row.tuned)
                 bar.update(1)
     for family in families:
         mine = [r for r in rows if r.family is family and r.combination]
@@ -1039,6 +1053,7 @@ class Part:
     host: str = ""
     load: float = math.nan        # load average as it ended
     methods: tuple = ()           # --methods: only these combinations (and each scenario's proposed one) ran
+    resumed: int = 0              # rows taken from --checkpoints of an earlier run (their CPU is not in cpu)
 
 
 allow_in_parts(Part, Family, Combination, Excluded, Reference, Row, Protocol, Outcome, Evaluation, Tuned, Search,
@@ -1128,6 +1143,11 @@ def merged_rows(parts: list) -> tuple:
     return ordered, out
 
 
+def _resumed(part: Part) -> str:
+    return (f"; {part.resumed} rows taken from --checkpoints of an earlier run, whose time is not in these figures"
+            if part.resumed else "")
+
+
 def write_outputs(parts: list, out) -> tuple:
     """benchmark.md, benchmark.csv, benchmark_heatmap.png and one benchmark_pareto_paper<N>.png per paper in
     ``out`` from the rows of ``parts`` (their scenarios in paper order; :func:`merged_rows`)."""
@@ -1140,11 +1160,11 @@ def write_outputs(parts: list, out) -> tuple:
     if len(parts) == 1:
         p = parts[0]
         where = (f"Generated by `{p.command}` in {p.seconds / 60:.1f} min of wall time on {p.cores} cores "
-                 f"({p.cpu / 60:.1f} min of CPU time; load average {p.load:.1f} at the end")
+                 f"({p.cpu / 60:.1f} min of CPU time; load average {p.load:.1f} at the end{_resumed(p)}")
     else:
         where = (f"Generated in {len(parts)} parts, then reported together: " + "; ".join(
             f"`{p.command}` in {p.seconds / 60:.1f} min of wall time on {p.cores} cores{f' ({p.host})' if p.host else ''}"
-            f", {p.cpu / 60:.1f} min of CPU time" for p in parts) + f" ({sum(p.cpu for p in parts) / 60:.1f} min of CPU "
+            f", {p.cpu / 60:.1f} min of CPU time{_resumed(p)}" for p in parts) + f" ({sum(p.cpu for p in parts) / 60:.1f} min of CPU "
             "time in all")
     text = benchmark_report(rows, families, parts[0].protocol, where, png.name,
                             read_notes(CONFIG_DIR / "benchmark" / "notes.yaml"), pareto)
@@ -1155,20 +1175,22 @@ def write_outputs(parts: list, out) -> tuple:
 
 def main_benchmark(patterns=None, protocol: Protocol | None = None, out="reports", workers=None, progress=False,
                    say=None, command: str = "contouring-ros benchmark", scheduler: str | None = None,
-                   save_part_to=None, host: str = "", methods=()) -> tuple:
+                   save_part_to=None, host: str = "", methods=(), checkpoints=None) -> tuple:
     """Run the benchmark and write benchmark.md, benchmark.csv, benchmark_heatmap.png and one
-    benchmark_pareto_paper<N>.png per paper into ``out`` (and the run as a :class:`Part` to ``save_part_to``)."""
+    benchmark_pareto_paper<N>.png per paper into ``out`` (and the run as a :class:`Part` to ``save_part_to``;
+    each tuned row kept in the folder ``checkpoints`` as it finishes, and those kept there taken)."""
     import resource
     protocol = protocol or Protocol()
     start = time.perf_counter()
     families = select_families(scenario_families(), patterns)
-    rows = run_benchmark(families, protocol, workers, progress, say, scheduler, tuple(methods or ()))
+    kept = Checkpoints(checkpoints, Tuned)
+    rows = run_benchmark(families, protocol, workers, progress, say, scheduler, tuple(methods or ()), kept)
     seconds = time.perf_counter() - start
     cpu = sum(resource.getrusage(who).ru_utime + resource.getrusage(who).ru_stime
               for who in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN))
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else math.nan
     part = Part(families, rows, protocol, seconds, cpu, os.cpu_count() or 1, command, host, load,
-                tuple(methods or ()))
+                tuple(methods or ()), kept.taken)
     if save_part_to:
         save_part(part, save_part_to)
     md, csv_path, png = write_outputs([part], out)

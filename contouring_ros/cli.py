@@ -603,11 +603,13 @@ def _benchmark(args):
         outputs.active().claim(out / name, kind, "--out")
     if args.save_part:
         outputs.active().claim(args.save_part, outputs.PART, "--save-part")
+    if args.checkpoints:
+        outputs.active().claim_folder(args.checkpoints, "--checkpoints")
     if args.from_parts:
         from .benchmark import load_parts, write_outputs
-        if args.methods or args.scenarios or args.save_part:
-            raise ConfigError("--from-parts runs nothing: --methods, --scenarios and --save-part belong to the runs "
-                              "that wrote the parts")
+        if args.methods or args.scenarios or args.save_part or args.checkpoints:
+            raise ConfigError("--from-parts runs nothing: --methods, --scenarios, --save-part and --checkpoints belong "
+                              "to the runs that wrote the parts")
         md, table, png = write_outputs(load_parts(args.from_parts), args.out)
         print(f"wrote {md}, {table} and {png} from {len(args.from_parts)} parts")
         return
@@ -615,7 +617,8 @@ def _benchmark(args):
     md, table, png, seconds = main_benchmark(args.scenarios, protocol, args.out, args.workers,
                                              progress=sys.stderr.isatty(), say=say, command=command,
                                              scheduler=args.scheduler, save_part_to=args.save_part,
-                                             host=args.host or "", methods=args.methods or ())
+                                             host=args.host or "", methods=args.methods or (),
+                                             checkpoints=args.checkpoints)
     print(f"wrote {md}, {table} and {png} in {seconds / 60:.1f} min" + (f"; the part in {args.save_part}"
                                                                          if args.save_part else ""))
 
@@ -767,6 +770,10 @@ def main(argv=None):
                    help="only the combinations whose estimator, controller or servo set matches, e.g. 'ilc' "
                         "'mpcc' (and each scenario's proposed combination); with --save-part, a later "
                         "--from-parts puts their rows in place of an earlier full run's")
+    p.add_argument("--checkpoints", metavar="DIR",
+                   help="keep each tuned row in DIR as it finishes, and take the rows kept there by an earlier run of "
+                        "the same scenario, settings and code instead of tuning them again: a run stopped part way "
+                        "goes on where it stopped")
     p.add_argument("--host", help="the machine's name or description a saved part records (default: none)")
     p.add_argument("--from-parts", nargs="+", metavar="FILE", help="run nothing: write the report, CSV and figures "
                                                                    "from parts saved by --save-part")

@@ -548,3 +548,29 @@ def test_the_zpetc_pid_is_searched_at_a_chosen_ms_of_each_axis_loop(scenario):
     if file_point["servo ms"] > 1.2:          # inside the box: the file's gains come back
         for axis in ("x",):
             assert file_gains[f"{axis}/servo.kp"] == pytest.approx(search.validated[f"/{axis}/servo"]["kp"], rel=1e-3)
+
+
+def test_a_stopped_benchmark_goes_on_from_its_checkpoints(tmp_path):
+    from contouring_ros.checkpoints import SUFFIX, Checkpoints, row_key
+    families = select_families(scenario_families(), [SMALL])
+    kept = Checkpoints(tmp_path / "rows", tuning.Tuned)
+    first = run_benchmark(families, FAST, workers=2, checkpoints=kept)
+    tuned = [r for r in first if r.tuned is not None]
+    assert kept.taken == 0 and len(list((tmp_path / "rows").glob(f"*{SUFFIX}"))) == len(tuned) > 0
+    again = Checkpoints(tmp_path / "rows", tuning.Tuned)
+    second = run_benchmark(families, FAST, workers=1, checkpoints=again)
+    assert again.taken == len(tuned)                   # nothing tuned again
+    assert [r.label for r in second] == [r.label for r in first]
+    assert [r.figure("tace") for r in second] == [r.figure("tace") for r in first]
+    # a row is taken only for the same inputs: another protocol, machine or experiment is another key
+    data = {"x": [1.0, 2.0]}
+    assert row_key(data, FAST) == row_key({"x": [1.0, 2.0]}, FAST)
+    assert row_key(data, FAST) != row_key(data, dataclasses.replace(FAST, draws=3))
+    assert row_key(data, FAST) != row_key({"x": [1.0, 2.5]}, FAST)
+    # a damaged row file is named, not tuned over
+    damaged = next((tmp_path / "rows").glob(f"*{SUFFIX}"))
+    damaged.write_bytes(b"not a row")
+    with pytest.raises(ConfigError, match=f"--checkpoints {damaged}"):
+        run_benchmark(families, FAST, workers=1, checkpoints=Checkpoints(tmp_path / "rows", tuning.Tuned))
+    assert main(["benchmark", "--from-parts", str(damaged), "--checkpoints", str(tmp_path), "--out",
+                 str(tmp_path)]) == 2
