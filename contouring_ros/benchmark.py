@@ -515,7 +515,7 @@ def run_benchmark(families: list, protocol: Protocol | None = None, workers: int
                 args = (data, fit_to_machine(data, combo.sections, reference.machine), combo.gain_keys,
                         reference.machine, reference.noise_limit, family.from_time, protocol)
                 floor = reference.worst if math.isfinite(reference.worst) else 0.0
-                key = row_key(*args, floor)
+                key = row_key(*args, floor) if checkpoints.folder is not None else ""
                 row.tuned = checkpoints.get(key)
                 if row.tuned is not None:
                     row.status = row.tuned.status
@@ -528,7 +528,7 @@ def run_benchmark(families: list, protocol: Protocol | None = None, workers: int
                 row, key = running[job]
                 row.tuned = job.result()
                 row.status = row.tuned.status
-                checkpoints.put(key, row.tuned)
+                checkpoints.put(key, row.tuned, f"{row.family.name} {row.combination.label}")
                 bar.update(1)
     for family in families:
         mine = [r for r in rows if r.family is family and r.combination]

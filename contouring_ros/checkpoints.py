@@ -13,13 +13,14 @@ from __future__ import annotations
 
 import hashlib
 import json
+from dataclasses import dataclass
 from pathlib import Path
 
 from .errors import ConfigError
 from .executors import source_digest
-from .parts import load as read_part, save as write_part
+from .parts import load as read_part, register, save as write_part
 
-__all__ = ["SUFFIX", "row_key", "Checkpoints"]
+__all__ = ["SUFFIX", "row_key", "KeptRow", "Checkpoints"]
 
 SUFFIX = ".row"
 
@@ -29,6 +30,19 @@ def row_key(*inputs) -> str:
     dataclasses, written out by their JSON text or their repr)."""
     text = json.dumps([source_digest(), *inputs], default=repr, separators=(",", ":"))
     return hashlib.sha256(text.encode()).hexdigest()
+
+
+@dataclass
+class KeptRow:
+    """One kept row: its key (checked against the file's name as it is read: a file copied or renamed onto
+    another row's name is not taken for that row), what it is (scenario and combination) and its tuning."""
+
+    key: str
+    where: str
+    tuned: object
+
+
+register(KeptRow)
 
 
 class Checkpoints:
@@ -46,19 +60,30 @@ class Checkpoints:
         return self.folder / f"{key}{SUFFIX}"
 
     def get(self, key: str):
-        """The row kept under ``key``, or None. ConfigError naming the file when one is there but is not a
-        row (a damaged file is not tuned over silently)."""
+        """The row kept under ``key``, or None. ConfigError naming the file when one is there but is not the
+        row of that key (damaged, another file, another row's copied onto its name): it is not tuned over
+        silently."""
         if self.folder is None or not self.path(key).is_file():
             return None
-        row = read_part(self.path(key), f"{self.option} {self.path(key)}")
-        if not isinstance(row, self.kind):
-            raise ConfigError(f"{self.option} {self.path(key)}: holds a {type(row).__name__}, not a tuned row; "
-                              "remove it to tune that row again")
+        path = self.path(key)
+        where = f"{self.option} {path}"
+        try:
+            kept = read_part(path, where)
+        except ConfigError as error:
+            said = str(error).replace("a benchmark part (written by benchmark --save-part)", "a row kept by "
+                                      "--checkpoints").replace("benchmark part", "kept row")
+            raise ConfigError(f"{said} (remove it to tune that row again)") from None
+        if not isinstance(kept, KeptRow) or not isinstance(kept.tuned, self.kind):
+            raise ConfigError(f"{where}: holds a {type(kept).__name__}, not a row kept by --checkpoints (remove it "
+                              "to tune that row again)")
+        if kept.key != key:
+            raise ConfigError(f"{where}: holds the row of another key ({kept.where}), copied or renamed onto "
+                              "this name (remove it to tune that row again)")
         self.taken += 1
-        return row
+        return kept.tuned
 
-    def put(self, key: str, row) -> None:
-        """Keep ``row`` under ``key`` (written beside and moved into place: a run killed while writing leaves
-        no half file)."""
+    def put(self, key: str, row, where: str = "") -> None:
+        """Keep ``row`` (of the combination ``where``) under ``key`` (written beside and moved into place: a
+        run killed while writing leaves no half file)."""
         if self.folder is not None:
-            write_part(row, self.path(key))
+            write_part(KeptRow(key, where, row), self.path(key))

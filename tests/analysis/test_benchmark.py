@@ -567,10 +567,15 @@ def test_a_stopped_benchmark_goes_on_from_its_checkpoints(tmp_path):
     assert row_key(data, FAST) == row_key({"x": [1.0, 2.0]}, FAST)
     assert row_key(data, FAST) != row_key(data, dataclasses.replace(FAST, draws=3))
     assert row_key(data, FAST) != row_key({"x": [1.0, 2.5]}, FAST)
-    # a damaged row file is named, not tuned over
-    damaged = next((tmp_path / "rows").glob(f"*{SUFFIX}"))
+    # a row file under another row's name, or a damaged one, is named, not taken or tuned over
+    one, other = sorted((tmp_path / "rows").glob(f"*{SUFFIX}"))[:2]
+    one.write_bytes(other.read_bytes())
+    with pytest.raises(ConfigError, match=f"--checkpoints {one}: holds the row of another key"):
+        run_benchmark(families, FAST, workers=1, checkpoints=Checkpoints(tmp_path / "rows", tuning.Tuned))
+    damaged = one
     damaged.write_bytes(b"not a row")
-    with pytest.raises(ConfigError, match=f"--checkpoints {damaged}"):
+    with pytest.raises(ConfigError, match=f"^--checkpoints {damaged}: not a row kept by --checkpoints: not gzip "
+                                          "data \\(remove it to tune that row again\\)$"):
         run_benchmark(families, FAST, workers=1, checkpoints=Checkpoints(tmp_path / "rows", tuning.Tuned))
     assert main(["benchmark", "--from-parts", str(damaged), "--checkpoints", str(tmp_path), "--out",
                  str(tmp_path)]) == 2
