@@ -222,6 +222,9 @@ def has_limit(limit) -> bool:
 
 def symmetric_clip(value, limit):
     """``value`` clipped to +-``limit``; elementwise for arrays, where a limit of 0 means no limit."""
+    if limit.__class__ is float and limit > 0.0:                     # one limit for a run or a whole batch
+        return np.minimum(np.maximum(value, -limit), limit) if isinstance(value, np.ndarray) \
+            else max(-limit, min(limit, value))
     if isinstance(value, np.ndarray) or isinstance(limit, np.ndarray):
         limit = np.where(np.asarray(limit) > 0.0, limit, np.inf)
         return np.minimum(np.maximum(value, -limit), limit)        # np.clip's numbers, at half its cost on a batch
