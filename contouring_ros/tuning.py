@@ -100,9 +100,9 @@ PENALTY = 10.0      # objective added per decade (log10) a constraint is exceede
 class Protocol:
     """The tuning protocol: the same numbers for every method of a benchmark."""
 
-    evaluations: int = 200         # evaluations per search (the file's gains included in the first)
+    evaluations: int = 400         # evaluations per search (the file's gains included in the first)
     design: int = 48               # each search's first points: scrambled Sobol over the whole box, one batch
-    popsize: int = 8               # the first CMA-ES run's population; each restart doubles it (IPOP)
+    popsize: int = 16              # the first CMA-ES run's population; each restart doubles it (IPOP)
     step: float = 0.25             # CMA-ES's first step [share of each coordinate's range]
     searches: int = 3              # independent searches per combination (seeds seed, seed + 1, ...)
     max_searches: int = 6          # ... more, side by side, while they do not agree, up to this many

@@ -8,6 +8,11 @@ bound, refused unrun, ...), then the agreement rule's verdict.
 
     python tools/tune_row.py paper001_caseIII "tangent_line + variable_gain / pid"
     python tools/tune_row.py paper000_h50 "newton + unit_vector / ismc" --searches 4 --budget 300
+
+``--whole`` tunes the row as the benchmark does (``Tuning.run``: more searches side by side while fewer than
+the protocol's agree, up to ``--max-searches``, then the draws); ``--popsize`` sets CMA-ES's first population:
+
+    python tools/tune_row.py paper001_caseIII "osculating_circle + ilc / pid" --whole --popsize 8 --budget 200
 """
 from __future__ import annotations
 
@@ -42,6 +47,10 @@ def main(argv=None) -> int:
     parser.add_argument("combination", help="a combination's label as the report gives it")
     parser.add_argument("--searches", type=int, default=Protocol.searches)
     parser.add_argument("--budget", type=int, default=Protocol.evaluations, help="evaluations of each search")
+    parser.add_argument("--popsize", type=int, default=Protocol.popsize, help="CMA-ES's first population")
+    parser.add_argument("--max-searches", type=int, default=Protocol.max_searches,
+                        help="with --whole: searches at most, while they do not agree")
+    parser.add_argument("--whole", action="store_true", help="the benchmark's whole tuning of the row (Tuning.run)")
     args = parser.parse_args(argv)
     families = {f.name: f for f in scenario_families()}
     if args.scenario not in families:
@@ -51,7 +60,8 @@ def main(argv=None) -> int:
     if args.combination not in combos:
         parser.error(f"no combination {args.combination!r} in {args.scenario} (combinations: {'; '.join(combos)})")
     combo = combos[args.combination]
-    protocol = dataclasses.replace(Protocol(), evaluations=args.budget, searches=args.searches)
+    protocol = dataclasses.replace(Protocol(), evaluations=args.budget, searches=args.searches, popsize=args.popsize,
+                                   max_searches=max(args.max_searches, args.searches))
     data = family.data[family.proposed]
     reference = reference_job(data, family.from_time, family.name, protocol)
     noise_limit = protocol.noise_factor * reference.published.noise if reference.published.ok else math.inf
@@ -60,6 +70,15 @@ def main(argv=None) -> int:
                     reference.worst if math.isfinite(reference.worst) else 0.0)
     print(f"{family.name} {combo.label}: {tuning.space.describe()}")
     started = time.process_time()
+    if args.whole:
+        tuned = tuning.run()
+        for i, tace in enumerate(tuned.search_tace):
+            mine = [e for e in tuned.evaluations if e.search == i]
+            counts = ", ".join(f"{n} {k}" for k, n in collections.Counter(kind(e) for e in mine).most_common())
+            print(f"search {i}: {tace * 1e6:.4g} um ({counts})")
+        print(f"{tuned.agreement.describe()}; kept search {tuned.search}: {tuned.status}; "
+              f"{time.process_time() - started:.1f} s of CPU")
+        return 0
     searches = tuning.search(list(range(args.searches)))
     for i, found in enumerate(searches):
         mine = [e for e in tuning.tuned.evaluations if e.search == i]

@@ -43,11 +43,15 @@ def basins(points):
     return out
 
 
+#: a search's budget on the valley: 54 generations of the benchmark's population after its design
+VALLEY_BUDGET = PROTOCOL.design + 54 * PROTOCOL.popsize
+
+
 @pytest.mark.parametrize("seed", [1, 2, 3])
 def test_it_follows_a_narrow_valley_to_its_minimum(seed):
-    trace = search(valley, [0.1, 0.9, 0.1], 480, seed)
+    trace = search(valley, [0.1, 0.9, 0.1], VALLEY_BUDGET, seed)
     point, value = trace.best
-    assert trace.evaluations <= 480
+    assert trace.evaluations <= VALLEY_BUDGET
     assert valley([[0.1, 0.9, 0.1]])[0] > 3.0 and value < WITHIN_5_PERCENT      # 1442x the floor at the start
     d = point - VALLEY_MINIMUM
     assert abs(d[1] - d[0] - 2.0 * (d[0] + d[1]) ** 2) < 0.01                  # on the valley's floor
@@ -101,7 +105,7 @@ def test_searches_side_by_side_share_each_round_and_end_as_they_would_alone():
 def test_a_short_search_is_not_converged_and_long_ones_are():
     starts = [[0.1, 0.9, 0.1], [0.9, 0.1, 0.9], [0.5, 0.95, 0.05]]
     short = [ipop_cmaes(valley, start, 12, seed).best[1] for seed, start in enumerate(starts, 1)]
-    long = [search(valley, start, 480, seed).best[1] for seed, start in enumerate(starts, 1)]
+    long = [search(valley, start, VALLEY_BUDGET, seed).best[1] for seed, start in enumerate(starts, 1)]
     # compared as the tuning compares its searches: by the TACE, 10^value
     assert not agreement([10.0 ** v for v in short]).converged
     assert agreement([10.0 ** v for v in long]).converged
