@@ -550,7 +550,7 @@ def test_the_zpetc_pid_is_searched_at_a_chosen_ms_of_each_axis_loop(scenario):
             assert file_gains[f"{axis}/servo.kp"] == pytest.approx(search.validated[f"/{axis}/servo"]["kp"], rel=1e-3)
 
 
-def test_a_stopped_benchmark_goes_on_from_its_checkpoints(tmp_path):
+def test_a_stopped_benchmark_goes_on_from_its_checkpoints(tmp_path, capsys):
     from contouring_ros.checkpoints import SUFFIX, Checkpoints, row_key
     families = select_families(scenario_families(), [SMALL])
     kept = Checkpoints(tmp_path / "rows", tuning.Tuned)
@@ -560,6 +560,16 @@ def test_a_stopped_benchmark_goes_on_from_its_checkpoints(tmp_path):
     again = Checkpoints(tmp_path / "rows", tuning.Tuned)
     second = run_benchmark(families, FAST, workers=1, checkpoints=again)
     assert again.taken == len(tuned)                   # nothing tuned again
+    # tools/checkpoint_status.py says what a run has kept so far, per scenario
+    import importlib.util
+    from pathlib import Path
+    spec = importlib.util.spec_from_file_location(
+        "checkpoint_status", Path(__file__).resolve().parents[2] / "tools" / "checkpoint_status.py")
+    status = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(status)
+    assert status.main([str(tmp_path / "rows"), "--rows"]) == 0
+    said = capsys.readouterr().out
+    assert f"{SMALL}: {len(tuned)} rows kept" in said and all(r.combination.label in said for r in tuned)
     assert [r.label for r in second] == [r.label for r in first]
     assert [r.figure("tace") for r in second] == [r.figure("tace") for r in first]
     # a row is taken only for the same inputs: another protocol, machine or experiment is another key

@@ -1,0 +1,62 @@
+"""What a benchmark run with ``--checkpoints DIR`` has tuned so far: per scenario, the rows kept, how many
+converged and their CPU time, and each row's searches (while the run goes on, or after it stopped).
+
+    python tools/checkpoint_status.py DIR [--rows]
+"""
+from __future__ import annotations
+
+import argparse
+import collections
+import math
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+from contouring_ros import benchmark  # noqa: E402,F401  (registers the classes a kept row holds)
+from contouring_ros.checkpoints import SUFFIX, KeptRow  # noqa: E402
+from contouring_ros.errors import ConfigError  # noqa: E402
+from contouring_ros.parts import load  # noqa: E402
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("folder", help="the --checkpoints folder")
+    parser.add_argument("--rows", action="store_true", help="also each row: CPU, searches agreeing, their TACEs")
+    args = parser.parse_args(argv)
+    files = sorted(Path(args.folder).glob(f"*{SUFFIX}"))
+    if not files:
+        parser.error(f"{args.folder}: no kept rows ({SUFFIX} files) there")
+    scenarios = collections.defaultdict(list)
+    for path in files:
+        try:
+            kept = load(path)
+        except ConfigError as error:
+            print(f"skipped: {error}", file=sys.stderr)
+            continue
+        if not isinstance(kept, KeptRow):
+            print(f"skipped: {path}: not a row kept by --checkpoints (a {type(kept).__name__})", file=sys.stderr)
+            continue
+        scenario, _, combination = kept.where.partition(" ")
+        scenarios[scenario].append((combination, kept.tuned))
+    total = converged = 0
+    cpu = 0.0
+    for scenario, rows in sorted(scenarios.items()):
+        tuned = [t for _, t in rows if t.agreement is not None]
+        agreeing = sum(t.converged for t in tuned)
+        seconds = sum(t.cpu for _, t in rows if math.isfinite(t.cpu))
+        total, converged, cpu = total + len(tuned), converged + agreeing, cpu + seconds
+        print(f"{scenario}: {len(rows)} rows kept, {agreeing} of {len(tuned)} tuned converged, {seconds / 60:.1f} min of CPU")
+        if args.rows:
+            for combination, t in sorted(rows, key=lambda r: r[0]):
+                a = t.agreement
+                agreed = f"{a.agreed} of {a.searches}" if a is not None else "-"
+                taces = ", ".join(f"{v * 1e6:.4g}" for v in t.search_tace)
+                print(f"  {combination}: {t.cpu:.0f} s, {agreed} agree{'' if t.converged else ' (not converged)'}, "
+                      f"{t.status.split(':')[0]}; searches' TACE [um] {taces}")
+    print(f"in all: {converged} of {total} tuned rows converged, {cpu / 60:.1f} min of CPU")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
