@@ -42,7 +42,7 @@ def main(argv=None) -> int:
     total = converged = 0
     cpu = 0.0
     for scenario, rows in sorted(scenarios.items()):
-        tuned = [t for _, t in rows if t.agreement is not None]
+        tuned = [t for _, t in rows if t.agreement is not None and t.space]      # the report's tuned rows
         agreeing = sum(t.converged for t in tuned)
         seconds = sum(t.cpu for _, t in rows if math.isfinite(t.cpu))
         total, converged, cpu = total + len(tuned), converged + agreeing, cpu + seconds
