@@ -771,9 +771,9 @@ def main(argv=None):
                         "'mpcc' (and each scenario's proposed combination); with --save-part, a later "
                         "--from-parts puts their rows in place of an earlier full run's")
     p.add_argument("--checkpoints", metavar="DIR",
-                   help="keep each tuned row in DIR (made if missing) as it finishes, and take the rows kept there "
-                        "by an earlier run of the same scenario, settings and code instead of tuning them again: a "
-                        "run stopped part way goes on where it stopped")
+                   help="keep each tuned row in DIR (made if missing) as it finishes, and take the rows kept there by an earlier run of "
+                        "the same scenario, settings and code instead of tuning them again: a run stopped part way "
+                        "goes on where it stopped")
     p.add_argument("--host", help="the machine's name or description a saved part records (default: none)")
     p.add_argument("--from-parts", nargs="+", metavar="FILE", help="run nothing: write the report, CSV and figures "
                                                                    "from parts saved by --save-part")
