@@ -44,7 +44,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from .checkpoints import Checkpoints, row_key
+from .checkpoints import Checkpoints
 from .claims import claim_files, load_claims
 from .experiment.build import build_loop
 from .experiment.catalogue import CONTROLLERS, ESTIMATORS, SERVOS
@@ -515,7 +515,7 @@ def run_benchmark(families: list, protocol: Protocol | None = None, workers: int
                 args = (data, fit_to_machine(data, combo.sections, reference.machine), combo.gain_keys,
                         reference.machine, reference.noise_limit, family.from_time, protocol)
                 floor = reference.worst if math.isfinite(reference.worst) else 0.0
-                key = row_key(*args, floor) if checkpoints.folder is not None else ""
+                key = checkpoints.key(*args, floor)
                 row.tuned = checkpoints.get(key)
                 if row.tuned is not None:
                     row.status = row.tuned.status

@@ -25,10 +25,10 @@ __all__ = ["SUFFIX", "row_key", "KeptRow", "Checkpoints"]
 SUFFIX = ".row"
 
 
-def row_key(*inputs) -> str:
-    """SHA-256 (hex) of the package's source and ``inputs`` (a tuning job's arguments: plain data and
-    dataclasses, written out by their JSON text or their repr)."""
-    text = json.dumps([source_digest(), *inputs], default=repr, separators=(",", ":"))
+def row_key(*inputs, source: str | None = None) -> str:
+    """SHA-256 (hex) of the package's source (its digest ``source``, default the package's now) and ``inputs``
+    (a tuning job's arguments: plain data and dataclasses, written out by their JSON text or their repr)."""
+    text = json.dumps([source or source_digest(), *inputs], default=repr, separators=(",", ":"))
     return hashlib.sha256(text.encode()).hexdigest()
 
 
@@ -53,8 +53,14 @@ class Checkpoints:
         self.folder = Path(folder) if folder is not None else None
         self.kind, self.option = kind, option
         self.taken = 0              # rows taken from the folder in this run
+        self.source = None          # the package's source digest as the run starts: every row's key has it
         if self.folder is not None:
             self.folder.mkdir(parents=True, exist_ok=True)
+            self.source = source_digest()
+
+    def key(self, *inputs) -> str:
+        """The key of a row of ``inputs`` (:func:`row_key`; "" where no rows are kept)."""
+        return row_key(*inputs, source=self.source) if self.folder is not None else ""
 
     def path(self, key: str) -> Path:
         return self.folder / f"{key}{SUFFIX}"

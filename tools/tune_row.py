@@ -41,6 +41,12 @@ def kind(evaluation) -> str:
     return "noisy or saturated"
 
 
+def counts(evaluations: list, search: int) -> str:
+    """Search ``search``'s evaluations by outcome (:func:`kind`), the most frequent first."""
+    mine = collections.Counter(kind(e) for e in evaluations if e.search == search)
+    return ", ".join(f"{n} {k}" for k, n in mine.most_common())
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("scenario")
@@ -73,18 +79,14 @@ def main(argv=None) -> int:
     if args.whole:
         tuned = tuning.run()
         for i, tace in enumerate(tuned.search_tace):
-            mine = [e for e in tuned.evaluations if e.search == i]
-            counts = ", ".join(f"{n} {k}" for k, n in collections.Counter(kind(e) for e in mine).most_common())
-            print(f"search {i}: {tace * 1e6:.4g} um ({counts})")
+            print(f"search {i}: {tace * 1e6:.4g} um ({counts(tuned.evaluations, i)})")
         print(f"{tuned.agreement.describe()}; kept search {tuned.search}: {tuned.status}; "
               f"{time.process_time() - started:.1f} s of CPU")
         return 0
     searches = tuning.search(list(range(args.searches)))
     for i, found in enumerate(searches):
-        mine = [e for e in tuning.tuned.evaluations if e.search == i]
-        counts = ", ".join(f"{n} {k}" for k, n in collections.Counter(kind(e) for e in mine).most_common())
         where = tuning.space.text(found.chosen.point) if found.chosen is not None else found.status
-        print(f"search {i}: {found.tace * 1e6:.4g} um at {where} ({counts})")
+        print(f"search {i}: {found.tace * 1e6:.4g} um at {where} ({counts(tuning.tuned.evaluations, i)})")
     print(f"{searches_agreement(searches, protocol).describe()}; {time.process_time() - started:.1f} s of CPU")
     return 0
 
