@@ -7,14 +7,14 @@ from setuptools import find_packages, setup
 
 package_name = "contouring_ros"
 # the node catalogue, read by path: building the package imports neither it nor numpy or rclpy
-CATALOGUE = runpy.run_path(str(Path(__file__).resolve().parent / package_name / "nodes" / "catalogue.py"))
+CATALOGUE = runpy.run_path(str(Path(__file__).resolve().parent / package_name / "wire" / "catalogue.py"))
 
 setup(
     name=package_name,
     version="0.1.0",
     python_requires=">=3.11",
     packages=find_packages(exclude=["tests"]),
-    package_data={package_name: ["fastdds_profile.xml", "fastdds_profile_network.xml"]},
+    package_data={f"{package_name}.run": ["fastdds_profile.xml", "fastdds_profile_network.xml"]},
     data_files=[
         ("share/ament_index/resource_index/packages", [f"resource/{package_name}"]),
         (f"share/{package_name}", ["package.xml"]),

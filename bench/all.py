@@ -37,12 +37,12 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from contouring_ros.bag import node_reports  # noqa: E402
+from contouring_ros.records.bag import node_reports  # noqa: E402
 from contouring_ros.experiment.files import load_experiment  # noqa: E402
 from contouring_ros.errors import RunError  # noqa: E402
-from contouring_ros.runner import DomainLease, private_environment  # noqa: E402
-from contouring_ros.scoring import miss_rate  # noqa: E402
-from contouring_ros.sweep import BATCH, run_sweep  # noqa: E402
+from contouring_ros.run.runner import DomainLease, private_environment  # noqa: E402
+from contouring_ros.records.scoring import miss_rate  # noqa: E402
+from contouring_ros.studies.sweep import BATCH, run_sweep  # noqa: E402
 from graph_speed import LAYOUTS, line_experiment, lockstep_run, run_layout, simulation_rate  # noqa: E402
 # (bench/ is this script's folder)
 

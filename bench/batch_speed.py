@@ -17,7 +17,7 @@ Where numba is installed (:mod:`contouring_ros.core.kernels`) each case is measu
 kernels and with the pure numpy path (``pure`` lines), alternated in the same process, and the speed-up is
 printed; ``--pure`` measures the pure path alone.
 
-``--sweep W ...`` then times :func:`contouring_ros.sweep.run_sweep` of the default experiment (``--sweep-size``
+``--sweep W ...`` then times :func:`contouring_ros.studies.sweep.run_sweep` of the default experiment (``--sweep-size``
 combinations of ccc.kp, ``--seconds`` each) with each number of local worker processes W, and prints
 configuration-steps per second of wall time and the scaling relative to the first W.
 
@@ -43,7 +43,7 @@ from contouring_ros.core import kernels  # noqa: E402
 from contouring_ros.core.batch import batch_problem, simulate_batch  # noqa: E402
 from contouring_ros.core.curves import Parabola  # noqa: E402
 from contouring_ros.core.simulation import simulate  # noqa: E402
-from contouring_ros.sweep import combinations, run_sweep  # noqa: E402
+from contouring_ros.studies.sweep import combinations, run_sweep  # noqa: E402
 
 CONFIG = ROOT / "config"
 DEFAULT = CONFIG / "paper000_b_ismc_h50_newton.yaml"

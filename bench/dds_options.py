@@ -27,7 +27,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from contouring_ros import runner  # noqa: E402
+from contouring_ros.run import runner  # noqa: E402
 from all import DEFAULT, floor_hop_us, with_globals  # noqa: E402
 from graph_speed import lockstep_run  # noqa: E402
 # (bench/ is this script's folder)

@@ -21,12 +21,12 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from contouring_ros import graph  # noqa: E402
-from contouring_ros.bag import RUN_METADATA, read_metadata  # noqa: E402
+from contouring_ros.wire import graph  # noqa: E402
+from contouring_ros.records.bag import RUN_METADATA, read_metadata  # noqa: E402
 from contouring_ros.experiment.build import build_loop  # noqa: E402
 from contouring_ros.experiment.files import load_experiment  # noqa: E402
 from contouring_ros.core.simulation import simulate  # noqa: E402
-from contouring_ros.runner import run_graph  # noqa: E402
+from contouring_ros.run.runner import run_graph  # noqa: E402
 
 
 def simulation_rate(config, runs: int = 5) -> tuple[float, float]:

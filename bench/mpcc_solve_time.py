@@ -25,7 +25,7 @@ sys.path.insert(0, str(ROOT))
 from contouring_ros.core.simulation import simulate  # noqa: E402
 from contouring_ros.experiment.build import build_loop  # noqa: E402
 from contouring_ros.experiment.validate import parse_experiment  # noqa: E402
-from contouring_ros.scoring import score_run  # noqa: E402
+from contouring_ros.records.scoring import score_run  # noqa: E402
 
 SCENARIO = ROOT / "config" / "paper003_ellipse_natural_local_fn100.yaml"
 MPCC = ("/ccc:\n  ros__parameters:\n    type: mpcc\n    mass: [1.0, 1.0]\n    damping: [798.5, 862.75]\n"

@@ -24,7 +24,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from contouring_ros.blocks import block_results, cutting_scores  # noqa: E402
+from contouring_ros.records.blocks import block_results, cutting_scores  # noqa: E402
 from contouring_ros.experiment.build import build_loop  # noqa: E402
 from contouring_ros.experiment.files import load_experiment  # noqa: E402
 from contouring_ros.core.simulation import simulate  # noqa: E402

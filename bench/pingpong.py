@@ -19,9 +19,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 import rclpy  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 
-from contouring_ros import cdr  # noqa: E402
+from contouring_ros.wire import cdr  # noqa: E402
 from contouring_ros.nodes.lockstep import GRAPH_QOS  # noqa: E402
-from contouring_ros.rclpy_adapter import SubscriptionWaitSet, taker  # noqa: E402
+from contouring_ros.nodes.rclpy_adapter import SubscriptionWaitSet, taker  # noqa: E402
 
 
 def main():

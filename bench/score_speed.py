@@ -19,7 +19,7 @@ sys.path.insert(0, str(ROOT))
 SCORE = """
 import resource, sys, time
 start = time.perf_counter()
-from contouring_ros.scoring import score_bag
+from contouring_ros.records.scoring import score_bag
 scores, run = score_bag(sys.argv[1])
 elapsed = time.perf_counter() - start
 peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
@@ -28,7 +28,7 @@ print(f"{run.complete_steps} {elapsed:.3f} {peak:.1f} {scores.mce * 1e6:.4f}")
 
 
 def main():
-    from contouring_ros.bag import write_simulation
+    from contouring_ros.records.bag import write_simulation
     from contouring_ros.experiment.build import build_loop
     from contouring_ros.experiment.files import load_experiment
     from contouring_ros.core.simulation import simulate

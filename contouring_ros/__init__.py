@@ -4,7 +4,10 @@ The Python API (:mod:`contouring_ros.api`) is available at the top level: ``load
 ``simulate_passes``, ``read_bag``, ``sweep_grid`` and ``Run``; it is imported on first use, so the nodes start without it.
 """
 
-__version__ = "0.1.0"
+from ._version import __version__ as __version__
+from ._moved import install as _install_moved
+
+_install_moved()       # the modules that moved into the role folders answer to their old names too
 _API = ("Run", "load_experiment", "simulate", "simulate_passes", "read_bag", "sweep_grid")
 __all__ = list(_API)
 

@@ -30,11 +30,12 @@ from .core.geometry import ExactContourError
 from .core.simulation import simulate as _simulate_loop
 from .errors import ConfigError
 from .experiment.scenarios import experiment_path
-from .export import run_table
-from .scoring import check_experiment_matches, curve_of, read_run, score_run
-from .learning import pass_experiment
-from .learning import simulate_passes as run_passes_in_process
-from .sweep import apply_settings, name_settings, run_sweep
+from .records.export import run_table
+from .records.scoring import check_experiment_matches, curve_of, read_run, score_run
+from .studies.learning import pass_experiment
+from .studies.learning import simulate_passes as run_passes_in_process
+from .studies.sweep import run_sweep
+from .experiment.settings import apply_settings, name_settings
 
 __all__ = ["Run", "load_experiment", "simulate", "simulate_passes", "read_bag", "sweep_grid"]
 
@@ -72,7 +73,7 @@ class Run:
     def scores(self, from_time: float = 0.0):
         """The run's :class:`~contouring_ros.core.metrics.Scores` (lengths in metres), of the samples at
         t >= ``from_time`` when given (on a tool path, of the steps of its motion:
-        :func:`contouring_ros.scoring.score_run`)."""
+        :func:`contouring_ros.records.scoring.score_run`)."""
         return score_run(self.curve, self.result, from_time, self.experiment)
 
     def exact_contour_error(self) -> np.ndarray:
@@ -120,7 +121,7 @@ def simulate(experiment, settings: dict | None = None) -> Run:
 
 def simulate_passes(experiment, settings: dict | None = None) -> list:
     """A :class:`Run` per pass of a learning experiment (ILC: each pass plays back the correction learned
-    from the one before, and meets noise of its own; :mod:`contouring_ros.learning`), in order; one Run
+    from the one before, and meets noise of its own; :mod:`contouring_ros.studies.learning`), in order; one Run
     for any other experiment."""
     experiment = _with_settings(load_experiment(experiment), settings)
     return [Run(pass_experiment(experiment, j), result, loop.curve, program_warnings(loop.curve), loop)

@@ -111,13 +111,13 @@ def _with_settings(config: Path, specs):
     if not specs:
         yield config, None
         return
-    from .sweep import written_settings
+    from .experiment.settings import written_settings
     with tempfile.TemporaryDirectory(prefix="contouring_ros_set_") as directory:
         yield written_settings(config, specs, directory)
 
 
 def _run(args):
-    from . import outputs
+    from .records import outputs
     if args.bag:
         outputs.active().claim(args.bag, outputs.BAG, "--bag")
     else:
@@ -127,8 +127,8 @@ def _run(args):
 
 
 def _run_config(args, config: Path, experiment=None):
-    from .runner import run_graph
-    from .scoring import format_scores, score_bag
+    from .run.runner import run_graph
+    from .records.scoring import format_scores, score_bag
     try:
         if sum(map(bool, (args.composed, args.group, args.process))) > 1:
             raise ConfigError("--process, --composed and --group are three layouts: give one")
@@ -140,7 +140,7 @@ def _run_config(args, config: Path, experiment=None):
             experiment = load_experiment(config)       # the one parse of the file in this process
         for warning in program_warnings(build_curve(experiment)):
             print(f"warning: {warning}", file=sys.stderr)
-        from .learning import pass_bag, passes
+        from .studies.learning import pass_bag, passes
 
         def run_one(path, bag, parsed):
             from .notices import progress_of
@@ -176,11 +176,11 @@ def _run_config(args, config: Path, experiment=None):
     if args.from_time:
         print(f"scores of the samples at t >= {args.from_time:g} s")
     print(format_scores([(experiment.name, scores)], run.axes))
-    from .scoring import curve_of, cutting_lines
+    from .records.scoring import curve_of, cutting_lines
     for line in cutting_lines(curve_of(run), run.result, run.require_experiment()):
         print(line)
-    from .bag import node_reports
-    from .scoring import format_realtime
+    from .records.bag import node_reports
+    from .records.scoring import format_realtime
     realtime = format_realtime(node_reports(bag))
     if realtime:
         print(realtime)
@@ -189,7 +189,7 @@ def _run_config(args, config: Path, experiment=None):
 
 def _exit_on_breach(curve, result, experiment, bag=None):
     """A run that monitoring stopped ends in one line on stderr and exit status 1 (its bag, if any, whole)."""
-    from .scoring import breach_message
+    from .records.scoring import breach_message
     line = breach_message(curve, result, experiment)
     if line is not None:
         print(f"error: {line}" + (f" (bag {bag}, complete)" if bag is not None else ""), file=sys.stderr)
@@ -198,11 +198,11 @@ def _exit_on_breach(curve, result, experiment, bag=None):
 
 def _run_passes(config: Path, experiment, bag, run_one, from_time: float = 0.0):
     """Every pass of a learning experiment through the graph, each pass's scores as it ends, then all side by
-    side (:mod:`contouring_ros.learning`)."""
-    from . import outputs
-    from .learning import learned_path, pass_bag, passes, run_passes
-    from .runner import default_bag_path
-    from .scoring import curve_of, format_scores, score_run
+    side (:mod:`contouring_ros.studies.learning`)."""
+    from .records import outputs
+    from .studies.learning import learned_path, pass_bag, passes, run_passes
+    from .run.runner import default_bag_path
+    from .records.scoring import curve_of, format_scores, score_run
     if bag:
         for j in range(1, passes(experiment) + 1):
             outputs.active().claim(pass_bag(Path(bag), j), outputs.BAG, "--bag")
@@ -227,12 +227,12 @@ def _simulate(args):
     from .experiment.files import load_experiment
     from .notices import note_while_slow
     from .core.simulation import simulate
-    from .scoring import cutting_lines, format_scores, score_run
+    from .records.scoring import cutting_lines, format_scores, score_run
     from .experiment.catalogue.curves import program_warnings
     with _with_settings(_experiment_path(args.config), args.set) as (config, experiment):
         if experiment is None:
             experiment = load_experiment(config)
-    from .learning import passes
+    from .studies.learning import passes
     if passes(experiment) > 1:
         _simulate_passes(experiment, args.from_time, args.bag)
         return
@@ -266,7 +266,7 @@ def _simulate(args):
 def _bag_target(given: str, experiment) -> Path:
     """Where ``simulate --bag`` writes: the path given (refused if something is there: a user's file is never
     overwritten), or bags/<experiment>_<time>.mcap for ``--bag`` alone, as ``run`` names its bags."""
-    from .runner import default_bag_path
+    from .run.runner import default_bag_path
     path = default_bag_path(experiment) if given == _DEFAULT_BAG else Path(given)
     if path.exists() or path.is_symlink():
         raise ConfigError(f"--bag {path}: a file of that name exists (name another, or remove it)")
@@ -277,9 +277,9 @@ def _bag_target(given: str, experiment) -> Path:
 
 def _write_simulation_bag(given: str, experiment, result) -> Path:
     """The in-process run's bag, as the node graph's recorder would have written it (the same topics, types
-    and payloads: :func:`contouring_ros.bag.write_simulation`)."""
-    from .bag import write_simulation
-    from .outputs import write_atomically
+    and payloads: :func:`contouring_ros.records.bag.write_simulation`)."""
+    from .records.bag import write_simulation
+    from .records.outputs import write_atomically
     path = _bag_target(given, experiment)
     path.parent.mkdir(parents=True, exist_ok=True)
     return write_atomically(path, lambda tmp: write_simulation(tmp, experiment, result))
@@ -288,8 +288,8 @@ def _write_simulation_bag(given: str, experiment, result) -> Path:
 def _simulate_passes(experiment, from_time: float = 0.0, bag: str | None = None):
     """Every pass of a learning experiment in-process, then their scores side by side (of the samples at
     t >= ``from_time``); with ``bag``, each pass's bag as ``run`` names them (``<bag>_pass<j>.mcap``)."""
-    from .learning import pass_bag, pass_experiment, passes as passes_of, simulate_passes
-    from .scoring import format_scores, score_run
+    from .studies.learning import pass_bag, pass_experiment, passes as passes_of, simulate_passes
+    from .records.scoring import format_scores, score_run
     rows = []
     base = _bag_target(bag, experiment) if bag is not None else None
     if base is not None:
@@ -312,7 +312,7 @@ def _simulate_passes(experiment, from_time: float = 0.0, bag: str | None = None)
 
 def _given(args) -> dict:
     """The reader's keywords for ``--experiment FILE`` (bags recorded without one): the file's text and its
-    Experiment, parsed here once for every bag (see :func:`contouring_ros.scoring.read_run`); none without it."""
+    Experiment, parsed here once for every bag (see :func:`contouring_ros.records.scoring.read_run`); none without it."""
     if getattr(args, "experiment", None) is None:
         return {}
     from .experiment.files import load_experiment
@@ -321,7 +321,7 @@ def _given(args) -> dict:
 
 
 def _scored(args):
-    from .scoring import score_bag
+    from .records.scoring import score_bag
     given = _given(args)
     start = getattr(args, "from_time", 0.0) or 0.0
     results = [(Path(bag).stem, *score_bag(bag, progress=sys.stderr.isatty(), from_time=start, **given))
@@ -345,7 +345,7 @@ def _json_scores(scores, axes) -> dict:
 
 
 def _score(args):
-    from .scoring import format_scores
+    from .records.scoring import format_scores
     results = _scored(args)
     if args.json:
         print(json.dumps({name: _json_scores(scores, run.axes) for name, scores, run in results}, indent=2))
@@ -358,10 +358,10 @@ def _score(args):
 def _blocks(args):
     from dataclasses import replace
 
-    from .blocks import block_results, format_blocks, write_blocks_csv
+    from .records.blocks import block_results, format_blocks, write_blocks_csv
     from .experiment.build import build_schedule
-    from .scoring import curve_of, cutting_lines, motion_steps, read_run
-    from . import outputs
+    from .records.scoring import curve_of, cutting_lines, motion_steps, read_run
+    from .records import outputs
     if args.csv:
         outputs.active().claim_folder(args.csv, "--csv")
         for bag in args.bags:
@@ -387,7 +387,7 @@ def _blocks(args):
 
 
 def _compare(args):
-    from .analysis import compare_table, experiment_differences, format_differences, run_names
+    from .records.analysis import compare_table, experiment_differences, format_differences, run_names
     if args.baseline:
         args.bags = [args.baseline] + [bag for bag in args.bags if bag != args.baseline]
     results = _scored(args)
@@ -402,7 +402,7 @@ def _compare(args):
 
 def _replay(args):
     if args.play:
-        from .playback import play_bag
+        from .run.playback import play_bag
         topics = [t.strip() for t in args.topics.split(",")] if args.topics is not None else None
         try:
             play_bag(args.bag, rate=args.rate, progress=sys.stderr.isatty(), loop=args.loop, start=args.start,
@@ -410,8 +410,8 @@ def _replay(args):
         except KeyboardInterrupt:      # the player has said where it stopped
             raise SystemExit(130)
         return
-    from .analysis import parse_estimator_spec, replay_estimators
-    from .scoring import read_run
+    from .records.analysis import parse_estimator_spec, replay_estimators
+    from .records.scoring import read_run
     if not args.estimator:
         raise SystemExit("error: replay needs --estimator NAME[:key=value,...] (or --play)")
     run = read_run(args.bag, progress=sys.stderr.isatty(), **_given(args))
@@ -427,9 +427,9 @@ def _replay(args):
 def _plot(args):
     import numpy as np
 
-    from .analysis import figures, html_report, write_figures
-    from .scoring import curve_of, read_run, score_run
-    from . import outputs
+    from .records.analysis import figures, html_report, write_figures
+    from .records.scoring import curve_of, read_run, score_run
+    from .records import outputs
     if args.baseline:
         args.bags = [args.baseline] + [bag for bag in args.bags if bag != args.baseline]
     out = outputs.active().claim_folder(args.out or Path(args.bags[0]).with_suffix(""), "--out")
@@ -455,8 +455,8 @@ def _plot(args):
 
 
 def _export(args):
-    from .export import export_bag
-    from . import outputs
+    from .records.export import export_bag
+    from .records import outputs
     if args.csv is None and args.parquet is None:
         raise ConfigError("export needs --csv DIR and/or --parquet DIR")
     for option, folder, suffix, kind in (("--csv", args.csv, ".csv", outputs.EXPORT_CSV),
@@ -479,8 +479,9 @@ def _sweep(args):
     from .experiment.files import load_experiment
     import time
 
-    from .sweep import BATCH, format_sweep, parse_grid, run_sweep, sweep_summary, write_sweep_csv
-    from . import outputs
+    from .studies.sweep import BATCH, format_sweep, run_sweep, sweep_summary, write_sweep_csv
+    from .experiment.settings import parse_grid
+    from .records import outputs
     experiment = load_experiment(_experiment_path(args.config))
     if args.batch is not None and args.batch < 1:
         raise ConfigError(f"--batch {args.batch}: expected a positive number of combinations")
@@ -501,12 +502,12 @@ def _sweep(args):
 
 
 def _paper(args):
-    from .paper import available_papers, paper_report, write_report
+    from .studies.paper import available_papers, paper_report, write_report
     papers = available_papers()
     if args.paper != "all" and args.paper not in papers:
         raise ConfigError(f"paper {args.paper!r}: no scenario files config/paper{args.paper}_*.yaml "
                           f"(papers with scenarios: {', '.join(papers)}, or all)")
-    from . import outputs
+    from .records import outputs
     out = outputs.active().claim_folder(args.out, "--out")
     outputs.active().claim(out / ("papers.md" if args.paper == "all" else f"paper{args.paper}.md"), outputs.REPORT,
                            "--out")
@@ -515,7 +516,7 @@ def _paper(args):
     say = lambda m: print(m, file=sys.stderr, flush=True)  # noqa: E731
     chosen = papers if args.paper == "all" else [args.paper]
     if args.readings:
-        from .readings import analyse, readings_files, readings_report
+        from .studies.readings import analyse, readings_files, readings_report
         with_readings = {path.stem[5:] for path in readings_files()}
         if args.paper != "all" and args.paper not in with_readings:
             raise ConfigError(f"paper {args.paper}: no config/readings/paper{args.paper}.yaml (papers with "
@@ -531,7 +532,7 @@ def _paper(args):
     print(f"wrote {write_report(text, args.paper, args.out, args.readings)}", file=sys.stderr)
     if args.readings:
         return
-    from .claims import claim_files, claims_report, write_claims_report
+    from .studies.claims import claim_files, claims_report, write_claims_report
     with_claims = [p for p in chosen if any(path.stem == f"paper{p}" for path in claim_files())]
     if with_claims:
         report = claims_report(with_claims, args.out, maps=not args.no_maps, workers=args.workers, progress=say,
@@ -547,7 +548,7 @@ _OUTPUT_OPTIONS = {"run": ("bag",), "export": ("csv", "parquet"), "blocks": ("cs
 
 def _inputs(args) -> list:
     """The files a command reads, as named on its command line (its experiment file by scenario name too):
-    never replaced by its outputs (:mod:`contouring_ros.outputs`)."""
+    never replaced by its outputs (:mod:`contouring_ros.records.outputs`)."""
     found = []
     for key, value in vars(args).items():
         if key in _OUTPUT_OPTIONS.get(args.command, ()) or key == "func":
@@ -578,8 +579,8 @@ def _scheduler_option(parser) -> None:
 
 
 def _benchmark(args):
-    from .benchmark import main_benchmark
-    from .tuning import Protocol
+    from .studies.benchmark import main_benchmark
+    from .studies.tuning import Protocol
     if args.budget < 2:
         raise ConfigError(f"--budget {args.budget}: expected at least 2 evaluations per combination")
     if args.draws < 1:
@@ -596,7 +597,7 @@ def _benchmark(args):
         + (f" --searches {args.searches}" if args.searches != Protocol.searches else "") \
         + (f" --max-searches {max_searches}" if max_searches != Protocol.max_searches else "") \
         + (f" --methods {' '.join(args.methods)}" if args.methods else "")
-    from . import outputs
+    from .records import outputs
     out = outputs.active().claim_folder(args.out, "--out")
     for name, kind in (("benchmark.md", outputs.REPORT), ("benchmark.csv", outputs.BENCHMARK_CSV),
                        ("benchmark_heatmap.png", outputs.PNG)):
@@ -606,7 +607,7 @@ def _benchmark(args):
     if args.checkpoints:
         outputs.active().claim_folder(args.checkpoints, "--checkpoints")
     if args.from_parts:
-        from .benchmark import load_parts, write_outputs
+        from .studies.benchmark import load_parts, write_outputs
         if args.methods or args.scenarios or args.save_part or args.checkpoints:
             raise ConfigError("--from-parts runs nothing: --methods, --scenarios, --save-part and --checkpoints belong "
                               "to the runs that wrote the parts")
@@ -740,7 +741,7 @@ def main(argv=None):
     _scheduler_option(p)
     _force_option(p)
     p.set_defaults(func=_paper)
-    from .tuning import Protocol
+    from .studies.tuning import Protocol
     p = sub.add_parser("benchmark", help="every estimator x controller (x servo) on every paper scenario, each gain "
                                          "tuned under equal constraints on a realistic machine, with intervals")
     p.add_argument("--scenarios", nargs="+", metavar="NAME",
@@ -782,9 +783,9 @@ def main(argv=None):
     p.set_defaults(func=_benchmark)
     args = parser.parse_args(argv)
     try:
-        from .outputs import Outputs
+        from .records.outputs import Outputs
         if getattr(args, "scheduler", None):     # before any work: one line within 30 s if it is not one
-            from .executors import probe_scheduler
+            from .studies.executors import probe_scheduler
             probe_scheduler(args.scheduler)
         with Outputs(_inputs(args), force=getattr(args, "force", False)):
             args.func(args)

@@ -49,7 +49,7 @@ class OutputError(ContouringError):
 
 class IncompatibleRclpy(ContouringError, ImportError):
     """The installed rclpy lacks an internal the lean loops use: raised by importing
-    :mod:`contouring_ros.rclpy_adapter` (an ImportError, as a failed import is), naming the rclpy found and the
+    :mod:`contouring_ros.nodes.rclpy_adapter` (an ImportError, as a failed import is), naming the rclpy found and the
     one the adapter was written for."""
 
 

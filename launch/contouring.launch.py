@@ -1,6 +1,6 @@
 """Launch the contouring graph of one experiment file: the same nodes, namespaces and parameters as
-`contouring-ros run` (both come from contouring_ros.graph.node_specs, which reads the node catalogue,
-contouring_ros/nodes/catalogue.py).
+`contouring-ros run` (both come from contouring_ros.wire.graph.node_specs, which reads the node catalogue,
+contouring_ros/wire/catalogue.py).
 
     ros2 launch contouring_ros contouring.launch.py experiment:=/path/to/experiment.yaml [bag:=run.mcap] [namespace:=m1]
 
@@ -23,8 +23,8 @@ from launch_ros.actions import Node
 def graph_nodes(context):
     """The graph's Node actions for the experiment named by the launch arguments."""
     from contouring_ros.api import load_experiment
-    from contouring_ros.graph import node_specs, normalize_namespace
-    from contouring_ros.runner import default_bag_path, shared_overrides, write_parameter_file
+    from contouring_ros.wire.graph import node_specs, normalize_namespace
+    from contouring_ros.run.runner import default_bag_path, shared_overrides, write_parameter_file
     experiment = load_experiment(LaunchConfiguration("experiment").perform(context))
     path = Path(experiment.path).resolve()
     bag = LaunchConfiguration("bag").perform(context) or str(default_bag_path(experiment))

@@ -57,7 +57,7 @@ def pytest_collection_modifyitems(config, items):
 def recorded_bag(folder: Path, duration: float, name: str) -> tuple:
     """The default experiment shortened to ``duration`` s, simulated and written as a bag in ``folder``:
     (result, path, the bag's bytes, (complete, chunks) of its summary)."""
-    from contouring_ros import bag
+    from contouring_ros.records import bag
     from contouring_ros.config import build_loop, parse_experiment
     from contouring_ros.core.simulation import simulate
     experiment = parse_experiment(shortened(DEFAULT, duration), "short")
@@ -72,8 +72,8 @@ def recorded_bag(folder: Path, duration: float, name: str) -> tuple:
 
 def recorded_bytes(bag) -> int:
     """How far a run's bag has got: the size of the file the recorder writes while the run lasts (beside the
-    bag's name, :func:`contouring_ros.runner.recording_path`), or of the bag once moved into place."""
-    from contouring_ros.runner import recording_path
+    bag's name, :func:`contouring_ros.run.runner.recording_path`), or of the bag once moved into place."""
+    from contouring_ros.run.runner import recording_path
     for path in (recording_path(bag), Path(bag)):
         try:
             return path.stat().st_size
@@ -119,7 +119,7 @@ def assert_graph_equals_simulation(experiment_path, bag):
     from contouring_ros.experiment.build import build_loop
     from contouring_ros.experiment.files import load_experiment
     from contouring_ros.core.simulation import simulate
-    from contouring_ros.scoring import read_run, score_bag, score_run
+    from contouring_ros.records.scoring import read_run, score_bag, score_run
     experiment = load_experiment(experiment_path)
     loop = build_loop(experiment)
     expected = simulate(loop)

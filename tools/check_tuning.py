@@ -25,9 +25,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from contouring_ros import benchmark  # noqa: E402
+from contouring_ros.studies import benchmark  # noqa: E402
 from contouring_ros.core.tuning_space import Dimension, Space  # noqa: E402
-from contouring_ros.tuning import Protocol, fit_to_machine, interval, tune, tuning_space  # noqa: E402
+from contouring_ros.studies.tuning import Protocol, fit_to_machine, interval, tune, tuning_space  # noqa: E402
 
 
 def raw_space(data: dict, sections: dict, keys: tuple, protocol: Protocol, decades: float, machine: dict) -> Space:

@@ -13,10 +13,10 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from contouring_ros import benchmark  # noqa: E402,F401  (registers the classes a kept row holds)
-from contouring_ros.checkpoints import SUFFIX, KeptRow  # noqa: E402
+from contouring_ros.studies import benchmark  # noqa: E402,F401  (registers the classes a kept row holds)
+from contouring_ros.studies.checkpoints import SUFFIX, KeptRow  # noqa: E402
 from contouring_ros.errors import ConfigError  # noqa: E402
-from contouring_ros.parts import load  # noqa: E402
+from contouring_ros.studies.parts import load  # noqa: E402
 
 
 def main(argv=None) -> int:

@@ -3,8 +3,8 @@ pass, and each MPCC row's solve time per step, on the scenario's realistic machi
 run: no model mismatch, the machine's first noise seeds).
 
 It reads the tuned gains of a benchmark CSV (``contouring-ros benchmark`` writes reports/benchmark.csv),
-rebuilds each row's sections as the benchmark did (:func:`contouring_ros.benchmark.plan`,
-:func:`~contouring_ros.tuning.fit_to_machine`) and runs them in-process. ``--file-gains`` runs the rows'
+rebuilds each row's sections as the benchmark did (:func:`contouring_ros.studies.benchmark.plan`,
+:func:`~contouring_ros.studies.tuning.fit_to_machine`) and runs them in-process. ``--file-gains`` runs the rows'
 file gains instead (for a scenario whose tuning found no admissible point).
 
 Usage: python tools/reference_methods.py [reports/benchmark.csv] [--file-gains]
@@ -22,12 +22,12 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from contouring_ros.benchmark import plan, scenario_families  # noqa: E402
+from contouring_ros.studies.benchmark import plan, scenario_families  # noqa: E402
 from contouring_ros.core.simulation import simulate  # noqa: E402
 from contouring_ros.experiment.build import build_loop  # noqa: E402
-from contouring_ros.learning import simulate_passes  # noqa: E402
-from contouring_ros.sweep import score_one  # noqa: E402
-from contouring_ros.tuning import (  # noqa: E402
+from contouring_ros.studies.learning import simulate_passes  # noqa: E402
+from contouring_ros.studies.sweep import score_one  # noqa: E402
+from contouring_ros.studies.tuning import (  # noqa: E402
     experiment_for, fit_to_machine, machine_settings, run_outcomes, sections_with_gains)
 
 

@@ -1,5 +1,5 @@
 """A count of simulated steps shared by the processes of a sweep, for a progress bar that moves with the
-steps rather than with whole chunks of combinations (:func:`contouring_ros.sweep.score_experiments`).
+steps rather than with whole chunks of combinations (:func:`contouring_ros.studies.sweep.score_experiments`).
 
 A worker process :func:`attach`\\ es the counter its parent made (a ``multiprocessing.Value``); the
 simulation loops add their steps to it every :data:`EVERY` steps (a batch: steps times members). Without a

@@ -8,7 +8,7 @@ whose PID is ours to choose) states its space in its catalogue entry (``tuning``
 box of its raw gains (:func:`log_box`).
 
 A :class:`Space` is a list of :class:`Dimension` (a name, a unit and a range; log-scaled, or integer) and the
-map from a point to the raw keys of the experiment file. The search (:mod:`contouring_ros.search`) moves in
+map from a point to the raw keys of the experiment file. The search (:mod:`contouring_ros.studies.search`) moves in
 the unit box; :meth:`Space.decode` maps a unit point to physical values and raw gains.
 
 Frequencies of a gain acting on position through an axis: the frequency at which that term alone gives the

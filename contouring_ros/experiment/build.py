@@ -15,8 +15,8 @@ from ..core.feed_control import FeedControl, parse_feed_events
 from ..core.monitoring import Monitor
 from ..core.simulation import ControlLoop
 from ..errors import ConfigError
-from ..graph import LOOKAHEAD
-from ..registry import BuildContext
+from ..wire.graph import LOOKAHEAD
+from .registry import BuildContext
 from .catalogue import CONTROLLERS, CURVES, ESTIMATORS, PLANTS, SCHEDULES, SERVOS
 from .catalogue.curves import TOOL_PATH_TYPES
 from .catalogue.disturbances import build_disturbance

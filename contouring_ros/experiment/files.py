@@ -8,7 +8,7 @@ from pathlib import Path
 
 import yaml
 
-from .. import graph
+from ..wire import graph
 from ..errors import ConfigError
 from .model import Experiment
 from .ros_yaml import _read_file, read_yaml

@@ -18,10 +18,10 @@ from dataclasses import fields
 
 import numpy as np
 
-from .. import graph
+from ..wire import graph
 from ..errors import ConfigError
-from ..graph import graph_namespace
-from ..nodes import catalogue as nodes
+from ..wire.graph import graph_namespace
+from ..wire import catalogue as nodes
 from ..core.feed_control import parse_feed_events
 from .build import build_curve_from, build_schedule_from, in_position_windows, planned_tool_path
 from .catalogue import CONTROLLERS, GLOBALS, OPTIONAL_NODES, ROLE_TYPES, SERVOS

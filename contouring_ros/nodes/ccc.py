@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import cdr, graph
+from ..wire import cdr, graph
 from ..experiment.build import build_controller, build_curve
 from ..experiment.validate import check_ccc_takes_state, controller_uses_state
 from .lockstep import LockstepNode, run_node

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import cdr, graph
+from ..wire import cdr, graph
 from ..experiment.build import build_curve, build_estimator, build_schedule
 from ..core.simulation import diverged_message, path_bound, step_time
 from ..errors import RunError

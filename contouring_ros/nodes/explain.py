@@ -12,7 +12,7 @@ import sys
 from ..errors import ContouringError
 from ..experiment.ros_yaml import read_yaml
 from ..experiment.schema import GLOBAL_SECTION, ROS_PARAMETERS
-from . import catalogue
+from ..wire import catalogue
 
 __all__ = ["wants_help", "help_text", "parameter_files", "explain"]
 

@@ -13,12 +13,12 @@ from __future__ import annotations
 from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 
-from .. import cdr, graph
-from ..rclpy_adapter import take_request, taker
+from ..wire import cdr, graph
+from .rclpy_adapter import take_request, taker
 from ..experiment.build import (build_clock, build_curve, build_feed_control, build_monitor, build_schedule,
                                 interpolator_takes_state, reference_preview)
 from ..core.interpolation import reference, reference_ahead
-from ..blocks import breach_line
+from ..records.blocks import breach_line
 from ..core.simulation import step_time
 from .lockstep import LockstepNode, run_node
 

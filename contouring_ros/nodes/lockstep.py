@@ -2,7 +2,7 @@
 
 A node declares its inputs (topics it needs for each step) and a step handler. The loop waits on one
 persistent wait set, takes serialised messages directly from the subscriptions (no executor, no
-callbacks, no rclpy message objects: :mod:`contouring_ros.cdr` reads and writes the wire format), files
+callbacks, no rclpy message objects: :mod:`contouring_ros.wire.cdr` reads and writes the wire format), files
 them by the step their header stamp names, and calls the handler for step k as soon as every input of
 step k is there (docs/ARCHITECTURE.md, "One control step"). Nothing depends on wall-clock arrival order.
 
@@ -26,11 +26,11 @@ from rclpy.executors import ExternalShutdownException
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from .. import cdr, graph
-from ..rclpy_adapter import SubscriptionWaitSet, take_request, taker
+from ..wire import cdr, graph
+from .rclpy_adapter import SubscriptionWaitSet, take_request, taker
 from ..experiment.build import interpolator_takes_state
 from ..experiment.validate import experiment_for_node
-from ..parameters import descriptor, node_parameters
+from .parameters import descriptor, node_parameters
 from .explain import explain, help_text, wants_help
 from ..errors import ConfigError, ContouringError, RunError
 from ..experiment.schema import GLOBAL_SECTION
@@ -131,7 +131,7 @@ class LockstepNode:
 
     def declare_described(self, parameters: dict):
         """Declare every parameter of this node again, now with its descriptor (meaning and unit, range,
-        read-only: :mod:`contouring_ros.parameters`), and the defaults the file left out, so that
+        read-only: :mod:`contouring_ros.nodes.parameters`), and the defaults the file left out, so that
         ``ros2 param describe`` and ``ros2 param get`` show what the node runs with."""
         for name, parameter in node_parameters(parameters, self.name, self.role, self.experiment).items():
             if self.node.has_parameter(name):
@@ -649,8 +649,8 @@ def slow_tick_seconds(name: str) -> float:
 def realtime_loop(nodes, label: str, wait_set, take, spin: float = 0.0, after_tick=None, idle=None):
     """Tick ``nodes`` on the wall clock, in order, every Ts from the experiment's ``start_time``: one node in
     its own process (:meth:`LockstepNode.spin_realtime`) or a group sharing one thread
-    (:mod:`contouring_ros.composed`). Between ticks wait on ``wait_set`` (a
-    :class:`~contouring_ros.rclpy_adapter.SubscriptionWaitSet`) and ``take()`` what arrives; after
+    (:mod:`contouring_ros.run.composed`). Between ticks wait on ``wait_set`` (a
+    :class:`~contouring_ros.nodes.rclpy_adapter.SubscriptionWaitSet`) and ``take()`` what arrives; after
     each tick call ``after_tick()``. ``label`` names the loop in the overrun error. ``idle``, a threading.Event,
     is set while the loop waits for its next tick and cleared while it ticks (:func:`wait_until`).
 
@@ -704,7 +704,7 @@ def overrun_message(nodes, label: str, tick: int, lag: float, start: bool = Fals
 
 def wait_until(deadline: float, wait_set, take, context, spin: float = 0.0, idle=None):
     """Until the wall clock reaches ``deadline``, wait on the subscriptions of ``wait_set`` (a
-    :class:`~contouring_ros.rclpy_adapter.SubscriptionWaitSet`; None or one without subscriptions: sleep) and
+    :class:`~contouring_ros.nodes.rclpy_adapter.SubscriptionWaitSet`; None or one without subscriptions: sleep) and
     ``take()`` what arrives.
 
     With ``spin`` > 0 the last ``spin`` seconds are busy-waited (taking what arrives), so the return is not

@@ -1,7 +1,7 @@
 """Plant node (one per axis, namespace = axis name): applies commands, publishes the axis state."""
 from __future__ import annotations
 
-from .. import cdr, graph
+from ..wire import cdr, graph
 from ..experiment.build import build_plant, initial_state
 from ..core.simulation import step_time
 from .lockstep import LockstepNode, run_node

@@ -20,8 +20,9 @@ import time
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.serialization import deserialize_message
 
-from .. import __version__, cdr, graph
-from ..bag import EXPERIMENT_METADATA, RUN_METADATA, BagWriter
+from .._version import __version__
+from ..wire import cdr, graph
+from ..records.bag import EXPERIMENT_METADATA, RUN_METADATA, BagWriter
 from ..experiment.build import interpolator_takes_state
 from ..experiment.files import recorded_text
 from ..errors import ConfigError

@@ -3,7 +3,7 @@
 Each imports its node's module only when it runs, so that an import the user has to act on ends the process
 with one line on stderr and exit status 1, never a traceback: an rclpy that lacks an internal the lean loops
 use (:class:`~contouring_ros.errors.IncompatibleRclpy`, raised by the check that importing
-:mod:`contouring_ros.rclpy_adapter` makes), or any other ContouringError (a plugin registry that cannot be
+:mod:`contouring_ros.nodes.rclpy_adapter` makes), or any other ContouringError (a plugin registry that cannot be
 listed). Once imported, the node's ``main`` reports its own errors the same way
 (:func:`contouring_ros.nodes.lockstep.run_node`). ``python -m contouring_ros.nodes.<node>``, as the runner
 starts a node, runs the node's module itself; the runner then names the node with the last line it wrote.
@@ -15,7 +15,7 @@ import importlib
 import sys
 
 from ..errors import ContouringError
-from . import catalogue
+from ..wire import catalogue
 
 __all__ = [node.console_script for node in catalogue.NODES]
 

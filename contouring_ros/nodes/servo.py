@@ -1,7 +1,7 @@
 """Servo node (one per axis, namespace = axis name): reference, own state and correction in, command out."""
 from __future__ import annotations
 
-from .. import cdr, graph
+from ..wire import cdr, graph
 from ..experiment.build import build_servo, initial_state
 from .lockstep import LockstepNode, run_node
 

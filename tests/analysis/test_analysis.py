@@ -7,11 +7,11 @@ import sys
 import numpy as np
 import pytest
 
-from contouring_ros.analysis import compare_table, replay_estimators
-from contouring_ros.bag import write_simulation
+from contouring_ros.records.analysis import compare_table, replay_estimators
+from contouring_ros.records.bag import write_simulation
 from contouring_ros.config import build_loop, parse_experiment
 from contouring_ros.core.simulation import simulate
-from contouring_ros.scoring import read_run, score_bag, score_run
+from contouring_ros.records.scoring import read_run, score_bag, score_run
 from conftest import CONFIG, DEFAULT, ROOT, shortened
 
 
@@ -31,7 +31,7 @@ def short_bag(tmp_path_factory):
 def test_scoring_imports_no_ros(short_bag):
     path, expected = short_bag
     script = ("import sys, json; sys.modules['rclpy'] = None\n"
-              "from contouring_ros.scoring import score_bag\n"
+              "from contouring_ros.records.scoring import score_bag\n"
               f"print(json.dumps(score_bag({str(path)!r})[0].as_dict()))")
     out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, cwd=ROOT)
     assert out.returncode == 0, out.stderr
@@ -41,8 +41,8 @@ def test_scoring_imports_no_ros(short_bag):
 def test_bag_from_another_writer_scores_the_same(tmp_path):
     """A bag laid out like rosbag2's (mcap_ros2 writer, dict messages, no experiment stored)."""
     from mcap_ros2.writer import Writer
-    from contouring_ros import graph
-    from contouring_ros.bag import message_definition
+    from contouring_ros.wire import graph
+    from contouring_ros.records.bag import message_definition
     text = shortened(DEFAULT, 0.3)
     experiment, loop, result = _simulated(text)
     axes = list(experiment.axes)
@@ -112,7 +112,7 @@ def test_compare_gives_ratios_to_the_baseline(short_bag):
 def test_replayed_newton_tracks_exact_error_better_than_recorded_tangent_line(tmp_path, write_experiment):
     text = shortened(CONFIG / "paper000_b_ismc_h100_vgccc.yaml", 0.6).replace(
         "initial_state: on_reference", "initial_state: at_rest")   # mm tracking errors from the start
-    from contouring_ros.runner import run_graph
+    from contouring_ros.run.runner import run_graph
     bag = run_graph(write_experiment(text), tmp_path / "tangent.mcap")
     run = read_run(bag)
     exact, replays = replay_estimators(run, [{"type": "newton", "k_prime": 500.0, "c_prime": 500.0}])
@@ -128,8 +128,8 @@ def test_replaying_the_recorded_estimator_s_type_changes_only_the_keys_given(tmp
     """`replay BAG --estimator newton:k_prime=800` (the command's own example) on a Newton run takes the
     recorded section with k_prime changed (was: 'newton.c_prime: missing required key'); the same gains as
     recorded replay the recorded estimate."""
-    from contouring_ros.analysis import parse_estimator_spec
-    from contouring_ros.bag import write_simulation
+    from contouring_ros.records.analysis import parse_estimator_spec
+    from contouring_ros.records.bag import write_simulation
     from contouring_ros.config import build_loop, parse_experiment
     from contouring_ros.core.simulation import simulate
     experiment = parse_experiment(shortened(DEFAULT, 0.2), "default")

@@ -5,10 +5,10 @@ import numpy as np
 import pytest
 
 import contouring_ros as cr
-from contouring_ros.bag import write_simulation
+from contouring_ros.records.bag import write_simulation
 from contouring_ros.config import build_loop
 from contouring_ros.core.simulation import simulate
-from contouring_ros.scoring import score_run
+from contouring_ros.records.scoring import score_run
 from conftest import DEFAULT, ROOT
 
 

@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 from scipy.stats import qmc
 
-from contouring_ros import benchmark, tuning
-from contouring_ros.benchmark import plan, run_benchmark, scenario_families, select_families, verdict
+from contouring_ros.studies import benchmark, tuning
+from contouring_ros.studies.benchmark import plan, run_benchmark, scenario_families, select_families, verdict
 from contouring_ros.cli import main
 from contouring_ros.errors import ConfigError
-from contouring_ros.tuning import Protocol
+from contouring_ros.studies.tuning import Protocol
 
 SMALL = "paper003_mech_ellipse"      # one scenario of two files, two combinations
 FAST = Protocol(evaluations=6, popsize=4, design=0, draws=2, searches=1, max_searches=1)
@@ -96,7 +96,7 @@ def test_a_method_that_models_its_drive_is_given_the_realistic_machine():
 def test_a_learning_controller_is_judged_by_its_last_pass():
     from conftest import ROOT
     from contouring_ros.experiment.ros_yaml import read_yaml
-    from contouring_ros.learning import simulate_passes
+    from contouring_ros.studies.learning import simulate_passes
     path = ROOT / "config" / "ilc_ellipse.yaml"
     data = read_yaml(path.read_text(), str(path))
     settings = {"ccc.passes": 3}
@@ -424,7 +424,7 @@ def test_searches_run_until_they_agree_and_report_it():
 
 def test_the_report_counts_converged_rows_and_names_the_others():
     from types import SimpleNamespace
-    from contouring_ros.search import agreement
+    from contouring_ros.studies.search import agreement
     family = SimpleNamespace(name="scenario")
 
     def row(values):
@@ -551,7 +551,7 @@ def test_the_zpetc_pid_is_searched_at_a_chosen_ms_of_each_axis_loop(scenario):
 
 
 def test_a_stopped_benchmark_goes_on_from_its_checkpoints(tmp_path, capsys):
-    from contouring_ros.checkpoints import SUFFIX, Checkpoints, row_key
+    from contouring_ros.studies.checkpoints import SUFFIX, Checkpoints, row_key
     families = select_families(scenario_families(), [SMALL])
     kept = Checkpoints(tmp_path / "rows", tuning.Tuned)
     first = run_benchmark(families, FAST, workers=2, checkpoints=kept)

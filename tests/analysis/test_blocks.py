@@ -1,16 +1,16 @@
-"""Results per block of a part program run, and the scores of its cutting moves alone (contouring_ros/blocks.py)."""
+"""Results per block of a part program run, and the scores of its cutting moves alone (contouring_ros/records/blocks.py)."""
 import csv
 
 import numpy as np
 import pytest
 
-from contouring_ros.bag import write_simulation
-from contouring_ros.blocks import block_results, cutting_scores, cutting_steps
+from contouring_ros.records.bag import write_simulation
+from contouring_ros.records.blocks import block_results, cutting_scores, cutting_steps
 from contouring_ros.cli import main
 from contouring_ros.config import build_loop, load_experiment
 from contouring_ros.core.geometry import ExactContourError
 from contouring_ros.core.simulation import simulate
-from contouring_ros.scoring import cutting_lines, score_run
+from contouring_ros.records.scoring import cutting_lines, score_run
 from conftest import CONFIG
 
 PROGRAM = """%
@@ -116,8 +116,8 @@ def test_the_blocks_command_prints_the_table_and_writes_csv(part_run, capsys):
 
 
 def test_the_html_report_has_the_per_block_table(part_run):
-    from contouring_ros.analysis import html_report
-    from contouring_ros.scoring import read_run
+    from contouring_ros.records.analysis import html_report
+    from contouring_ros.records.scoring import read_run
     directory, experiment, loop, result = part_run
     bag = write_simulation(directory / "report.mcap", experiment, result)
     run = read_run(bag)
@@ -151,7 +151,7 @@ def test_the_travel_time_ends_with_the_last_motion_not_the_reserve():
 def test_each_blocks_time_and_mean_feed_are_the_plans():
     run = _example({"in_position": [0.0]})          # no waits: each block takes its planned time
     plan, curve, result = run.loop.schedule, run.loop.curve, run.result
-    from contouring_ros.scoring import motion_steps
+    from contouring_ros.records.scoring import motion_steps
     rows = block_results(curve, result, plan, end=motion_steps(curve, result, run.experiment))
     times = plan.block_times
     assert len(rows) == 8
@@ -166,14 +166,14 @@ def test_each_blocks_time_and_mean_feed_are_the_plans():
 
 
 def test_results_are_in_the_programs_units(tmp_path):
-    from contouring_ros.blocks import block_cells, feed_unit
+    from contouring_ros.records.blocks import block_cells, feed_unit
     from contouring_ros.core.curves import ToolPath
     from contouring_ros.core.gcode import INCH, parse_program
     program = parse_program("G20 G90\nG1 X1 F10\nG21 G1 X30\n")
     curve = ToolPath.from_program(program)
     curve.program = program
     assert program.unit == INCH and feed_unit(curve) == (INCH, "in/min")
-    from contouring_ros.blocks import BlockResult
+    from contouring_ros.records.blocks import BlockResult
     row = BlockResult(2, None, "G1", 10 * INCH / 60.0, 5 * INCH / 60.0, 10.5 * INCH / 60.0, 1.0, 2.1684e-19,
                       (0.0, -1e-20), "-")
     cells = block_cells(row, curve, 1e-3)

@@ -11,17 +11,17 @@ import sys
 import numpy as np
 import pytest
 
-from contouring_ros.bag import write_simulation
-from contouring_ros.claims import (SCALES, Claim, Decisive, MapAxis, Pair, RegimeMap, ScenarioScores, ccc_helps_scores,
+from contouring_ros.records.bag import write_simulation
+from contouring_ros.studies.claims import (SCALES, Claim, Decisive, MapAxis, Pair, RegimeMap, ScenarioScores, ccc_helps_scores,
                                    claim_files, draw_map, evaluate, interval_verdict, load_claims, map_ratios, plan_pair,
                                    robustness, verdict)
-from contouring_ros.paper import CONFIG_DIR
-from contouring_ros.tuning import interval
+from contouring_ros.studies.paper import CONFIG_DIR
+from contouring_ros.studies.tuning import interval
 from contouring_ros.config import WHOLE_COMMAND_CONTROLLERS, build_loop, parse_experiment
 from contouring_ros.core.metrics import score
 from contouring_ros.core.simulation import simulate
 from contouring_ros.errors import ConfigError, Diverged, ScoreError
-from contouring_ros.scoring import score_run
+from contouring_ros.records.scoring import score_run
 from conftest import DEFAULT, ROOT, shortened
 
 FILES = claim_files()
@@ -128,7 +128,7 @@ def test_claim_row_is_measured_as_stated_on_the_ideal_machine(paper, claim: Clai
 @pytest.mark.parametrize("paper, claim", CLAIMS, ids=[f"{p}-{c.id}" for p, c in CLAIMS])
 def test_the_stated_verdicts_follow_from_the_stated_intervals(paper, claim: Claim):
     """The realistic machine's median, interval and verdict as the file states them (measured by
-    `python -m contouring_ros.claims --yaml`, 8 draws) agree with the interval verdict rule."""
+    `python -m contouring_ros.studies.claims --yaml`, 8 draws) agree with the interval verdict rule."""
     for reading in ("faithful", "mechanism"):
         if claim.pair(reading) is None:
             continue
@@ -165,7 +165,7 @@ def test_each_ccc_lowers_the_contour_error_on_its_mechanism_scenario(entry, scor
 def test_the_ccc_check_fails_when_the_ccc_sign_is_flipped(entry):
     """The check above is not a formality: with the correction's sign flipped the CCC no longer lowers the
     contour error by its factor (the ``without`` run, unchanged, is the reference)."""
-    from contouring_ros.claims import _experiment
+    from contouring_ros.studies.claims import _experiment
     experiment = _experiment(entry.scenario)
     loop = build_loop(experiment)
     kind = experiment.controller["type"]
@@ -240,7 +240,7 @@ def test_a_regime_map_is_the_ratio_of_the_two_runs_cell_by_cell(tmp_path, monkey
                      MapAxis("h", ("curve.h",), (50.0, 200.0)))
     ratios = map_ratios(claim, spec, workers=1)
     assert ratios["tace"].shape == (2, 2)
-    from contouring_ros.claims import _experiment
+    from contouring_ros.studies.claims import _experiment
     for j, h in enumerate((50.0, 200.0)):
         for i, duration in enumerate((0.3, 0.4)):
             settings = {"schedule.duration": duration, "duration": duration, "curve.h": h}

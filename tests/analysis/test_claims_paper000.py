@@ -10,7 +10,7 @@ import math
 
 from contouring_ros.config import build_loop, load_experiment
 from contouring_ros.core.simulation import simulate
-from contouring_ros.scoring import score_run
+from contouring_ros.records.scoring import score_run
 from conftest import CONFIG
 
 FROM = 0.3        # s: every paper 000 claim scores from here (the start-up transient left out)

@@ -9,7 +9,7 @@ contour error and loses in TACE, on the faithful and the mechanism scenarios (co
 """
 import pytest
 
-from contouring_ros.claims import ScenarioScores
+from contouring_ros.studies.claims import ScenarioScores
 
 EXPERIMENTS = ("paper002_butterfly", "paper002_mech_feedlag")
 METHODS = ("c1_tangent_line", "c2_osculating_circle", "c3_tvt", "c4_foot_point_ccc")

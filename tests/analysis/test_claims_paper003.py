@@ -8,7 +8,7 @@ from contouring_ros.config import build_loop, load_experiment
 from contouring_ros.core.estimators import natural_local_terms
 from contouring_ros.core.metrics import score
 from contouring_ros.core.simulation import simulate
-from contouring_ros.scoring import score_run
+from contouring_ros.records.scoring import score_run
 from conftest import CONFIG
 
 

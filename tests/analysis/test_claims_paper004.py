@@ -5,8 +5,8 @@ import pytest
 
 from contouring_ros.config import build_loop, load_experiment
 from contouring_ros.core.simulation import simulate
-from contouring_ros.scoring import score_run
-from contouring_ros.sweep import experiments_for
+from contouring_ros.records.scoring import score_run
+from contouring_ros.studies.sweep import experiments_for
 from conftest import CONFIG
 
 

@@ -8,8 +8,9 @@ import time
 import pytest
 
 from contouring_ros.errors import ConfigError
-from contouring_ros.executors import pool, source_digest
-from contouring_ros.sweep import parse_grid, run_sweep, write_sweep_csv
+from contouring_ros.studies.executors import pool, source_digest
+from contouring_ros.studies.sweep import run_sweep, write_sweep_csv
+from contouring_ros.experiment.settings import parse_grid
 from conftest import DEFAULT, shortened
 
 pytest.importorskip("distributed")
@@ -69,7 +70,7 @@ def test_a_sweep_on_the_cluster_writes_the_same_csv_as_a_local_one(cluster, tmp_
 
 
 def test_the_cluster_is_refused_in_one_line_when_it_cannot_be_used(cluster, monkeypatch):
-    from contouring_ros import executors
+    from contouring_ros.studies import executors
     with pytest.raises(ConfigError, match=r"--scheduler tcp://127.0.0.1:9: no Dask scheduler answers there"):
         monkeypatch.setattr(executors, "CONNECT_TIMEOUT", 2.0)
         with pool(scheduler="tcp://127.0.0.1:9"):

@@ -6,12 +6,12 @@ import sys
 import numpy as np
 import pytest
 
-from contouring_ros.bag import write_simulation
+from contouring_ros.records.bag import write_simulation
 from contouring_ros.config import build_loop, load_experiment, parse_experiment
 from contouring_ros.core.simulation import simulate
 from contouring_ros.errors import BagError
-from contouring_ros.export import export_bag
-from contouring_ros.scoring import score_bag, score_run
+from contouring_ros.records.export import export_bag
+from contouring_ros.records.scoring import score_bag, score_run
 from conftest import CONFIG, DEFAULT, ROOT, cli_with_file_size_limit, shortened
 
 

@@ -7,12 +7,12 @@ import numpy as np
 import pytest
 from conftest import CONFIG, DEFAULT, shortened
 
-from contouring_ros.analysis import figures, html_report, run_names
-from contouring_ros.bag import RecordedRun, write_simulation
+from contouring_ros.records.analysis import figures, html_report, run_names
+from contouring_ros.records.bag import RecordedRun, write_simulation
 from contouring_ros.cli import main
 from contouring_ros.config import build_loop, parse_experiment
 from contouring_ros.core.simulation import simulate
-from contouring_ros.scoring import read_run, score_run
+from contouring_ros.records.scoring import read_run, score_run
 
 FIGURES = ["path", "error_map", "contour_error", "estimate", "tracking", "effort"]
 PLANAR, SPATIAL = "paper000_b_ismc_h50_newton", "paper004_saddle_eso"

@@ -10,7 +10,7 @@ import pytest
 
 import contouring_ros as cr
 from contouring_ros.errors import ConfigError
-from contouring_ros.readings import (Evaluator, PaperReadings, distance, load_readings, measure_gap, readings_files,
+from contouring_ros.studies.readings import (Evaluator, PaperReadings, distance, load_readings, measure_gap, readings_files,
                                      search)
 
 PAPERS = [path.stem[5:] for path in readings_files()]
@@ -106,7 +106,7 @@ class _Table:
 
 
 def _spec(sizes, max_combinations=400):
-    from contouring_ros.readings import Alternative, Reading
+    from contouring_ros.studies.readings import Alternative, Reading
     readings = [Reading(f"r{i}", "open", tuple(Alternative(f"a{j}") for j in range(n))) for i, n in enumerate(sizes)]
     return PaperReadings("999", ["a", "b"], {"a": {"mce": 10.0}, "b": {"mce": 1.0, "tace": 0.5}}, readings, [], [],
                          max_combinations)

@@ -5,8 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from contouring_ros.search import IPOPCMAES, agreement, ipop_cmaes, run_side_by_side
-from contouring_ros.tuning import Protocol
+from contouring_ros.studies.search import IPOPCMAES, agreement, ipop_cmaes, run_side_by_side
+from contouring_ros.studies.tuning import Protocol
 
 PROTOCOL = Protocol()
 

@@ -7,8 +7,9 @@ import yaml
 from contouring_ros.config import build_loop, parse_experiment
 from contouring_ros.core.simulation import simulate
 from contouring_ros.errors import ConfigError
-from contouring_ros.scoring import score_run
-from contouring_ros.sweep import parse_grid, run_sweep, write_sweep_csv
+from contouring_ros.records.scoring import score_run
+from contouring_ros.studies.sweep import run_sweep, write_sweep_csv
+from contouring_ros.experiment.settings import parse_grid
 from conftest import DEFAULT, cli_with_file_size_limit, shortened
 
 
@@ -69,7 +70,7 @@ def test_a_newton_group_smaller_than_its_batch_minimum_runs_one_by_one_with_the_
     compiled kernel and without, so that the groups, and every figure, are too."""
     from contouring_ros.core.batch import batch_minimum
     from contouring_ros.core.estimators import NewtonEstimator
-    from contouring_ros.sweep import experiments_for, simulate_experiments
+    from contouring_ros.studies.sweep import experiments_for, simulate_experiments
     experiments = [e for _, e in experiments_for(shortened(DEFAULT, 0.2), [{"ccc.kp": kp} for kp in (0.5, 1.0, 2.0)])]
     minimum, setter = batch_minimum(build_loop(experiments[0]))
     assert (minimum, setter) == (NewtonEstimator.PURE_BATCH_MINIMUM, "NewtonEstimator")
@@ -86,7 +87,7 @@ def test_a_newton_group_smaller_than_its_batch_minimum_runs_one_by_one_with_the_
 
 def test_a_class_without_a_batch_minimum_batches_from_two_members():
     from contouring_ros.core.batch import batch_minimum
-    from contouring_ros.sweep import experiments_for
+    from contouring_ros.studies.sweep import experiments_for
     _, experiment = experiments_for(shortened(DEFAULT.parent / "paper000_mech_lag_tangent_uv.yaml", 0.1), [{}])[0]
     assert experiment.estimator["type"] == "tangent_line"
     assert batch_minimum(build_loop(experiment)) == (2, None)
@@ -101,7 +102,7 @@ def test_the_sweep_s_progress_counts_every_simulated_step():
     from contouring_ros.core import progress
     from contouring_ros.core.batch import simulate_batch
     from contouring_ros.core.simulation import simulate
-    from contouring_ros.sweep import _score_chunk, experiments_for
+    from contouring_ros.studies.sweep import _score_chunk, experiments_for
     experiments = [e for _, e in experiments_for(shortened(DEFAULT, 0.6), [{"ccc.kp": kp} for kp in (1.0, 2.0, 1e9)])]
     counter = multiprocessing.Value("q", 0)
     progress.attach(counter)
@@ -119,7 +120,7 @@ def test_the_sweep_s_progress_counts_every_simulated_step():
 
 
 def test_the_sweep_s_summary_speaks_of_combinations_not_chunks():
-    from contouring_ros.sweep import SweepRow, sweep_summary
+    from contouring_ros.studies.sweep import SweepRow, sweep_summary
     why = "runs faster one by one: a batch with the NewtonEstimator pays off from 12 combinations of one kind"
     rows = [SweepRow({"ccc.kp": k}, object(), why) for k in range(6)]
     assert sweep_summary(rows, 4.24, 2) == f"6 combinations in 4.2 s on 2 processes: all run one by one ({why})"

@@ -11,7 +11,8 @@ from contouring_ros.core.contouring import NoCoupling
 from contouring_ros.core.curves import Circle, Parabola
 from contouring_ros.core.pid import DiscretePID
 from contouring_ros.core.simulation import simulate
-from contouring_ros.sweep import combinations, parse_grid, run_sweep
+from contouring_ros.studies.sweep import combinations, run_sweep
+from contouring_ros.experiment.settings import parse_grid
 from conftest import CONFIG, DEFAULT, shortened
 
 
@@ -379,7 +380,7 @@ def test_sweep_runs_alone_what_has_no_batch_path_and_says_why(unbatched_controll
 
 
 def _mce(loop):
-    from contouring_ros.scoring import score_run
+    from contouring_ros.records.scoring import score_run
     return score_run(loop.curve, simulate(loop)).mce
 
 

@@ -6,12 +6,12 @@ import sys
 import numpy as np
 import pytest
 
-from contouring_ros.bag import write_simulation
+from contouring_ros.records.bag import write_simulation
 from contouring_ros.config import build_loop, parse_experiment
 from contouring_ros.core.simulation import first_divergence, simulate
 from contouring_ros.errors import BagError, Diverged
-from contouring_ros.scoring import read_run
-from contouring_ros.sweep import run_sweep, write_sweep_csv
+from contouring_ros.records.scoring import read_run
+from contouring_ros.studies.sweep import run_sweep, write_sweep_csv
 from conftest import CONFIG, ROOT, shortened
 
 PIDFF = CONFIG / "paper000_a_pidff_h50_newton.yaml"
@@ -80,7 +80,7 @@ def test_simulate_command_says_diverged_in_one_line(tmp_path):
 
 def test_a_topic_without_messages_is_named_not_a_traceback(tmp_path, monkeypatch):
     """A bag whose /x/command channel exists but holds no message (a node that never published)."""
-    from contouring_ros import bag as bag_module
+    from contouring_ros.records import bag as bag_module
     experiment = parse_experiment(shortened(PIDFF, 0.05), "short")
     result = simulate(build_loop(experiment))
     write = bag_module.BagWriter.write
@@ -98,7 +98,7 @@ def test_a_topic_without_messages_is_named_not_a_traceback(tmp_path, monkeypatch
 @pytest.mark.graph
 def test_the_graph_stops_a_diverging_run_where_the_simulation_does(tmp_path):
     from contouring_ros.errors import RunError
-    from contouring_ros.runner import run_graph
+    from contouring_ros.run.runner import run_graph
     path = tmp_path / "unstable.yaml"
     path.write_text(_unstable("1000", 1.2))
     with pytest.raises(Diverged) as simulated:

@@ -9,7 +9,7 @@ from contouring_ros.core.disturbances import ConstantDisturbance, RandomDisturba
 from contouring_ros.core.plants import MassDamperAxis
 from contouring_ros.core.servo import ESOSlidingModeServo, ExtendedStateObserver
 from contouring_ros.core.simulation import simulate
-from contouring_ros.scoring import score_run
+from contouring_ros.records.scoring import score_run
 from conftest import CONFIG
 
 X_AXIS = dict(mass=5.8, damping=244.0, gain=10.9)

@@ -63,15 +63,15 @@ def test_a_resume_before_the_stop_ends_waits_for_it_and_holds_repeat():
 @pytest.mark.slow
 def test_the_graph_holds_and_resumes_as_the_simulation_does(tmp_path):
     from conftest import assert_graph_equals_simulation, example_part_with_feed_events
-    from contouring_ros.runner import run_graph
+    from contouring_ros.run.runner import run_graph
     path = example_part_with_feed_events(tmp_path, ["hold 0.3", "resume 0.6", "hold 2.5", "resume 2.7"], "held")
     assert_graph_equals_simulation(path, run_graph(path, tmp_path / "held.mcap"))
 
 
 def test_feed_png_marks_each_hold_where_it_came(runs, tmp_path):
-    from contouring_ros.analysis import figures
-    from contouring_ros.bag import write_simulation
-    from contouring_ros.scoring import read_run
+    from contouring_ros.records.analysis import figures
+    from contouring_ros.records.bag import write_simulation
+    from contouring_ros.records.scoring import read_run
     _, held = runs
     bag = write_simulation(tmp_path / "held.mcap", held.experiment, held.result)
     top = figures([("held", read_run(bag))])["feed"].axes[0]

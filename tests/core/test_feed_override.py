@@ -73,15 +73,15 @@ def test_an_override_during_a_hold_sets_the_feed_of_the_resume():
 @pytest.mark.slow
 def test_the_graph_overrides_as_the_simulation_does(tmp_path):
     from conftest import assert_graph_equals_simulation, example_part_with_feed_events
-    from contouring_ros.runner import run_graph
+    from contouring_ros.run.runner import run_graph
     path = example_part_with_feed_events(tmp_path, ["override 50% 0.8", "override 150% 1.6"], "override")
     assert_graph_equals_simulation(path, run_graph(path, tmp_path / "override.mcap"))
 
 
 def test_feed_png_marks_each_override_where_it_came(stepped, tmp_path):
-    from contouring_ros.analysis import figures
-    from contouring_ros.bag import write_simulation
-    from contouring_ros.scoring import read_run
+    from contouring_ros.records.analysis import figures
+    from contouring_ros.records.bag import write_simulation
+    from contouring_ros.records.scoring import read_run
     bag = write_simulation(tmp_path / "override.mcap", stepped.experiment, stepped.result)
     top = figures([("override", read_run(bag))])["feed"].axes[0]
     for label, step in (("50% 1 s", 1000), ("150% 2.5 s", 2500)):

@@ -16,8 +16,8 @@ from contouring_ros.core.geometry import ExactContourError
 from contouring_ros.core.simulation import simulate
 from contouring_ros.errors import ConfigError
 from contouring_ros.experiment.catalogue import schedules
-from contouring_ros.paper import CONFIG_DIR
-from contouring_ros.scoring import score_run, tolerance_line
+from contouring_ros.studies.paper import CONFIG_DIR
+from contouring_ros.records.scoring import score_run, tolerance_line
 
 DT = 1e-4
 
@@ -304,9 +304,9 @@ def test_example_part_square_corners_under_20_um_and_feeds_within_f():
 
 
 def test_tool_path_runs_get_the_feed_and_per_block_figure(tmp_path):
-    from contouring_ros.analysis import figures
-    from contouring_ros.bag import write_simulation
-    from contouring_ros.scoring import read_run
+    from contouring_ros.records.analysis import figures
+    from contouring_ros.records.bag import write_simulation
+    from contouring_ros.records.scoring import read_run
     path = write(tmp_path, "G1 X3 F600 (a corner)\nY3\nG2 X6 Y3 R1.5\n", SCHEDULE)
     experiment = load_experiment(path)
     loop = build_loop(experiment)

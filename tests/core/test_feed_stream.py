@@ -11,7 +11,7 @@ from contouring_ros.core.curves import ToolPath
 from contouring_ros.core.feed_planning import FeedPlan
 from contouring_ros.core.feed_stream import stream_program
 from contouring_ros.core.gcode import ProgramError, parse_program
-from contouring_ros.paper import CONFIG_DIR
+from contouring_ros.studies.paper import CONFIG_DIR
 
 BOUNDS = dict(acceleration=1.0, jerk=10.0, rapid_feedrate=0.05)
 PART = (Path(CONFIG_DIR) / "parts" / "example_part.ngc").read_text()

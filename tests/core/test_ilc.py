@@ -1,4 +1,4 @@
-"""Cross-coupled iterative learning control (core/ilc.py, learning.py): the learning law on known inputs, the
+"""Cross-coupled iterative learning control (core/ilc.py, studies/learning.py): the learning law on known inputs, the
 error falling pass by pass on a repeated ellipse (and rising with the learning gain's sign flipped), a batch
 of different corrections as each alone, and a learned file that cannot be used refused in one line."""
 import numpy as np
@@ -10,8 +10,8 @@ from contouring_ros.core.simulation import simulate
 from contouring_ros.errors import ConfigError
 from contouring_ros.experiment.build import build_loop
 from contouring_ros.experiment.validate import parse_experiment
-from contouring_ros.learning import next_correction, pass_settings, simulate_last_passes, simulate_passes
-from contouring_ros.scoring import score_run
+from contouring_ros.studies.learning import next_correction, pass_settings, simulate_last_passes, simulate_passes
+from contouring_ros.records.scoring import score_run
 from conftest import CONFIG, shortened
 
 TS = 1e-3
@@ -59,7 +59,7 @@ def test_the_contour_error_falls_pass_by_pass_on_a_repeated_ellipse():
 
 
 def test_a_flipped_learning_gain_makes_it_rise(monkeypatch):
-    import contouring_ros.learning as learning
+    import contouring_ros.studies.learning as learning
     def flipped(correction, reference, position, estimate, ts, gamma_tracking, gamma_contour, lead, q_cutoff):
         return learn(correction, reference, position, estimate, ts, -gamma_tracking, -gamma_contour, lead, q_cutoff)
     monkeypatch.setattr(learning, "learn", flipped)

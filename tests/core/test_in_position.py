@@ -13,7 +13,7 @@ from contouring_ros.core.feed_planning import FeedPlan
 from contouring_ros.core.gcode import parse_program
 from contouring_ros.core.interpolation import SETTLE, InPositionClock
 from contouring_ros.core.simulation import simulate
-from contouring_ros.scoring import score_run
+from contouring_ros.records.scoring import score_run
 from conftest import CONFIG
 
 TS = 1e-3
@@ -153,7 +153,7 @@ def test_exact_stop_corners_on_the_ismc_axes_come_from_the_disturbance_estimate(
     corner within 5 um and is in position within 2 steps. The overshoot is the estimate's, not the
     integral sliding surface's or the clock's. With the plan correction (a tool path's default) the estimate
     stays and the corners are as without it."""
-    from contouring_ros.blocks import block_results
+    from contouring_ros.records.blocks import block_results
     corners = {}
     for observer in ("paper", False, True):
         loop = build_loop(load_experiment(square_experiment(tmp_path, "paper000_b_ismc_h50_newton", 1e-5,
@@ -175,7 +175,7 @@ def test_the_graph_waits_as_the_simulation_does(tmp_path, observer):
     step it is paced by: the graph records what the in-process simulation computes, bit for bit (with the
     paper's estimate, whose axes wait, and with the plan correction a tool path's servos get by default)."""
     from conftest import assert_graph_equals_simulation as _assert_identical
-    from contouring_ros.runner import run_graph
+    from contouring_ros.run.runner import run_graph
     path = square_experiment(tmp_path, "paper000_b_ismc_h50_newton", 1e-5, side_mm=2, feed=600, duration=1.2,
                              observer=observer)
     loop = build_loop(load_experiment(path))

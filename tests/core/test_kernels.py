@@ -12,8 +12,8 @@ from contouring_ros.core.batch import stack as batch_stack
 from contouring_ros.core.batch import simulate_batch
 from contouring_ros.core.estimators import NewtonEstimator
 from contouring_ros.core.simulation import simulate
-from contouring_ros.sweep import combinations
-from contouring_ros.tuning import REALISTIC
+from contouring_ros.studies.sweep import combinations
+from contouring_ros.studies.tuning import REALISTIC
 
 CONFIG = Path(__file__).resolve().parents[2] / "config"
 
@@ -217,5 +217,5 @@ def test_a_zero_tangent_raises_as_the_pure_path_does(monkeypatch):
 def test_the_graph_s_nodes_run_the_pure_path():
     """A node compiles nothing at start (numba's import and compilation take seconds): the runner's node
     environment turns the kernels off unless the user's own environment says otherwise."""
-    from contouring_ros.runner import private_environment
+    from contouring_ros.run.runner import private_environment
     assert private_environment(7)["CONTOURING_ROS_NUMBA"] == "0"

@@ -10,7 +10,8 @@ from contouring_ros.core.batch import NotBatchable, batchable, simulate_batch, s
 from contouring_ros.core.plants import NOISE_TABLE_LENGTH, FirstOrderVelocityAxis, MassDamperAxis, quantize
 from contouring_ros.core.simulation import simulate
 from contouring_ros.errors import ConfigError
-from contouring_ros.sweep import combinations, parse_grid
+from contouring_ros.studies.sweep import combinations
+from contouring_ros.experiment.settings import parse_grid
 from conftest import CONFIG, DEFAULT, shortened
 
 TS = 0.001

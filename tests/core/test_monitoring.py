@@ -10,7 +10,7 @@ import pytest
 from contouring_ros.config import build_loop, load_experiment
 from contouring_ros.core.simulation import simulate
 from contouring_ros.errors import ConfigError
-from contouring_ros.scoring import breach_message, motion_steps, read_run
+from contouring_ros.records.scoring import breach_message, motion_steps, read_run
 from conftest import CONFIG, ROOT
 
 #: a fast arc (N30, F3000) between slow lines: on these axes its contour error (3.6 um) is the program's largest
@@ -62,7 +62,7 @@ def run(path):
 
 
 def test_without_limits_the_arc_errs_most(tmp_path):
-    from contouring_ros.blocks import block_results
+    from contouring_ros.records.blocks import block_results
     _, loop, result = run(part(tmp_path, ""))
     rows = block_results(loop.curve, result, loop.schedule)
     worst = {row.number: row.max_contour_error for row in rows}

@@ -12,7 +12,7 @@ from contouring_ros.core.plants import MassDamperAxis
 from contouring_ros.core.simulation import simulate
 from contouring_ros.experiment.build import build_loop
 from contouring_ros.experiment.validate import parse_experiment
-from contouring_ros.scoring import score_run
+from contouring_ros.records.scoring import score_run
 from conftest import CONFIG, shortened
 
 SCENARIO = CONFIG / "paper003_ellipse_natural_local_fn100.yaml"

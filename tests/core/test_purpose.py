@@ -24,7 +24,8 @@ from contouring_ros.core.interpolation import reference
 from contouring_ros.core.metrics import score
 from contouring_ros.core.simulation import first_divergence, simulate
 from contouring_ros.errors import Diverged
-from contouring_ros.sweep import apply_settings, experiments_for, simulate_experiments
+from contouring_ros.studies.sweep import experiments_for, simulate_experiments
+from contouring_ros.experiment.settings import apply_settings
 from conftest import CONFIG
 
 NO_CCC = {"/ccc": {"type": "none"}}

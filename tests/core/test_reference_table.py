@@ -12,7 +12,8 @@ from contouring_ros.core.geometry import frenet_frame
 from contouring_ros.core.interpolation import at_reference, reference, reference_ahead, step_time
 from contouring_ros.core.simulation import simulate
 from contouring_ros.experiment.build import build_path
-from contouring_ros.sweep import combinations, parse_grid
+from contouring_ros.studies.sweep import combinations
+from contouring_ros.experiment.settings import parse_grid
 from conftest import CONFIG, DEFAULT, shortened
 
 

@@ -11,7 +11,7 @@ from contouring_ros.core.interpolation import UniformSchedule
 from contouring_ros.core.plants import MassDamperAxis
 from contouring_ros.core.servo import DirectServo
 from contouring_ros.core.simulation import ControlLoop, simulate
-from contouring_ros.scoring import score_run
+from contouring_ros.records.scoring import score_run
 from conftest import CONFIG
 
 

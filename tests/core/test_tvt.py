@@ -10,7 +10,7 @@ from contouring_ros.core.estimators import FootPointSearchEstimator
 from contouring_ros.core.geometry import ExactContourError
 from contouring_ros.core.interpolation import FeedrateSchedule, Reference, reference
 from contouring_ros.core.simulation import simulate
-from contouring_ros.scoring import score_run
+from contouring_ros.records.scoring import score_run
 from conftest import CONFIG
 
 

@@ -158,9 +158,9 @@ def test_osculating_circle_and_adaptive_tnb_keys():
 
 
 def test_the_ccc_takes_reference_and_states_only_where_its_controller_uses_them():
-    from contouring_ros import graph
+    from contouring_ros.wire import graph
     from contouring_ros.config import controller_uses_state, load_experiment
-    from contouring_ros.runner import shared_overrides
+    from contouring_ros.run.runner import shared_overrides
     default, helix = load_experiment(CONFIG / "paper000_b_ismc_h50_newton.yaml"), parse_experiment(HELIX, "helix")
     assert not controller_uses_state(default) and controller_uses_state(helix)
     assert shared_overrides(default) == {"ccc_takes_state": False} and shared_overrides(helix) == {}
@@ -176,7 +176,7 @@ def test_a_controller_entry_must_say_needs_state_as_its_object_does(monkeypatch)
     import dataclasses
 
     from contouring_ros.config import CONTROLLERS, build_controller, build_curve
-    from contouring_ros.registry import Entry
+    from contouring_ros.experiment.registry import Entry
 
     class NeedsState:
         needs_state = True

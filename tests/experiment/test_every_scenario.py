@@ -5,8 +5,8 @@ import pytest
 
 from contouring_ros.config import build_loop, load_experiment
 from contouring_ros.core.simulation import simulate
-from contouring_ros.runner import run_graph
-from contouring_ros.scoring import read_run
+from contouring_ros.run.runner import run_graph
+from contouring_ros.records.scoring import read_run
 from conftest import CONFIG, shortened
 
 pytestmark = [pytest.mark.graph, pytest.mark.slow]

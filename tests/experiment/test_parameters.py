@@ -11,8 +11,8 @@ import sys
 import pytest
 
 from contouring_ros.config import GLOBALS, PLANTS, read_yaml, section_from_parameters
-from contouring_ros.parameters import describe, node_parameters
-from contouring_ros.runner import DomainLease, private_environment
+from contouring_ros.nodes.parameters import describe, node_parameters
+from contouring_ros.run.runner import DomainLease, private_environment
 from conftest import CONFIG, DEFAULT
 
 
@@ -173,7 +173,7 @@ def test_the_readme_s_parameter_examples_run_as_written(tmp_path):
 def test_set_applies_the_sweep_s_keys_to_a_file_the_ros_parser_reads_alike(tmp_path):
     from contouring_ros.config import load_experiment
     from contouring_ros.errors import ConfigError
-    from contouring_ros.sweep import settings_file
+    from contouring_ros.experiment.settings import settings_file
     out = settings_file(DEFAULT, ["ccc.kp=2.0", "x/servo.a=13.0", "curve.h=60.0"], tmp_path)
     assert out.name == DEFAULT.name
     experiment, base = load_experiment(out), load_experiment(DEFAULT)
@@ -193,7 +193,7 @@ def test_simulate_with_set_scores_the_changed_experiment(tmp_path):
     from conftest import ROOT, shortened
     from contouring_ros.config import build_loop, parse_experiment
     from contouring_ros.core.simulation import simulate
-    from contouring_ros.scoring import score_run
+    from contouring_ros.records.scoring import score_run
     path = tmp_path / "short.yaml"
     path.write_text(shortened(DEFAULT, 0.3))
     out = subprocess.run([sys.executable, "-m", "contouring_ros.cli", "simulate", str(path), "--set", "ccc.kp=0.0"],
@@ -219,7 +219,7 @@ def test_run_with_set_records_the_changed_experiment(tmp_path):
     from conftest import ROOT, shortened
     from contouring_ros.config import build_loop, parse_experiment
     from contouring_ros.core.simulation import simulate
-    from contouring_ros.scoring import read_run
+    from contouring_ros.records.scoring import read_run
     path = tmp_path / "short.yaml"
     path.write_text(shortened(DEFAULT, 0.3))
     bag = tmp_path / "set.mcap"
@@ -238,8 +238,8 @@ def test_set_names_the_run_after_what_it_changed(tmp_path):
     then tell it from the file's own runs); different settings keep different names even past 100
     characters; a name the settings give themselves wins; the API names its runs the same way."""
     from contouring_ros import api
-    from contouring_ros.runner import default_bag_path
-    from contouring_ros.sweep import settings_name, written_settings
+    from contouring_ros.run.runner import default_bag_path
+    from contouring_ros.experiment.settings import settings_name, written_settings
     _, plain = written_settings(DEFAULT, ["ccc.kp=1.0"], tmp_path)
     assert plain.name == "paper000_b_ismc_h50_newton_ccc.kp-1.0"
     (tmp_path / "two").mkdir()

@@ -8,11 +8,12 @@ import pytest
 
 from conftest import DEFAULT, shortened
 
-from contouring_ros import api, bag, cli, config
+from contouring_ros import api, cli, config
+from contouring_ros.records import bag
 from contouring_ros.config import build_loop, load_experiment
 from contouring_ros.core.simulation import simulate
 from contouring_ros.errors import ConfigError
-from contouring_ros.scoring import BAG_EXPERIMENT, read_run
+from contouring_ros.records.scoring import BAG_EXPERIMENT, read_run
 
 
 @pytest.fixture

@@ -15,7 +15,7 @@ import pytest
 
 from contouring_ros.config import CONTROLLERS, ESTIMATORS, SERVOS, build_controller, parse_experiment
 from contouring_ros.errors import ConfigError
-from contouring_ros.registry import ROLES
+from contouring_ros.experiment.registry import ROLES
 from conftest import DEFAULT, ROOT, shortened
 
 EXAMPLE = ROOT / "examples" / "contouring_plugin_example"
@@ -60,9 +60,9 @@ def test_the_example_estimator_runs_through_validation_simulation_graph_sweep_an
         import numpy as np, subprocess, sys
         from contouring_ros.config import ESTIMATORS, build_loop, load_experiment
         from contouring_ros.core.simulation import simulate
-        from contouring_ros.runner import run_graph
+        from contouring_ros.run.runner import run_graph
         from contouring_ros import api
-        from contouring_ros.scoring import read_run
+        from contouring_ros.records.scoring import read_run
         experiment = load_experiment({str(experiment)!r})
         assert experiment.estimator == {{"type": "two_step_newton", "steps": 3}}, experiment.estimator
         assert ESTIMATORS.entry("two_step_newton").origin.startswith("contouring_plugin_example")
@@ -392,7 +392,7 @@ def test_a_plugin_value_that_is_not_finite_is_a_diverged_row_of_a_sweep(hostile_
 
 def test_a_registry_is_only_made_for_a_known_role_and_the_catalogue_has_one_per_role():
     from contouring_ros.experiment.catalogue import ROLES as CATALOGUE_ROLES
-    from contouring_ros.registry import Role
+    from contouring_ros.experiment.registry import Role
     assert tuple(CATALOGUE_ROLES) == ROLES
     with pytest.raises(ValueError, match="unknown role 'widget'"):
         Role("widget")

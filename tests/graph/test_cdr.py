@@ -5,7 +5,7 @@ trailing bytes uninitialised, where the codec writes zeros or nothing.
 """
 import pytest
 
-from contouring_ros import cdr
+from contouring_ros.wire import cdr
 
 rclpy_serialization = pytest.importorskip("rclpy.serialization")
 

@@ -16,8 +16,8 @@ from contouring_ros.core.estimators import BranchCheck, NewtonEstimator
 from contouring_ros.core.interpolation import UniformSchedule, reference
 from contouring_ros.core.simulation import simulate
 from contouring_ros.errors import RunError
-from contouring_ros.runner import DomainLease, run_graph, shared_memory_in_use
-from contouring_ros.scoring import read_run, score_bag, score_run
+from contouring_ros.run.runner import DomainLease, run_graph, shared_memory_in_use
+from contouring_ros.records.scoring import read_run, score_bag, score_run
 from conftest import DEFAULT, ROOT, machine_pace, recorded_bytes, shortened, sigint_as_from_a_terminal
 
 graph = pytest.mark.graph
@@ -97,7 +97,7 @@ def test_frozen_node_gives_a_stall_error_naming_node_and_topic(tmp_path, write_e
 
 @graph
 def test_a_run_past_its_timeout_names_each_node_still_running_with_its_last_line(tmp_path, write_experiment):
-    from contouring_ros import graph as graph_names
+    from contouring_ros.wire import graph as graph_names
     path = write_experiment(shortened(DEFAULT, 5.0))
     with pytest.raises(RunError) as raised:
         run_graph(path, tmp_path / "late.mcap", timeout=1.0)
@@ -315,7 +315,7 @@ def test_soak_graph_10_runs_identical_and_nothing_leaked(tmp_path, write_experim
 @graph
 def test_a_node_alone_waits_graph_timeout_then_names_what_it_waited_for(tmp_path, write_experiment):
     """Hand-started nodes wait ``graph_timeout`` (default 300 s) for the rest of the graph, and log it."""
-    from contouring_ros.runner import private_environment
+    from contouring_ros.run.runner import private_environment
     path = write_experiment(shortened(DEFAULT, 0.1).replace("    sample_time: 0.001\n",
                                                             "    sample_time: 0.001\n    graph_timeout: 1.5\n", 1))
     with DomainLease() as domain:
@@ -332,7 +332,7 @@ def test_a_node_alone_waits_graph_timeout_then_names_what_it_waited_for(tmp_path
 def test_a_node_waiting_for_its_graph_stops_at_once_on_sigterm():
     """A node started by hand waits up to graph_timeout (300 s) for the rest of the graph; SIGTERM (or its
     runner dying, through the parent-death signal) must still stop it within seconds, not at the timeout."""
-    from contouring_ros.runner import private_environment
+    from contouring_ros.run.runner import private_environment
     with DomainLease() as lease:
         node = subprocess.Popen([sys.executable, "-m", "contouring_ros.nodes.plant", "--ros-args", "-r", "__ns:=/x",
                                  "-r", "__node:=plant", "--params-file", str(DEFAULT)],

@@ -17,7 +17,7 @@ def interpolator_and_panel(tmp_path, timing: str):
     from std_msgs.msg import Float64
     from std_srvs.srv import Trigger
     from contouring_ros.nodes.interpolator import InterpolatorNode
-    from contouring_ros.runner import DomainLease
+    from contouring_ros.run.runner import DomainLease
     text = EXAMPLE.read_text().replace("file: parts/example_part.ngc", f"file: {CONFIG / 'parts/example_part.ngc'}")
     path = tmp_path / "panel.yaml"
     path.write_text(text.replace("sample_time: 0.001", f"sample_time: 0.001\n    timing: {timing}"))

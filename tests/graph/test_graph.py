@@ -3,8 +3,8 @@ import pytest
 
 from contouring_ros.config import build_loop, load_experiment
 from contouring_ros.core.simulation import simulate
-from contouring_ros.runner import run_graph
-from contouring_ros.scoring import read_run, score_bag
+from contouring_ros.run.runner import run_graph
+from contouring_ros.records.scoring import read_run, score_bag
 from conftest import CONFIG, DEFAULT, ROOT, assert_graph_equals_simulation as _assert_identical, machine_pace, shortened
 
 pytestmark = [pytest.mark.graph, pytest.mark.slow]
@@ -76,8 +76,8 @@ def test_graph_payloads_equal_the_simulation_writer(default_runs, tmp_path):
     """The graph's bag and :func:`write_simulation` of the same experiment hold the same bytes on every
     topic (so the pinned payload hashes of tests/graph/test_payload_hashes.py hold for the graph too); the
     reference's one point is due now (time_from_start 0) and carries theta's rates."""
-    from contouring_ros import cdr
-    from contouring_ros.bag import write_simulation
+    from contouring_ros.wire import cdr
+    from contouring_ros.records.bag import write_simulation
     path, bags = default_runs
     experiment = load_experiment(path)
     written = write_simulation(tmp_path / "simulation.mcap", experiment, simulate(build_loop(experiment)))
@@ -135,7 +135,7 @@ def test_grouped_layout_records_the_same_payloads(default_runs, tmp_path):
 
 def test_groups_are_checked_before_any_node_starts(tmp_path):
     from contouring_ros.errors import ConfigError
-    from contouring_ros.runner import parse_groups
+    from contouring_ros.run.runner import parse_groups
     axes = ("x", "y")
     assert parse_groups(["x/servo,/x/plant", "recorder"], axes) == [["/x/plant", "/x/servo"], ["/recorder"]]
     for groups, expected in (([",,"], "an empty group"), (["z/plant"], "/z/plant is not a node of this graph"),
@@ -178,12 +178,12 @@ def test_stock_executor_path_reproduces_simulation(tmp_path):
     """The nodes' subscription callbacks under rclpy's SingleThreadedExecutor (how users embed them)."""
     import subprocess
     import sys
-    from contouring_ros.runner import DomainLease, private_environment
+    from contouring_ros.run.runner import DomainLease, private_environment
     path = tmp_path / "stock.yaml"
     path.write_text(shortened(DEFAULT, 0.2))
     bag = tmp_path / "stock.mcap"
     with DomainLease() as lease:
-        done = subprocess.run([sys.executable, "-m", "contouring_ros.composed", str(path), str(bag), "stock"],
+        done = subprocess.run([sys.executable, "-m", "contouring_ros.run.composed", str(path), str(bag), "stock"],
                               env=private_environment(lease.domain_id), capture_output=True, text=True, timeout=120,
                               cwd=ROOT)
     assert done.returncode == 0, done.stderr
@@ -197,10 +197,10 @@ def test_realtime_run_records_every_step_and_its_timing(layout, tmp_path, monkey
     latency percentiles in the bag's /diagnostics, and the loop stable under the extra delays. (On this
     shared 2-core machine the process layout gets more time to start and a wider max_lag: the overrun trip
     has its own tests, tests/graph/test_overrun.py.)"""
-    from contouring_ros.bag import node_reports
-    from contouring_ros.scoring import format_realtime
+    from contouring_ros.records.bag import node_reports
+    from contouring_ros.records.scoring import format_realtime
     if layout == "process":
-        monkeypatch.setattr("contouring_ros.runner.REALTIME_START_DELAY", 12.0)
+        monkeypatch.setattr("contouring_ros.run.runner.REALTIME_START_DELAY", 12.0)
     path = tmp_path / "realtime.yaml"
     path.write_text(shortened(DEFAULT, 0.5).replace("    duration: 0.5\n", "    duration: 0.5\n    timing: realtime\n"
                                                     f"    max_lag: {0.5 * machine_pace()}\n"))

@@ -11,7 +11,7 @@ from types import SimpleNamespace
 
 import pytest
 
-from contouring_ros.runner import DomainLease, private_environment
+from contouring_ros.run.runner import DomainLease, private_environment
 from conftest import DEFAULT, ROOT, recorded_bytes, shortened, sigint_as_from_a_terminal
 
 graph = pytest.mark.graph
@@ -68,7 +68,7 @@ def test_the_runner_says_what_exists_and_exits_130(tmp_path, write_experiment, m
     """At once (before the recorder opened the bag, or just after) and while recording: the runner exits 130
     (143), and says the bag holds the steps recorded so far only where a readable bag is there."""
     from contouring_ros.errors import BagError
-    from contouring_ros.scoring import read_run
+    from contouring_ros.records.scoring import read_run
     path = write_experiment(shortened(DEFAULT, 3.0), f"interrupted_{name}.yaml")
     bag = tmp_path / "interrupted.mcap"
     runner = subprocess.Popen([sys.executable, "-m", "contouring_ros.cli", "run", str(path), "--bag", str(bag)],
@@ -117,7 +117,7 @@ def test_a_signal_landing_where_python_ignores_exceptions_still_interrupts_the_r
     next check raises it. With Python's own SIGINT handler the KeyboardInterrupt died in the finaliser and
     the run went on to exit 0."""
     import os
-    from contouring_ros import runner
+    from contouring_ros.run import runner
 
     class SignalledWhileFinalised:
         def __del__(self):
@@ -145,7 +145,7 @@ def test_a_signal_landing_where_python_ignores_exceptions_still_interrupts_the_r
 
 def test_an_ignored_sigint_stays_ignored_during_a_run():
     """A runner started in the background by a shell without job control ignores SIGINT; the run keeps it so."""
-    from contouring_ros import runner
+    from contouring_ros.run import runner
     previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
         replaced = runner._note_interruptions()

@@ -8,12 +8,12 @@ import threading
 import pytest
 from mcap.reader import make_reader
 
-from contouring_ros import graph
-from contouring_ros.bag import write_simulation
+from contouring_ros.wire import graph
+from contouring_ros.records.bag import write_simulation
 from contouring_ros.config import build_loop, load_experiment, namespaced_parameter_file, read_yaml
 from contouring_ros.core.simulation import simulate
-from contouring_ros.runner import DomainLease, run_graph
-from contouring_ros.scoring import read_run
+from contouring_ros.run.runner import DomainLease, run_graph
+from contouring_ros.records.scoring import read_run
 from conftest import DEFAULT, shortened
 
 
@@ -157,7 +157,7 @@ def test_a_use_sim_time_node_follows_the_graph_s_clock_under_a_namespace(tmp_pat
     """Under /m1, /clock and /diagnostics stay global (as ROS tools expect): a use_sim_time node on the domain
     follows the graph's clock, and a listener of /diagnostics hears every node's report (was: /m1/clock and
     /m1/diagnostics, and the node stayed at time 0)."""
-    from contouring_ros.runner import private_environment
+    from contouring_ros.run.runner import private_environment
     # 5 s of steps: time for every node to discover the listener before its (volatile) end-of-run report; a
     # participant whose first announcements were missed is announced again only seconds later
     path = tmp_path / "short.yaml"

@@ -7,9 +7,9 @@ import sys
 
 import pytest
 
-from contouring_ros.nodes import catalogue
+from contouring_ros.wire import catalogue
 from contouring_ros.nodes.explain import explain, help_text, parameter_files, wants_help
-from contouring_ros.runner import DomainLease, private_environment
+from contouring_ros.run.runner import DomainLease, private_environment
 from conftest import DEFAULT, ROOT
 
 P = str(DEFAULT)

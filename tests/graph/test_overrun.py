@@ -7,7 +7,7 @@ import re
 import pytest
 
 from contouring_ros.errors import RunError
-from contouring_ros.runner import run_graph
+from contouring_ros.run.runner import run_graph
 from conftest import DEFAULT, shortened
 
 pytestmark = [pytest.mark.graph, pytest.mark.slow]
@@ -20,7 +20,7 @@ PROCESS_START_DELAY = 12.0
 
 def _start_delay(layout, monkeypatch):
     if layout == "process":
-        monkeypatch.setattr("contouring_ros.runner.REALTIME_START_DELAY", PROCESS_START_DELAY)
+        monkeypatch.setattr("contouring_ros.run.runner.REALTIME_START_DELAY", PROCESS_START_DELAY)
 
 
 def _realtime(tmp_path, extra: str = "") -> object:
@@ -53,8 +53,8 @@ def test_overrun_stops_the_run_in_one_line(layout, culprit, tmp_path, monkeypatc
 
 @pytest.mark.parametrize("layout", ["process", "composed"])
 def test_overrun_skip_completes_and_reports_the_skipped_ticks(layout, tmp_path, monkeypatch):
-    from contouring_ros.bag import node_reports
-    from contouring_ros.scoring import format_realtime, miss_rate
+    from contouring_ros.records.bag import node_reports
+    from contouring_ros.records.scoring import format_realtime, miss_rate
     monkeypatch.setenv("CONTOURING_ROS_SLOW_TICK", "/x/servo=0.002")
     _start_delay(layout, monkeypatch)
     bag = run_graph(_realtime(tmp_path, "    on_overrun: skip\n"), tmp_path / "skip.mcap", layout=layout)
@@ -70,7 +70,7 @@ def test_overrun_skip_completes_and_reports_the_skipped_ticks(layout, tmp_path, 
 def test_a_graph_up_after_its_start_time_trips_at_once(tmp_path, monkeypatch):
     """Tick 0 already past when the loop starts (here: a start time 0.2 s after launch, before the composed
     process is up): the run stops at its first tick, saying so, instead of catching up late ticks."""
-    monkeypatch.setattr("contouring_ros.runner.REALTIME_START_DELAY", 0.2)
+    monkeypatch.setattr("contouring_ros.run.runner.REALTIME_START_DELAY", 0.2)
     with pytest.raises(RunError, match=r"the composed loop came up \d+\.\d+ s after its first tick at step 0 "
                                        r"\(start_time; max_lag 20 ms\): the machine was too busy"):
         run_graph(_realtime(tmp_path), tmp_path / "late.mcap", layout="composed")
@@ -104,7 +104,7 @@ def test_a_node_up_after_the_run_s_last_tick_gives_up(tmp_path):
     import subprocess
     import sys
     import time
-    from contouring_ros.runner import DomainLease, private_environment
+    from contouring_ros.run.runner import DomainLease, private_environment
     path = _realtime(tmp_path)
     with DomainLease() as lease:
         start = time.monotonic()

@@ -9,11 +9,11 @@ import sys
 
 import pytest
 
-from contouring_ros import graph
-from contouring_ros.bag import write_simulation
+from contouring_ros.wire import graph
+from contouring_ros.records.bag import write_simulation
 from contouring_ros.config import build_loop, parse_experiment
 from contouring_ros.core.simulation import simulate
-from contouring_ros.playback import UnplayableType, installed_message_class
+from contouring_ros.run.playback import UnplayableType, installed_message_class
 from conftest import DEFAULT, ROOT, shortened
 
 # A subscriber in its own process: subscribes (raw) to the topics given as JSON {topic: type}, with a
@@ -72,7 +72,7 @@ def bag(tmp_path_factory):
 
 @pytest.fixture
 def domain():
-    from contouring_ros.runner import DomainLease, private_environment
+    from contouring_ros.run.runner import DomainLease, private_environment
     with DomainLease() as lease:
         yield private_environment(lease.domain_id)
 
@@ -187,7 +187,7 @@ class msg:
 
 def _crafted_bag(path, type_names):
     """A bag whose channels name these types (the payload is a real JointState)."""
-    from contouring_ros import cdr
+    from contouring_ros.wire import cdr
     payload = cdr.encode_joint_state(0, 0, ["x"], [0.0], [0.0], [])
     with open(path, "wb") as stream:
         from mcap.writer import Writer
@@ -243,7 +243,7 @@ def test_a_crafted_bag_is_refused_topic_by_topic_and_runs_no_code(tmp_path, bag)
     (mods / "pwn_me").mkdir(parents=True)
     (mods / "pwn_me" / "__init__.py").write_text(EVIL_MODULE.format(marker=str(marker)))
     crafted = _crafted_bag(tmp_path / "crafted.mcap", ["pwn_me/msg/Boom", "sensor_msgs/msg/JointState"])
-    from contouring_ros.runner import DomainLease, private_environment
+    from contouring_ros.run.runner import DomainLease, private_environment
     with DomainLease() as lease:
         env = {**private_environment(lease.domain_id), "PYTHONPATH": str(mods)}
         play = _play(env, crafted, "--rate", "0", "--wait-subscribers", "0")

@@ -1,4 +1,4 @@
-"""contouring_ros.rclpy_adapter: the only module that uses rclpy's internals; its check at import; its take and
+"""contouring_ros.nodes.rclpy_adapter: the only module that uses rclpy's internals; its check at import; its take and
 wait on a real rclpy node."""
 from __future__ import annotations
 
@@ -12,11 +12,12 @@ import pytest
 
 from conftest import ROOT
 
-from contouring_ros import rclpy_adapter
+from contouring_ros.nodes import rclpy_adapter
 from contouring_ros.errors import ContouringError, IncompatibleRclpy
-from contouring_ros.nodes import catalogue, scripts
+from contouring_ros.wire import catalogue
+from contouring_ros.nodes import scripts
 
-ADAPTER = ROOT / "contouring_ros" / "rclpy_adapter.py"
+ADAPTER = ROOT / "contouring_ros" / "nodes" / "rclpy_adapter.py"
 #: what only the adapter may name: rclpy's C extension and the private calls made on its objects
 PRIVATE_RCLPY = re.compile(r"implementation_singleton|rclpy_implementation|\b_rclpy\b|\btake_message\b|"
                            r"\bservice_take_request\b|\bservice_send_response\b|\bWaitSet\b|\.handle\b")
@@ -39,7 +40,7 @@ def test_only_the_adapter_uses_rclpy_internals():
                 names = (node.module or "").split(".") + [alias.name for alias in node.names]
                 if any(name.startswith("_") for name in names):
                     found.append(f"{path}:{node.lineno}: {ast.unparse(node)}")
-    assert not found, "rclpy internals outside contouring_ros/rclpy_adapter.py:\n" + "\n".join(found)
+    assert not found, "rclpy internals outside contouring_ros/nodes/rclpy_adapter.py:\n" + "\n".join(found)
 
 
 def _private(name) -> bool:
@@ -144,7 +145,7 @@ def ros_context(monkeypatch):
     from rclpy.context import Context
     from rclpy.signals import SignalHandlerOptions
 
-    from contouring_ros.runner import DomainLease, private_environment
+    from contouring_ros.run.runner import DomainLease, private_environment
 
     with DomainLease() as lease:
         for key, value in private_environment(lease.domain_id).items():
@@ -166,7 +167,7 @@ def test_take_wait_and_take_request_on_a_real_node(ros_context):
     from rcl_interfaces.srv import ListParameters
     from sensor_msgs.msg import JointState
 
-    from contouring_ros import cdr
+    from contouring_ros.wire import cdr
     from contouring_ros.nodes.lockstep import GRAPH_QOS
 
     node = rclpy.create_node("adapter_probe", context=ros_context)
@@ -218,7 +219,7 @@ def test_a_node_that_looks_late_counts_a_publisher_that_left_by_the_messages_it_
     from rclpy.duration import Duration
     from sensor_msgs.msg import JointState
 
-    from contouring_ros import cdr, graph
+    from contouring_ros.wire import cdr, graph
     from contouring_ros.errors import RunError
     from contouring_ros.nodes.lockstep import GRAPH_QOS, LockstepNode
 

@@ -9,13 +9,13 @@ import numpy as np
 import pytest
 from mcap.reader import make_reader
 
-from contouring_ros import cdr
-from contouring_ros.bag import write_simulation
+from contouring_ros.wire import cdr
+from contouring_ros.records.bag import write_simulation
 from contouring_ros.core.interpolation import reference
 from contouring_ros.core.simulation import simulate
 from contouring_ros.experiment.build import build_curve, build_loop, build_schedule
 from contouring_ros.experiment.files import load_experiment
-from contouring_ros.runner import DomainLease, private_environment, run_graph
+from contouring_ros.run.runner import DomainLease, private_environment, run_graph
 from conftest import CONFIG, ROOT, assert_graph_equals_simulation, shortened
 
 pytestmark = pytest.mark.graph
@@ -71,7 +71,7 @@ def test_an_mpcc_graph_of_separate_processes_equals_the_simulation(tmp_path):
 
 def test_each_ilc_pass_through_the_graph_equals_its_simulated_pass(tmp_path):
     # pass 2 plays back the correction learned from pass 1's bag, read from the .npy beside its own bag
-    from contouring_ros.learning import run_passes, simulate_passes
+    from contouring_ros.studies.learning import run_passes, simulate_passes
     path = tmp_path / "ilc.yaml"
     # with measurement noise: pass 2 reads its own noise seed from the file the runner writes for it
     path.write_text(shortened(CONFIG / "ilc_ellipse.yaml", 0.05).replace("passes: 8", "passes: 2").replace(
@@ -81,7 +81,7 @@ def test_each_ilc_pass_through_the_graph_equals_its_simulated_pass(tmp_path):
                       lambda config, bag, parsed: run_graph(config, bag, experiment=parsed, layout="composed"))
     assert [bag.name for bag in bags] == ["run_pass1.mcap", "run_pass2.mcap"]
     assert (tmp_path / "run_pass2_learned.npy").is_file()
-    from contouring_ros.scoring import read_run
+    from contouring_ros.records.scoring import read_run
     for bag, (_, expected) in zip(bags, simulate_passes(experiment)):
         recorded = read_run(bag).result
         for name in ("position", "correction", "command"):

@@ -5,7 +5,7 @@ import math
 
 import pytest
 
-from contouring_ros import cdr, graph
+from contouring_ros.wire import cdr, graph
 from contouring_ros.errors import RunError
 from contouring_ros.nodes import lockstep
 from contouring_ros.nodes.lockstep import LockstepNode

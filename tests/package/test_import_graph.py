@@ -16,7 +16,7 @@ LOCAL_IMPORTS_ALLOWED = {
     ("contouring_ros.cli", "*"):
         "the command line loads a subcommand's modules only when it runs: --help, argument errors and run's "
         "launch start without numpy, scipy and the validation",
-    ("contouring_ros.executors", "contouring_ros.executors"):
+    ("contouring_ros.studies.executors", "contouring_ros.studies.executors"):
         "runs on a Dask worker: imports the worker's own installed copy to report its source digest",
 }
 
@@ -81,9 +81,9 @@ def _allowed(module: str, target: str) -> bool:
 
 def test_the_graph_is_read_from_the_package():
     top, _ = _imports()
-    assert {"contouring_ros.config", "contouring_ros.registry", "contouring_ros.core.simulation",
+    assert {"contouring_ros.config", "contouring_ros.experiment.registry", "contouring_ros.core.simulation",
             "contouring_ros.experiment.catalogue.curves"} <= set(top)
-    assert "contouring_ros.registry" in top["contouring_ros.experiment.catalogue.curves"]
+    assert "contouring_ros.experiment.registry" in top["contouring_ros.experiment.catalogue.curves"]
     assert "contouring_ros.experiment.validate" in top["contouring_ros.config"]
 
 
@@ -108,3 +108,51 @@ def test_every_allowed_entry_is_used_and_has_a_reason():
         assert any(module == importer and _allowed(importer, target) and
                    (imported in ("*", target) or (imported.endswith(".*") and target.startswith(imported[:-1])))
                    for module, target, _ in local), f"unused entry {importer} -> {imported}"
+
+
+# The package's roles from the bottom up (docs/ARCHITECTURE.md): a module may import its own role and those
+# below it, never one above. The top level (api, cli, config) stands over all; errors, notices and _version
+# are the ground every role may use.
+ROLES = ["core", "wire", "experiment", "records", "nodes", "run", "studies"]
+GROUND = {"contouring_ros._version", "contouring_ros._moved", "contouring_ros.errors", "contouring_ros.notices"}
+
+
+def _role(module: str):
+    """A module's rank among ROLES; the top level's len(ROLES); the ground's -1."""
+    if module in GROUND:
+        return -1
+    parts = module.split(".")
+    return ROLES.index(parts[1]) if len(parts) > 1 and parts[1] in ROLES else len(ROLES)
+
+
+def test_every_arrow_points_down_the_roles():
+    top, local = _imports()
+    arrows = [(module, target) for module, targets in top.items() for target in targets]
+    arrows += [(module, target) for module, target, _ in local]
+    upward = sorted({f"{module} -> {target}" for module, target in arrows
+                     if module != "contouring_ros" and _role(target) > _role(module)})
+    assert not upward, "imports that run back up the roles " + str(ROLES) + ":\n" + "\n".join(upward)
+
+
+def test_the_top_level_holds_no_role():
+    """Every module outside the role folders is the package's face, the command line or the ground."""
+    flat = {path.stem for path in (ROOT / PACKAGE).glob("*.py")}
+    assert flat == {"__init__", "_version", "_moved", "api", "cli", "config", "errors", "notices"}, flat
+
+
+def test_old_import_paths_give_the_moved_modules():
+    import importlib
+    import sys
+    import warnings
+
+    from contouring_ros._moved import MOVED
+    for old, new in MOVED.items():
+        sys.modules.pop(f"{PACKAGE}.{old}", None)          # a test before may have imported the old name
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            module = importlib.import_module(f"{PACKAGE}.{old}")
+        assert module is importlib.import_module(f"{PACKAGE}.{new}"), old
+        assert [str(w.message) for w in caught] == [f"{PACKAGE}.{old} has moved to {PACKAGE}.{new}"], old
+    from contouring_ros.registry import Entry             # the plugin documentation's own path
+    assert Entry.__module__ == "contouring_ros.experiment.registry"
+    assert not (ROOT / PACKAGE / "bag.py").exists()

@@ -14,7 +14,7 @@ import pytest
 import yaml
 
 from contouring_ros.config import load_experiment
-from contouring_ros.runner import graph_commands, write_parameter_file
+from contouring_ros.run.runner import graph_commands, write_parameter_file
 from conftest import CONFIG, DEFAULT, ROOT
 
 

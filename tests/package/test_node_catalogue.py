@@ -1,4 +1,4 @@
-"""contouring_ros/nodes/catalogue.py is the one list of the graph's node concerns: setup.py's console scripts,
+"""contouring_ros/wire/catalogue.py is the one list of the graph's node concerns: setup.py's console scripts,
 the graph's nodes and topics, the composed loop, the experiment file's sections, the
 launch file and the node and topic tables of the docs all agree with it."""
 import importlib
@@ -8,8 +8,11 @@ import sys
 
 import pytest
 
-from contouring_ros import composed, config, graph, parameters
-from contouring_ros.nodes import catalogue
+from contouring_ros.run import composed
+from contouring_ros import config
+from contouring_ros.wire import graph
+from contouring_ros.nodes import parameters
+from contouring_ros.wire import catalogue
 from contouring_ros.nodes.lockstep import LockstepNode
 from conftest import DEFAULT, ROOT
 from test_launch import _launched, launch_file  # noqa: F401 (launch_file: the fixture)

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from contouring_ros.nodes import catalogue
+from contouring_ros.wire import catalogue
 from conftest import ROOT
 
 NODES = [node.console_script for node in catalogue.NODES]

@@ -6,7 +6,7 @@ import time
 
 import pytest
 
-from contouring_ros import cdr
+from contouring_ros.wire import cdr
 from contouring_ros.cli import main
 
 from conftest import DEFAULT, ROOT
@@ -18,7 +18,7 @@ CENTURY_NS = 100 * 365 * 86400 * 10**9
 def no_work(monkeypatch):
     """A refusal happens before any work: no pool may start (a --workers 100000 that got through would fork
     that many processes)."""
-    from contouring_ros import executors
+    from contouring_ros.studies import executors
 
     def refuse(*args, **kwargs):
         raise AssertionError("a process pool was started")
@@ -64,7 +64,7 @@ def _bag(path, topic="/x/state", times=(0, 1_000_000)):
 
 
 def _play(path, *options, timeout=60):
-    from contouring_ros.runner import DomainLease, private_environment
+    from contouring_ros.run.runner import DomainLease, private_environment
     with DomainLease() as lease:
         return subprocess.run([sys.executable, "-m", "contouring_ros.cli", "replay", str(path), "--play",
                                "--wait-subscribers", "0", *options], env=private_environment(lease.domain_id),

@@ -6,7 +6,7 @@ import tracemalloc
 import numpy as np
 import pytest
 
-from contouring_ros import sweep
+from contouring_ros.studies import sweep
 from contouring_ros.cli import main
 from contouring_ros.config import build_loop, parse_experiment
 from contouring_ros.core import gcode

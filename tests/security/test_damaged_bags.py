@@ -11,8 +11,8 @@ import sys
 import numpy as np
 import pytest
 
-from contouring_ros import bag
-from contouring_ros.scoring import read_run
+from contouring_ros.records import bag
+from contouring_ros.records.scoring import read_run
 from conftest import recorded_bag
 
 LOST = re.compile(r"the (?:chunk|record) at byte (\d+) is damaged \((.+)\): steps (\d+)\.\.(\d+) lost \((\d+) steps?, "

@@ -18,10 +18,12 @@ import zlib
 import numpy as np
 import pytest
 
-from contouring_ros import bag as bagmod, cdr, cli
-from contouring_ros.bag import BagWriter, read_metadata
+from contouring_ros.records import bag as bagmod
+from contouring_ros.wire import cdr
+from contouring_ros import cli
+from contouring_ros.records.bag import BagWriter, read_metadata
 from contouring_ros.errors import BagError
-from contouring_ros.scoring import read_run
+from contouring_ros.records.scoring import read_run
 from conftest import ROOT, recorded_bag
 
 MiB = 1 << 20
@@ -32,7 +34,7 @@ PEAK = "int(next(l for l in open('/proc/self/status') if l.startswith('VmHWM')).
 MEASURE = """
 import sys
 from contouring_ros.errors import BagError
-from contouring_ros.scoring import read_run
+from contouring_ros.records.scoring import read_run
 try:
     run = read_run(sys.argv[1])
     print("steps", run.complete_steps, "warnings", len(run.warnings))
@@ -134,7 +136,7 @@ def test_a_file_of_chunk_opcodes_is_scanned_quickly(base, tmp_path):
 
 
 def test_replay_play_of_a_bomb_stays_in_bounded_memory(base, tmp_path):
-    from contouring_ros.runner import DomainLease, private_environment
+    from contouring_ros.run.runner import DomainLease, private_environment
     path = _with(base, tmp_path, _chunk("zstd", 1000, _zstd_zeros(1 << 30)), summary=True)
     script = f"import sys\nfrom contouring_ros import cli\ncode = cli.main(sys.argv[1:])\nprint('peak_kb', {PEAK})\n" \
         "sys.exit(code)\n"

@@ -273,7 +273,7 @@ def test_cli_refuses_in_one_line_without_traceback(tmp_path):
 
 
 def test_default_bag_name_stays_in_the_bag_folder(tmp_path):
-    from contouring_ros.runner import default_bag_path
+    from contouring_ros.run.runner import default_bag_path
     experiment = load_experiment(DEFAULT)
     bags = tmp_path / "bags"
     for name in ("../../outside", "a/b", "..", "x" * 500, "name\x00nul", ""):

@@ -12,13 +12,13 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from contouring_ros import cdr
-from contouring_ros import graph as graph_module
+from contouring_ros.wire import cdr
+from contouring_ros.wire import graph as graph_module
 from contouring_ros.config import build_loop, load_experiment
 from contouring_ros.core.simulation import simulate
 from contouring_ros.errors import RunError
-from contouring_ros.runner import DomainLease, private_environment, run_graph
-from contouring_ros.scoring import read_run
+from contouring_ros.run.runner import DomainLease, private_environment, run_graph
+from contouring_ros.records.scoring import read_run
 from conftest import DEFAULT, ROOT, recorded_bytes, shortened, sigint_as_from_a_terminal
 
 graph = pytest.mark.graph
@@ -26,9 +26,9 @@ graph = pytest.mark.graph
 INTRUDER = r'''
 import sys, time, os
 import rclpy
-from contouring_ros import cdr
+from contouring_ros.wire import cdr
 from contouring_ros.nodes.lockstep import DIAGNOSTICS_QOS, GRAPH_QOS, message_class
-from contouring_ros.runner import recording_path
+from contouring_ros.run.runner import recording_path
 topic, type_name, mode, bag = sys.argv[1:5]
 bag = str(recording_path(bag))                         # the recorder's file while the run lasts
 rclpy.init()

@@ -3,10 +3,10 @@ one output over another, a destination that cannot be written: each is one line 
 any work, and every file that was there is as it was."""
 import pytest
 
-from contouring_ros import outputs
+from contouring_ros.records import outputs
 from contouring_ros.cli import main
 from contouring_ros.errors import OutputError
-from contouring_ros.outputs import write_atomically
+from contouring_ros.records.outputs import write_atomically
 
 from conftest import DEFAULT, recorded_bag, shortened
 

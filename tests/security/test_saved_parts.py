@@ -10,10 +10,10 @@ import pickle
 import numpy as np
 import pytest
 
-from contouring_ros import benchmark, parts, tuning
+from contouring_ros.studies import benchmark, parts, tuning
 from contouring_ros.cli import main
 from contouring_ros.errors import ConfigError
-from contouring_ros.search import agreement
+from contouring_ros.studies.search import agreement
 
 
 def _part() -> benchmark.Part:

@@ -10,7 +10,7 @@ import time
 
 import pytest
 
-from contouring_ros import executors
+from contouring_ros.studies import executors
 from contouring_ros.errors import ConfigError
 
 from conftest import DEFAULT, ROOT
@@ -106,7 +106,7 @@ def test_a_local_pool_never_starts_more_processes_than_it_has_tasks(monkeypatch)
             super().__init__(max_workers=max_workers, **kw)
     monkeypatch.setattr(executors, "ProcessPoolExecutor", Recorded)
     from contouring_ros.experiment.files import load_experiment
-    from contouring_ros.sweep import run_sweep
+    from contouring_ros.studies.sweep import run_sweep
     text = load_experiment(DEFAULT).text.replace("    sample_time: 0.001\n",
                                                  "    sample_time: 0.001\n    duration: 0.02\n", 1)
     rows = run_sweep(text, {"ccc.kp": [1.0, 2.0]}, workers=32)

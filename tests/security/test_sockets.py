@@ -1,6 +1,6 @@
 """Localhost by default: a run's nodes bind no socket off loopback unless the experiment sets ``network: true``.
 
-The runner gives the nodes contouring_ros/fastdds_profile.xml (shared memory, and UDPv4 whitelisted to
+The runner gives the nodes contouring_ros/run/fastdds_profile.xml (shared memory, and UDPv4 whitelisted to
 127.0.0.1 with unicast discovery to 127.0.0.1) and ROS_AUTOMATIC_DISCOVERY_RANGE=SYSTEM_DEFAULT, so that
 rmw_fastrtps adds no transport of its own. While a run goes, every UDP and TCP socket of its node
 processes is listed from /proc (the socket inodes of /proc/<pid>/fd, looked up in /proc/<pid>/net/udp,
@@ -22,8 +22,8 @@ import pytest
 
 from contouring_ros.config import build_loop, load_experiment
 from contouring_ros.core.simulation import simulate
-from contouring_ros.runner import FASTDDS_PROFILE, private_environment, run_graph
-from contouring_ros.scoring import read_run
+from contouring_ros.run.runner import FASTDDS_PROFILE, private_environment, run_graph
+from contouring_ros.records.scoring import read_run
 from conftest import DEFAULT, shortened
 
 LOOPBACK = {"127.0.0.1", "::1"}

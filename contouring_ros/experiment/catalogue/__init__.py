@@ -1,8 +1,8 @@
 """The catalogue: every built-in type of every role, one module per role. Each type is a
-:class:`contouring_ros.registry.Entry` holding together its keys (each a :class:`~..schema.Param` with its
+:class:`contouring_ros.experiment.registry.Entry` holding together its keys (each a :class:`~..schema.Param` with its
 default, check, range and meaning), its factory, its checks and its traits (the gains the benchmark tunes, a
 plant's varied parameters, whether a controller needs the states). Plugins add entries of the same shape
-through the entry point groups ``contouring_ros.<role>s`` (contouring_ros/registry.py).
+through the entry point groups ``contouring_ros.<role>s`` (contouring_ros/experiment/registry.py).
 
 - :mod:`.curves`, :mod:`.schedules`: the shared section's ``curve`` and ``schedule``,
 - :mod:`.disturbances`, :mod:`.plants`: each axis' ``/<axis>/plant``,
@@ -13,7 +13,7 @@ through the entry point groups ``contouring_ros.<role>s`` (contouring_ros/regist
 """
 from __future__ import annotations
 
-from ... import registry
+from .. import registry
 from ..ros_yaml import _PARAMETER_NAME
 from ..schema import Param
 from .controllers import CONTROLLERS

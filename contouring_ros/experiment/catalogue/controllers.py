@@ -1,5 +1,5 @@
 """Contour controllers (core/contouring.py): the ``/ccc`` section. ``gains``: the keys the benchmark tunes
-(contouring_ros/tuning.py); ``whole_command``: the controller computes every axis' whole command (its servos
+(contouring_ros/studies/tuning.py); ``whole_command``: the controller computes every axis' whole command (its servos
 must then be 'direct'); ``needs_state``: it uses the reference and the axis states (the CCC node takes them)."""
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import numpy as np
 from ...core import contouring, estimators, ilc, mpc
 from ...core.plants import MAX_COMMAND_DELAY
 from ...errors import ConfigError
-from ...registry import Entry, Role
+from ..registry import Entry, Role
 from ...core.tuning_space import (adaptive_tnb_space, ilc_space, mpcc_space, pid_contour_space, task_frame_space,
                              tvt_space)
 from ..schema import AXIS_GAIN_RANGE, BANDWIDTH_RANGE, DAMPING_RANGE, FORCE_RANGE, GAIN_RANGE, MASS_RANGE, POSITIVE_RANGE, REQUIRED, \

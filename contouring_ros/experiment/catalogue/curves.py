@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from ...core import curves, gcode
-from ...registry import Entry, Role
+from ..registry import Entry, Role
 from ..ros_yaml import _read_file
 from ..scenarios import resolve_part_program
 from ..schema import COORDINATE_RANGE, MAX_PROGRAM_BYTES, MAX_PROGRAM_LINES, REQUIRED, SIZE_RANGE, Param, _printable

@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 from ...core import disturbances
-from ...registry import Entry, Role, section_arguments
+from ..registry import Entry, Role, section_arguments
 from ..schema import SEED_RANGE, Param
 
 __all__ = ["DISTURBANCES", "build_disturbance"]

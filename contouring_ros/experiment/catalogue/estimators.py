@@ -4,7 +4,7 @@ from __future__ import annotations
 import math
 
 from ...core import curves, estimators
-from ...registry import Entry, Role
+from ..registry import Entry, Role
 from ..schema import POSITIVE_RANGE, Param
 
 __all__ = ["ESTIMATORS", "branch_check_settings"]

@@ -1,12 +1,12 @@
 """Plants (core/plants.py): each ``/<axis>/plant`` section, one feed drive. Every type also takes the
 imperfections of a real drive (encoder quantisation, measurement noise, computation delay, the velocity
 reading), all off by default. ``varied``: the physical parameters the benchmark's robustness checks and
-model-mismatch draws vary (contouring_ros/tuning.py)."""
+model-mismatch draws vary (contouring_ros/studies/tuning.py)."""
 from __future__ import annotations
 
 from ...core import plants
 from ...core.tuning_space import first_order_response, mass_damper_response
-from ...registry import Entry, Role
+from ..registry import Entry, Role
 from ..schema import AXIS_GAIN_RANGE, DAMPING_RANGE, FORCE_RANGE, MASS_RANGE, SEED_RANGE, TIME_CONSTANT_RANGE, Param, limit
 from .disturbances import DISTURBANCES, build_disturbance
 

@@ -7,7 +7,7 @@ from ...core.feed_planning import LOOKAHEAD_BLOCKS, FeedPlan
 from ...core.interpolation import FeedrateSchedule, UniformSchedule
 from ...errors import ConfigError
 from ...notices import note_while_slow
-from ...registry import Entry, Role, section_arguments
+from ..registry import Entry, Role, section_arguments
 from ..schema import MAX_DURATION, Param, _fail, _printable
 
 __all__ = ["SCHEDULES"]

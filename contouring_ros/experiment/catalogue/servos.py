@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from ...core import servo
 from ...core.plants import MAX_COMMAND_DELAY
-from ...registry import Entry, Role
+from ..registry import Entry, Role
 from ...core.tuning_space import pid_servo_space
 from ..schema import AXIS_GAIN_RANGE, DAMPING_RANGE, FORCE_RANGE, GAIN_RANGE, MASS_RANGE, POSITIVE_RANGE, REQUIRED, \
     TIME_CONSTANT_RANGE, Param, limit, pid_gains

@@ -1,7 +1,7 @@
 """The keys every node shares (the file's ``/**`` section), and the optional nodes' own keys."""
 from __future__ import annotations
 
-from ...nodes import catalogue as nodes
+from ...wire import catalogue as nodes
 from ..schema import MAX_DURATION, Param
 from .curves import CURVES
 from .schedules import SCHEDULES
@@ -83,5 +83,5 @@ GLOBALS = {
 
 _OPTIONAL_KEYS = {"recorder": {"bag": Param("str", "", help="the MCAP file to write"),
                                "experiment_file": Param("str", "", help="experiment file stored in the bag")}}
-#: nodes whose section may be left out (contouring_ros/nodes/catalogue.py), with the keys they take
+#: nodes whose section may be left out (contouring_ros/wire/catalogue.py), with the keys they take
 OPTIONAL_NODES = {node.name: _OPTIONAL_KEYS.get(node.name, {}) for node in nodes.NODES if node.optional}

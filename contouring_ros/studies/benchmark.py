@@ -25,7 +25,7 @@ such as the ZPETC) with ``none`` (the feedforward alone) and the proposed contro
 estimator. Sections that model the drive (a ``command_delay`` key of a servo or controller, a controller's
 ``command_limit``) are given the realistic machine's delay and actuator limits (:func:`fit_to_machine`).
 
-Tuning: :mod:`contouring_ros.tuning` (every gain on its own, CMA-ES, equal budget, equal noise,
+Tuning: :mod:`contouring_ros.studies.tuning` (every gain on its own, CMA-ES, equal budget, equal noise,
 saturation and robustness constraints, a realistic machine, intervals over seeds and model mismatch).
 """
 from __future__ import annotations
@@ -46,17 +46,17 @@ import yaml
 
 from .checkpoints import Checkpoints
 from .claims import claim_files, load_claims
-from .experiment.build import build_loop
-from .experiment.catalogue import CONTROLLERS, ESTIMATORS, SERVOS
-from .experiment.ros_yaml import read_yaml
-from .experiment.schema import GLOBAL_SECTION, REQUIRED
-from .core.simulation import simulate
-from .errors import ConfigError, Diverged
-from .outputs import write_atomically
+from ..experiment.build import build_loop
+from ..experiment.catalogue import CONTROLLERS, ESTIMATORS, SERVOS
+from ..experiment.ros_yaml import read_yaml
+from ..experiment.schema import GLOBAL_SECTION, REQUIRED
+from ..core.simulation import simulate
+from ..errors import ConfigError, Diverged
+from ..records.outputs import write_atomically
 from .executors import pool as executor
-from .experiment.scenarios import CONFIG_DIR
-from .core.margins import LoopMargins
-from .core.metrics import Scores
+from ..experiment.scenarios import CONFIG_DIR
+from ..core.margins import LoopMargins
+from ..core.metrics import Scores
 from .parts import load as read_part, register as allow_in_parts, save as write_part
 from .search import Agreement
 from .tuning import (
@@ -471,7 +471,7 @@ def run_benchmark(families: list, protocol: Protocol | None = None, workers: int
                   progress: bool = False, say=None, scheduler: str | None = None, methods=(),
                   checkpoints: Checkpoints | None = None) -> list:
     """Every row (one per scenario x combination, the excluded ones included) of ``families``, on local
-    processes or the Dask cluster at ``scheduler`` (:func:`contouring_ros.executors.pool`). ``methods``
+    processes or the Dask cluster at ``scheduler`` (:func:`contouring_ros.studies.executors.pool`). ``methods``
     (globs, :func:`matches_methods`): only those combinations, and each scenario's proposed one (the ratios
     are to it). With ``checkpoints``, a row kept there from an earlier run of the same inputs and code is
     taken as it is, and each row tuned now is kept there as it finishes."""
@@ -896,7 +896,7 @@ def _excluded_table(rows: list) -> list:
 
 
 def convergence_text(tuned: list) -> str:
-    """How many tuned rows converged (their searches agreed, :func:`contouring_ros.search.agreement`), how many
+    """How many tuned rows converged (their searches agreed, :func:`contouring_ros.studies.search.agreement`), how many
     searches they took, and the rows that did not, each with its searches' spread."""
     if not tuned:
         return ""
@@ -1061,13 +1061,13 @@ allow_in_parts(Part, Family, Combination, Excluded, Reference, Row, Protocol, Ou
 
 
 def save_part(part: Part, path) -> Path:
-    """Write ``part`` to ``path`` as a part file (:mod:`contouring_ros.parts`: JSON with a format version and
+    """Write ``part`` to ``path`` as a part file (:mod:`contouring_ros.studies.parts`: JSON with a format version and
     a checksum, read back by :func:`load_parts`; nothing in it can run code)."""
     return write_part(part, path)
 
 
 def load_parts(paths: list) -> list:
-    """The :class:`Part` of each file in ``paths`` (:func:`contouring_ros.parts.load`: checked before anything
+    """The :class:`Part` of each file in ``paths`` (:func:`contouring_ros.studies.parts.load`: checked before anything
     is built). ConfigError naming a file that is not one, whose rows do not hang together, or whose protocol
     differs from the first's (their rows would not compare)."""
     parts = []

@@ -11,8 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .core.geometry import ExactContourError
-from .errors import BagError
+from ..core.geometry import ExactContourError
+from ..errors import BagError
 from .outputs import write_atomically
 from .scoring import curve_of, read_run
 
@@ -65,7 +65,7 @@ def write_parquet(columns: dict, path) -> Path:
 
 def export_bag(bag, csv_dir=None, parquet_dir=None, experiment_text: str | None = None, parsed=None) -> tuple:
     """Export a bag's complete steps to ``csv_dir``/<bag stem>.csv and/or ``parquet_dir``/<bag stem>.parquet
-    (``experiment_text`` and ``parsed`` as in :func:`contouring_ros.scoring.read_run`).
+    (``experiment_text`` and ``parsed`` as in :func:`contouring_ros.records.scoring.read_run`).
     Returns (written paths, the reader's warnings)."""
     run = read_run(bag, experiment_text=experiment_text, parsed=parsed)
     columns = run_table(run.result, run.axes, curve_of(run))

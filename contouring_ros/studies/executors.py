@@ -29,7 +29,7 @@ from concurrent.futures import ProcessPoolExecutor
 from contextlib import contextmanager
 from pathlib import Path
 
-from .errors import ConfigError
+from ..errors import ConfigError
 
 __all__ = ["pool", "source_digest"]
 
@@ -126,7 +126,7 @@ def _read(sock, n: int, deadline: float) -> bytes:
 
 def source_digest() -> str:
     """SHA-256 of the package's Python source (every ``*.py`` under contouring_ros/, by relative path)."""
-    root = Path(__file__).resolve().parent
+    root = Path(__file__).resolve().parents[1]
     digest = hashlib.sha256()
     for path in sorted(root.rglob("*.py")):
         digest.update(str(path.relative_to(root)).encode())
@@ -137,7 +137,7 @@ def source_digest() -> str:
 def _worker_digest() -> str:
     """Run on a worker: its contouring_ros's :func:`source_digest`, or why it has none."""
     try:
-        from contouring_ros.executors import source_digest as digest
+        from contouring_ros.studies.executors import source_digest as digest
     except ImportError as error:
         return f"cannot import contouring_ros: {error}"
     return digest()

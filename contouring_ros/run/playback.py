@@ -58,9 +58,9 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from . import cdr, graph
-from .bag import iter_records, summary_chunks
-from .errors import BagError
+from ..wire import cdr, graph
+from ..records.bag import iter_records, summary_chunks
+from ..errors import BagError
 
 __all__ = ["play_bag", "installed_message_class", "UnplayableType", "WINDOW", "SETTLE", "ACK_TIMEOUT",
            "CTRL_C_DRAIN"]

@@ -4,9 +4,9 @@ Each entry names the node as experiment files do (its section is /<name>, or /<a
 node), whether there is one per axis, its console script (``ros2 run contouring_ros <script>``), its class
 as ``"module:Class"`` (nothing is imported to read it), the topics it takes and publishes, whether its
 experiment-file section may be left out. What reads it:
-setup.py (the console scripts), :mod:`contouring_ros.graph` (node names, topics with their publisher and
+setup.py (the console scripts), :mod:`contouring_ros.wire.graph` (node names, topics with their publisher and
 subscribers, the node specs the runner and launch/contouring.launch.py start), :mod:`contouring_ros.experiment`
-(the node sections of an experiment file), :mod:`contouring_ros.composed` (the classes of its one loop),
+(the node sections of an experiment file), :mod:`contouring_ros.run.composed` (the classes of its one loop),
 and tests/package/test_node_catalogue.py
 (the node and topic tables of README.md, docs/ARCHITECTURE.md and graph.py's docstring).
 
@@ -51,7 +51,7 @@ USES = ("data", "pacing", "record")
 @dataclass(frozen=True)
 class Input:
     """One input of a node: the topic, how the node uses it (one of USES), and the flag of
-    :func:`contouring_ros.graph.topics` it depends on (None: always taken)."""
+    :func:`contouring_ros.wire.graph.topics` it depends on (None: always taken)."""
 
     topic: str
     use: str = "data"

@@ -2,8 +2,8 @@
 (a closed laptop, a killed job, a cluster's time limit) goes on where it stopped.
 
 Each tuned combination is one file in the folder, ``<key>.row``, in the part format
-(:mod:`contouring_ros.parts`: gzip JSON with a checksum, nothing in it can run code). Its key is the SHA-256
-of everything the tuning is a function of: the package's source (:func:`~contouring_ros.executors.source_digest`),
+(:mod:`contouring_ros.studies.parts`: gzip JSON with a checksum, nothing in it can run code). Its key is the SHA-256
+of everything the tuning is a function of: the package's source (:func:`~contouring_ros.studies.executors.source_digest`),
 the scenario's experiment, the combination's sections and tuned keys, the machine, the noise limit, the
 scoring window, the protocol and the robustness floor. A row is taken from the folder only when all of those
 are the same, so a changed file, option or line of code tunes the row again instead of reporting a stale
@@ -16,7 +16,7 @@ import json
 from dataclasses import dataclass
 from pathlib import Path
 
-from .errors import ConfigError
+from ..errors import ConfigError
 from .executors import source_digest
 from .parts import load as read_part, register, save as write_part
 

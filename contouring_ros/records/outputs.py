@@ -25,7 +25,7 @@ import os
 import secrets
 from pathlib import Path
 
-from .errors import OutputError
+from ..errors import OutputError
 
 __all__ = ["Outputs", "BAG", "PNG", "PARQUET", "PART", "LEARNED", "HTML", "EXPORT_CSV", "BLOCKS_CSV", "SWEEP_CSV",
            "BENCHMARK_CSV", "REPORT", "active", "signature", "check_write", "write_atomically"]
@@ -196,7 +196,7 @@ def write_atomically(path, write):
     """Call ``write(tmp)`` on a temporary file beside ``path`` (same folder, so the rename is atomic), then
     rename it to ``path``: a full disk or any failure leaves no truncated file under ``path`` (a file already
     there is kept as it was). An OSError becomes one :class:`OutputError` line naming ``path``. Inside a
-    command, the move obeys that command's :class:`contouring_ros.outputs.Outputs` (no input, no file of
+    command, the move obeys that command's :class:`contouring_ros.records.outputs.Outputs` (no input, no file of
     another kind, no path written twice)."""
     path = Path(path)
     tmp = path.with_name(f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}.part")

@@ -12,9 +12,9 @@ No rclpy import at module level: :func:`node_parameters` is plain data; :func:`d
 """
 from __future__ import annotations
 
-from .experiment.catalogue import GLOBALS, OPTIONAL_NODES, ROLE_TYPES
-from .experiment.schema import DEFAULT_BOUNDS, NUMERIC_KINDS, Param
-from .experiment.validate import ROS_BUILTIN_PARAMETERS, experiment_for_node
+from ..experiment.catalogue import GLOBALS, OPTIONAL_NODES, ROLE_TYPES
+from ..experiment.schema import DEFAULT_BOUNDS, NUMERIC_KINDS, Param
+from ..experiment.validate import ROS_BUILTIN_PARAMETERS, experiment_for_node
 
 __all__ = ["NodeParameter", "node_parameters", "description", "describe", "descriptor"]
 

@@ -15,14 +15,15 @@ from pathlib import Path
 
 import numpy as np
 
-from .core.ilc import learn
-from .core.simulation import first_divergence, path_bound, simulate
-from .outputs import write_atomically
-from .experiment.build import build_loop
-from .experiment.model import Experiment
-from .experiment.schema import SEED_RANGE
-from .scoring import read_run
-from .sweep import simulate_loops, written_settings
+from ..core.ilc import learn
+from ..core.simulation import first_divergence, path_bound, simulate
+from ..records.outputs import write_atomically
+from ..experiment.build import build_loop
+from ..experiment.model import Experiment
+from ..experiment.schema import SEED_RANGE
+from ..records.scoring import read_run
+from .sweep import simulate_loops
+from ..experiment.settings import written_settings
 
 __all__ = ["passes", "next_correction", "pass_settings", "pass_experiment", "simulate_passes",
            "simulate_last_passes", "pass_bag", "run_passes"]
@@ -98,7 +99,7 @@ def simulate_passes(experiment: Experiment, progress=None) -> list:
 
 def simulate_last_passes(experiments: list) -> list:
     """(loop, result, failure) of each experiment's last pass, in-process: pass j of every experiment still
-    running advances together (:func:`contouring_ros.sweep.simulate_loops`: one vectorised batch where
+    running advances together (:func:`contouring_ros.studies.sweep.simulate_loops`: one vectorised batch where
     their classes allow, as a sweep's runs), each learning from its own pass as :func:`simulate_passes`
     does. A pass that diverges ends its experiment: (its loop, None, how it diverged)."""
     out, tables = [None] * len(experiments), [None] * len(experiments)

@@ -7,7 +7,7 @@ wire, zstd chunks, and a summary with statistics, so that rosbag2, Foxglove, Plo
 ``contouring_ros.experiment``. Log and publish times are the messages' step stamps.
 
 Reading, in two steps around the experiment's validation, which is not this module's (the caller parses the
-experiment once: :func:`contouring_ros.scoring.read_run`): :func:`read_contents` streams a bag's records and
+experiment once: :func:`contouring_ros.records.scoring.read_run`): :func:`read_contents` streams a bag's records and
 returns the experiment text it stores with the columns of its topics, then :func:`decode_run` turns those into
 per-step arrays, checked against the parsed experiment, as a :class:`RecordedRun` that carries it.
 """
@@ -25,15 +25,15 @@ from array import array
 
 import numpy as np
 
-from . import cdr, graph
-from .core.simulation import SimulationResult, first_divergence, step_time
-from .errors import BagError, ContouringError
-from .core.interpolation import reference_ahead
-from .experiment.build import build_curve, build_schedule, reference_preview
-from .experiment.catalogue import GLOBALS
-from .experiment.model import Experiment
-from .experiment.schema import MAX_FILE_BYTES
-from .experiment.validate import is_axis_name
+from ..wire import cdr, graph
+from ..core.simulation import SimulationResult, first_divergence, step_time
+from ..errors import BagError, ContouringError
+from ..core.interpolation import reference_ahead
+from ..experiment.build import build_curve, build_schedule, reference_preview
+from ..experiment.catalogue import GLOBALS
+from ..experiment.model import Experiment
+from ..experiment.schema import MAX_FILE_BYTES
+from ..experiment.validate import is_axis_name
 
 __all__ = ["message_definition", "BagWriter", "RecordedRun", "BagContents", "reading", "read_contents", "decode_run",
            "read_metadata", "node_reports", "iter_records", "summary_chunks", "write_simulation", "EXPERIMENT_METADATA",

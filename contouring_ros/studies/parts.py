@@ -31,8 +31,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import ConfigError
-from .outputs import write_atomically
+from ..errors import ConfigError
+from ..records.outputs import write_atomically
 
 __all__ = ["FORMAT", "VERSION", "MAX_FILE_BYTES", "MAX_TEXT_BYTES", "CLASSES", "register", "dumps", "loads", "save", "load"]
 
@@ -44,7 +44,7 @@ _NUMPY_KINDS = "biuf"               # numpy scalars and arrays of bools, integer
 
 
 #: class name -> class: every dataclass a part may hold, the only classes :func:`loads` builds; registered by
-#: the modules that define them (:func:`register`: contouring_ros.benchmark registers the benchmark's), so
+#: the modules that define them (:func:`register`: contouring_ros.studies.benchmark registers the benchmark's), so
 #: this module imports none of them
 CLASSES: dict = {}
 

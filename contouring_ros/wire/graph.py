@@ -1,5 +1,5 @@
 """The node graph: nodes, topics, message layouts and QoS, in one place (which nodes there are and the topics
-each takes and publishes come from the node catalogue, contouring_ros/nodes/catalogue.py).
+each takes and publishes come from the node catalogue, contouring_ros/wire/catalogue.py).
 
 No rclpy import here: the bag reader and the analysis use the same layouts on decoded messages.
 
@@ -25,11 +25,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .core.estimators import ContourEstimate
-from .core.interpolation import Reference
-from .errors import ConfigError
-from .nodes import catalogue
-from .nodes.catalogue import CLOCK, COMMAND, CONTOUR_ERROR, CORRECTION, DIAGNOSTICS, REFERENCE, STATE
+from ..core.estimators import ContourEstimate
+from ..core.interpolation import Reference
+from ..errors import ConfigError
+from . import catalogue
+from .catalogue import CLOCK, COMMAND, CONTOUR_ERROR, CORRECTION, DIAGNOSTICS, REFERENCE, STATE
 
 __all__ = ["Topic", "topics", "node_names", "NodeSpec", "node_specs", "CONTOUR_ERROR_NAME", "FOOT_POINT_NAME", "THETA_NAME",
            "LOOKAHEAD", "step_to_stamp", "reference_from_msg",
@@ -144,7 +144,7 @@ def command_topic(axis: str) -> str:
 
 
 def node_names(axes) -> list:
-    """Fully qualified names of every node of the graph, in the order of a step (nodes.catalogue), recorder
+    """Fully qualified names of every node of the graph, in the order of a step (wire.catalogue), recorder
     last."""
     return [name for _, _, name in catalogue.instances(axes)]
 
@@ -153,7 +153,7 @@ def node_names(axes) -> list:
 class NodeSpec:
     """How one node of the graph is started: what the runner and launch/contouring.launch.py share.
 
-    ``name`` is the node concern's name in nodes.catalogue, ``executable`` its console script
+    ``name`` is the node concern's name in wire.catalogue, ``executable`` its console script
     (``ros2 run contouring_ros <executable>``); ``overrides`` are parameters set on top of the experiment file.
     """
 
@@ -192,7 +192,7 @@ def node_specs(axes, overrides: dict | None = None, bag: str | None = None,
 
 
 def topics(axes, ccc_takes_state: bool = True, interpolator_takes_state: bool = False) -> list:
-    """Every topic of the graph for ``axes``: the outputs of the nodes of nodes.catalogue, in graph order,
+    """Every topic of the graph for ``axes``: the outputs of the nodes of wire.catalogue, in graph order,
     each with its publisher and subscribers (those whose step reads it, those it only paces, then the
     recorder, which takes them all). The CCC takes /reference and the states only with ``ccc_takes_state``
     (the shared key of that name: its controller uses them); the interpolator takes the states only with

@@ -14,10 +14,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .core.geometry import ExactContourError
-from .core.gcode import INCH, MM
-from .core.interpolation import SETTLE
-from .core.metrics import Scores, score
+from ..core.geometry import ExactContourError
+from ..core.gcode import INCH, MM
+from ..core.interpolation import SETTLE
+from ..core.metrics import Scores, score
 from .outputs import write_atomically
 
 __all__ = ["BlockResult", "block_results", "cutting_steps", "cutting_scores", "format_blocks", "write_blocks_csv",

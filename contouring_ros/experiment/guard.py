@@ -1,6 +1,6 @@
 """The guard a plugin's object runs under: what its methods raise, or return that is not finite, becomes one line.
 
-A type from another package (an entry point of :mod:`contouring_ros.registry`) is code this package did not
+A type from another package (an entry point of :mod:`contouring_ros.experiment.registry`) is code this package did not
 write. Its object is given a subclass of its own class (same name, same attributes and results) whose
 methods that the simulation and the nodes call, per role (:data:`GUARDED_METHODS`), turn
 
@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .errors import ContouringError, RunError, one_line
+from ..errors import ContouringError, RunError, one_line
 
 __all__ = ["GUARDED_METHODS", "PluginNotFinite", "guard"]
 

@@ -19,13 +19,13 @@ from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
 
-from . import graph
-from .graph import parse_groups
-from .experiment.build import reference_preview
-from .experiment.files import load_experiment, namespaced_parameter_file
-from .experiment.model import Experiment
-from .experiment.validate import controller_uses_state, split_groups
-from .errors import Interrupted, RunError
+from ..wire import graph
+from ..wire.graph import parse_groups
+from ..experiment.build import reference_preview
+from ..experiment.files import load_experiment, namespaced_parameter_file
+from ..experiment.model import Experiment
+from ..experiment.validate import controller_uses_state, split_groups
+from ..errors import Interrupted, RunError
 
 __all__ = ["NodeProcess", "DomainLease", "graph_commands", "grouped_commands", "parse_groups", "write_parameter_file",
            "private_environment", "run_graph", "default_bag_path"]
@@ -358,8 +358,8 @@ def _note_interruptions() -> dict:
 
 def _composed_process(label: str, experiment_path, bag: Path, start_time: float, namespace: str,
                       nodes=None) -> NodeProcess:
-    """A process of :mod:`contouring_ros.composed`: every node of the graph, or the ``nodes`` of one group."""
-    return NodeProcess(label, [sys.executable, "-m", "contouring_ros.composed", str(experiment_path), str(bag)]
+    """A process of :mod:`contouring_ros.run.composed`: every node of the graph, or the ``nodes`` of one group."""
+    return NodeProcess(label, [sys.executable, "-m", "contouring_ros.run.composed", str(experiment_path), str(bag)]
                        + (["--nodes", ",".join(nodes)] if nodes else [])
                        + (["--start-time", repr(start_time)] if start_time else [])
                        + (["--namespace", namespace] if namespace not in ("", "/") else []))
@@ -378,7 +378,7 @@ def group_label(names) -> str:
 def grouped_commands(experiment_path, experiment: Experiment, bag: Path, groups, start_time: float = 0.0,
                      namespace: str = "/", parameter_file=None) -> list:
     """The grouped layout: one process per group of two or more nodes (the composed loop over that subset,
-    ``python -m contouring_ros.composed --nodes``), and every node in no such group in its own process as
+    ``python -m contouring_ros.run.composed --nodes``), and every node in no such group in its own process as
     in the process layout, all under the graph ``namespace``. ``groups`` as :func:`parse_groups` returns
     them (the graph's own names)."""
     shared = [group for group in groups if len(group) > 1]

@@ -1,6 +1,6 @@
 """Offline analysis of recorded runs: comparisons, estimator replay, figures and an HTML report.
 
-Nothing here needs ROS: bags are read with :mod:`contouring_ros.bag`, figures drawn with matplotlib.
+Nothing here needs ROS: bags are read with :mod:`contouring_ros.records.bag`, figures drawn with matplotlib.
 """
 from __future__ import annotations
 
@@ -17,18 +17,18 @@ from tqdm import tqdm
 
 from .bag import RecordedRun
 from .blocks import block_cells, block_codes, block_headings, block_results, cutting_scores, feed_unit
-from .experiment.build import build_curve, build_estimator, build_schedule
-from .experiment.catalogue import ESTIMATORS
-from .experiment.ros_yaml import read_yaml
-from .experiment.validate import validate_section
-from .core.curves import ToolPath
-from .core.geometry import ExactContourError
-from .core.interpolation import Reference
-from .errors import ConfigError, ContouringError, OutputError
+from ..experiment.build import build_curve, build_estimator, build_schedule
+from ..experiment.catalogue import ESTIMATORS
+from ..experiment.ros_yaml import read_yaml
+from ..experiment.validate import validate_section
+from ..core.curves import ToolPath
+from ..core.geometry import ExactContourError
+from ..core.interpolation import Reference
+from ..errors import ConfigError, ContouringError, OutputError
 from .outputs import write_atomically
-from .core.feed_control import parse_feed_events
+from ..core.feed_control import parse_feed_events
 from .scoring import SCORE_ROWS, breach_of, curve_of, format_scores, motion_steps
-from .sweep import differences
+from ..experiment.settings import differences
 
 __all__ = ["compare_table", "experiment_differences", "format_differences",
            "parse_estimator_spec", "EstimatorReplay", "replay_estimators", "run_names",
@@ -53,7 +53,7 @@ def compare_table(named: list, baseline: int = 0, axes=None) -> str:
 
 def experiment_differences(runs: list) -> dict:
     """Grid key (``ccc.kp``, ``curve.h``) -> each run's value, for every key of the experiment files stored in
-    (label, RecordedRun) ``runs`` whose value is not the same in all (:func:`contouring_ros.sweep.differences`;
+    (label, RecordedRun) ``runs`` whose value is not the same in all (:func:`contouring_ros.studies.sweep.differences`;
     the experiment's name left out: the runs are named by it anyway). Empty for one run, or where a run's
     bag holds no experiment it can read."""
     if len(runs) < 2:
@@ -690,7 +690,7 @@ def _override_stretches(trace) -> list:
 
 def draw_feed(traces):
     """Tool path runs: the feed along the path against each block's limit, in the program's unit per minute
-    (:func:`contouring_ros.blocks.feed_unit`), and the largest contour error of each block (labelled by its
+    (:func:`contouring_ros.records.blocks.feed_unit`), and the largest contour error of each block (labelled by its
     source line; with more than :data:`LABELLED_BLOCKS` blocks, by some of them, drawn as a line)."""
     from matplotlib.lines import Line2D
     from matplotlib.ticker import MaxNLocator
@@ -949,7 +949,7 @@ def _html_experiments(traces) -> str:
 
 def _html_blocks(traces) -> str:
     """For tool path runs: the scores of the cutting moves alone and the results per block
-    (:mod:`contouring_ros.blocks`)."""
+    (:mod:`contouring_ros.records.blocks`)."""
     parts = []
     for t in traces:
         if t.curve is None or not hasattr(t.curve, "blocks") or t.experiment is None or t.diverged:

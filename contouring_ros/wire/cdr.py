@@ -6,7 +6,7 @@ few float arrays and the header stamp, so the nodes encode and decode the wire f
 to its size relative to the end of that header). The tests check the bytes against rclpy's serializer.
 
 Decoded messages are small objects with the field names of the ROS messages they stand for, so the
-conversions in :mod:`contouring_ros.graph` work on them, on rclpy messages and on decoded bag messages alike.
+conversions in :mod:`contouring_ros.wire.graph` work on them, on rclpy messages and on decoded bag messages alike.
 
 A topic's messages keep their layout (same names, same array lengths), so both directions cache it: an
 encoder fills a cached template with the stamp and the values; a decoder that finds every byte but the

@@ -34,11 +34,11 @@ A paper's claims live in ``config/claims/paper<N>.yaml``::
 Scenario names are files of ``config/``. A ratio is proposed / baseline of the claim's metric (lower: the
 proposed method better). :func:`verdict` turns a ratio and the paper's into a verdict.
 
-Machine and uncertainty. A claim is measured on the *realistic* machine of :mod:`contouring_ros.tuning`
+Machine and uncertainty. A claim is measured on the *realistic* machine of :mod:`contouring_ros.studies.tuning`
 (encoder, noise, one sample of delay, velocity from the encoder, an actuator limit of 2x the proposed file's
 peak command where the file states none): the machine is made from the proposed file (its ideal run's peak
 command) and put under BOTH files of the pair. The ratio is the median over :data:`DRAWS` paired draws (draw
-j, :func:`contouring_ros.tuning.draw_settings`: noise seeds and +-:data:`MISMATCH` on every plant parameter,
+j, :func:`contouring_ros.studies.tuning.draw_settings`: noise seeds and +-:data:`MISMATCH` on every plant parameter,
 the same draw for both files) with the 2.5-97.5 percentile interval of the per-draw ratios;
 :func:`interval_verdict` gives a verdict only where the whole interval has one (else 'undecided'). The ideal
 machine's ratio (no imperfections, no draws) is kept beside it. Sensitivity: each ``decisive`` entry's keys
@@ -46,7 +46,7 @@ are scaled x0.7 and x1.4 in both files alike (on the realistic machine, no draw:
 :func:`robustness` says whether the verdict of the median ratio stays the same ('robust') or flips
 ('knife-edge', naming where). ``expected`` and ``verdict`` are what the tests hold the measurement to
 (the realistic medians, intervals and interval verdicts; the ideal ratios). A map sweeps the pair's two files alike over one or
-two variables (grid keys as in :mod:`contouring_ros.sweep`; a variable with several keys sets them all) and
+two variables (grid keys as in :mod:`contouring_ros.studies.sweep`; a variable with several keys sets them all) and
 draws proposed / baseline MCE and TACE with the contour where the paper's ratio is reached.
 """
 from __future__ import annotations
@@ -60,13 +60,14 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from .experiment.files import load_experiment
-from .experiment.ros_yaml import read_yaml
-from .errors import ConfigError
-from .outputs import write_atomically
+from ..experiment.files import load_experiment
+from ..experiment.ros_yaml import read_yaml
+from ..errors import ConfigError
+from ..records.outputs import write_atomically
 from .executors import pool as executor
-from .experiment.scenarios import CONFIG_DIR
-from .sweep import experiments_for, grid_key_location, score_experiments
+from ..experiment.scenarios import CONFIG_DIR
+from .sweep import experiments_for, score_experiments
+from ..experiment.settings import grid_key_location
 from .tuning import draw_settings, interval, machine_settings, run_outcomes
 
 __all__ = ["VERDICTS", "METRICS", "DRAWS", "MISMATCH", "SCALES", "verdict", "interval_verdict", "robustness",
@@ -348,7 +349,7 @@ class ScenarioScores:
 
     workers: int | None = None
     cache: dict = field(default_factory=dict)
-    scheduler: str | None = None     # a Dask scheduler's address (contouring_ros.executors), else local processes
+    scheduler: str | None = None     # a Dask scheduler's address (contouring_ros.studies.executors), else local processes
 
     @staticmethod
     def _key(name, settings, from_time):
@@ -839,7 +840,7 @@ def claims_report(papers: list | None = None, directory="reports", maps: bool = 
             "paper's own experiment, and in a mechanism scenario where the effect the paper relies on is present "
             "(chosen from the physics; its file header says why). Figures in micrometres; MCE = max, TACE = time "
             "average, RMS of the exact contour error (distance to the whole curve).", "",
-            f"Machine: every ratio is measured on the realistic machine of `contouring_ros.tuning` (0.1 um encoder, "
+            f"Machine: every ratio is measured on the realistic machine of `contouring_ros.studies.tuning` (0.1 um encoder, "
             "0.05 um RMS position noise, one sample of command delay, velocity from the encoder, an actuator limit "
             "of 2x the proposed file's ideal peak command where the file states none), made from the proposed file "
             f"and put under both files of the pair; the median and 2.5-97.5% interval are over {draws} paired "
@@ -860,10 +861,10 @@ def write_claims_report(text: str, directory="reports", name: str = "claims.md")
 
 
 def main(argv=None) -> int:
-    """python -m contouring_ros.claims [FILE ...] [--maps]: evaluate claims files and print each claim's
+    """python -m contouring_ros.studies.claims [FILE ...] [--maps]: evaluate claims files and print each claim's
     ratios and verdicts against what the file expects (for writing a claims file)."""
     import argparse
-    parser = argparse.ArgumentParser(prog="python -m contouring_ros.claims", description=main.__doc__)
+    parser = argparse.ArgumentParser(prog="python -m contouring_ros.studies.claims", description=main.__doc__)
     parser.add_argument("files", nargs="*", help="claims files (default: config/claims/paper*.yaml)")
     parser.add_argument("--maps", action="store_true", help="also compute and draw the regime maps into --out/maps")
     parser.add_argument("--out", default="reports")

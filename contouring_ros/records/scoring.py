@@ -11,13 +11,13 @@ import numpy as np
 from . import bag
 from .bag import RecordedRun
 from .blocks import breach_line, cutting_scores, motion_end
-from .core.monitoring import first_breach
-from .experiment.build import build_curve, build_schedule, in_position_windows, monitoring_limits
-from .experiment.validate import parse_experiment
-from .core.geometry import ExactContourError
-from .core.metrics import Scores, score
-from .core.simulation import path_bound
-from .errors import BagError, ConfigError, ContouringError, ScoreError
+from ..core.monitoring import first_breach
+from ..experiment.build import build_curve, build_schedule, in_position_windows, monitoring_limits
+from ..experiment.validate import parse_experiment
+from ..core.geometry import ExactContourError
+from ..core.metrics import Scores, score
+from ..core.simulation import path_bound
+from ..errors import BagError, ConfigError, ContouringError, ScoreError
 
 __all__ = ["read_run", "score_run", "score_bag", "check_experiment_matches", "curve_of", "format_scores",
            "format_realtime", "miss_rate", "tolerance_line", "cutting_lines", "motion_steps", "breach_of", "breach_message", "SCORE_ROWS",
@@ -33,7 +33,7 @@ REALTIME_COLUMNS = ("ticks", "deadline misses", "skipped ticks", "late inputs", 
 
 def read_run(path, keep_payloads: bool = False, experiment_text: str | None = None, progress: bool = False,
              parsed=None) -> RecordedRun:
-    """A bag as a run (:func:`contouring_ros.bag.read_contents`, then :func:`~contouring_ros.bag.decode_run`)
+    """A bag as a run (:func:`contouring_ros.records.bag.read_contents`, then :func:`~contouring_ros.records.bag.decode_run`)
     whose experiment text is parsed here, once, and carried by the run (``experiment``).
 
     ``experiment_text`` is the experiment's YAML for a bag recorded without one (it replaces the stored one);
@@ -74,7 +74,7 @@ def _divergence_bound(experiment) -> float | None:
 
 
 def motion_steps(curve, result, experiment=None) -> int:
-    """How many steps of ``result`` its motion takes (:func:`contouring_ros.blocks.motion_end`; every step for
+    """How many steps of ``result`` its motion takes (:func:`contouring_ros.records.blocks.motion_end`; every step for
     a curve that is not a tool path), with the ``experiment``'s in-position windows and timeout where it has
     them (without an experiment: up to the step at which the reference comes to rest at the path's end)."""
     windows = in_position_windows(experiment) if experiment is not None else None
@@ -92,7 +92,7 @@ def breach_of(result, experiment):
 
 
 def breach_message(curve, result, experiment) -> str | None:
-    """One line for a run that monitoring stopped: the breach (:func:`contouring_ros.blocks.breach_line`) and
+    """One line for a run that monitoring stopped: the breach (:func:`contouring_ros.records.blocks.breach_line`) and
     where the reference came to rest; None for a run without a breach."""
     breach = breach_of(result, experiment)
     if breach is None:
@@ -129,7 +129,7 @@ def tolerance_line(schedule: dict, mce: float) -> str | None:
 
 def cutting_lines(curve, result, experiment) -> list:
     """For a tool path run: one line with the scores of its cutting moves alone (G1 / G2 / G3, the start-up,
-    rapids and the reserve after the motion left out: :mod:`contouring_ros.blocks`), then the
+    rapids and the reserve after the motion left out: :mod:`contouring_ros.records.blocks`), then the
     contour-tolerance verdict on them (where the ``experiment``'s schedule has a tolerance); for any other run
     the verdict on the whole run, if any."""
     schedule = experiment.schedule
@@ -180,7 +180,7 @@ def curve_of(run: RecordedRun):
 
 
 #: (label, value of a Scores) of the contour rows every score table starts with (:func:`format_scores`, the
-#: comparison tables of :mod:`contouring_ros.analysis`)
+#: comparison tables of :mod:`contouring_ros.records.analysis`)
 SCORE_ROWS = [("MCE [um]", lambda s: s.mce * 1e6), ("TACE [um]", lambda s: s.tace * 1e6),
               ("RMS contour error [um]", lambda s: s.rms * 1e6),
               ("estimation deviation max [um]", lambda s: s.estimation_max * 1e6),
@@ -211,13 +211,13 @@ def format_scores(named: list, axes=None) -> str:
 
 def miss_rate(values: dict) -> float:
     """A node's deadline misses in percent of its ticks, a tick skipped (``on_overrun: skip``) counting as a
-    miss; ``values`` is one node's end-of-run report (:func:`contouring_ros.bag.node_reports`)."""
+    miss; ``values`` is one node's end-of-run report (:func:`contouring_ros.records.bag.node_reports`)."""
     skipped = int(values.get("skipped ticks", 0))
     return 100.0 * (int(values["deadline misses"]) + skipped) / max(1, int(values["ticks"]) + skipped)
 
 
 def format_realtime(reports: dict) -> str:
-    """The realtime summary of a run, one row per node, from :func:`contouring_ros.bag.node_reports`
+    """The realtime summary of a run, one row per node, from :func:`contouring_ros.records.bag.node_reports`
     ('' when the run was not realtime)."""
     rows = {name: values for name, values in reports.items() if "deadline misses" in values}
     if not rows:

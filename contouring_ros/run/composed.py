@@ -5,7 +5,7 @@ process of the grouped layout (``--nodes``; the runner starts the other nodes el
 
 Same nodes, same topics, same step semantics as the process layout, hence the same bag payloads.
 Usage (the runner does this):
-python -m contouring_ros.composed EXPERIMENT.yaml BAG.mcap [lean|stock] [--start-time UNIX_TIME] [--nodes A,B]
+python -m contouring_ros.run.composed EXPERIMENT.yaml BAG.mcap [lean|stock] [--start-time UNIX_TIME] [--nodes A,B]
 (``--start-time``: tick 0 of a realtime run; ``--nodes``: only these nodes, one group of the grouped layout)
 """
 from __future__ import annotations
@@ -16,13 +16,13 @@ import threading
 import time
 from pathlib import Path
 
-from . import graph
-from .experiment.files import load_experiment
-from .errors import ContouringError, RunError
-from .rclpy_adapter import SubscriptionWaitSet
-from .nodes import catalogue
-from .nodes.lockstep import COMPOSED_LOOP, interrupted_code, realtime_loop, track_signals, wait_until
-from .nodes.recorder import REALTIME_GRACE
+from ..wire import graph
+from ..experiment.files import load_experiment
+from ..errors import ContouringError, RunError
+from ..nodes.rclpy_adapter import SubscriptionWaitSet
+from ..wire import catalogue
+from ..nodes.lockstep import COMPOSED_LOOP, interrupted_code, realtime_loop, track_signals, wait_until
+from ..nodes.recorder import REALTIME_GRACE
 from .runner import group_label, override_arguments, shared_overrides, write_parameter_file
 
 __all__ = ["main", "loop_order"]
@@ -36,7 +36,7 @@ REALTIME_SPIN = 0.0003   # s
 REALTIME_SWITCH_INTERVAL = 0.0001   # s
 
 def _node_classes():
-    """Node concern -> its class, as nodes.catalogue names them."""
+    """Node concern -> its class, as wire.catalogue names them."""
     return {node.name: catalogue.load_class(node) for node in catalogue.NODES}
 
 
@@ -188,7 +188,7 @@ def _run_realtime(nodes, label: str):
 
 def main(argv=None) -> int:
     import argparse
-    parser = argparse.ArgumentParser(prog="python -m contouring_ros.composed")
+    parser = argparse.ArgumentParser(prog="python -m contouring_ros.run.composed")
     parser.add_argument("experiment")
     parser.add_argument("bag")
     parser.add_argument("executor", nargs="?", default="lean", choices=["lean", "stock"])

@@ -4,13 +4,13 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from .experiment.build import build_loop
-from .experiment.files import load_experiment
-from .core.simulation import simulate
-from .outputs import write_atomically
-from .experiment.scenarios import CONFIG_DIR, available_papers, scenario_files
-from .runner import run_graph
-from .scoring import score_bag, score_run
+from ..experiment.build import build_loop
+from ..experiment.files import load_experiment
+from ..core.simulation import simulate
+from ..records.outputs import write_atomically
+from ..experiment.scenarios import CONFIG_DIR, available_papers, scenario_files
+from ..run.runner import run_graph
+from ..records.scoring import score_bag, score_run
 
 __all__ = ["CONFIG_DIR", "available_papers", "scenario_files", "paper_rows", "paper_report", "write_report"]
 
@@ -68,7 +68,7 @@ def paper_report(paper: str, graph: bool = False, progress=None) -> str:
 
 def write_report(text: str, paper: str, directory="reports", readings: bool = False) -> Path:
     """Save a report as Markdown: reports/paper<N>.md (reports/papers.md for all of them); ``readings``: the
-    text has the sections of :mod:`contouring_ros.readings`."""
+    text has the sections of :mod:`contouring_ros.studies.readings`."""
     path = Path(directory) / ("papers.md" if paper == "all" else f"paper{paper}.md")
     command = f"contouring-ros paper {paper}" + (" --readings" if readings else "")
     page = ("# Paper reproductions: our numbers beside the papers' (micrometres)\n\n"

@@ -21,7 +21,7 @@ Nyquist frequency, damping ratios, weight ratios, each with a range a control en
 plugin that states none is searched over the log box of its raw gains. Every combination gets
 :attr:`Protocol.searches` independent searches (search i: seed ``seed + i``; the first starts from the file's
 gains, evaluated first, the others from uniform random points of the box), each IPOP-CMA-ES
-(:func:`contouring_ros.search.ipop_cmaes`: restarts with a doubled population, every population run as one
+(:func:`contouring_ros.studies.search.ipop_cmaes`: restarts with a doubled population, every population run as one
 vectorised batch, robustness checks batched too) of at most :attr:`Protocol.evaluations` evaluations. The
 row is *converged* when at least :attr:`Protocol.agree` searches end within :attr:`Protocol.agreement` of the
 best nominal TACE (:func:`searches_agreement`); while it is not, as many more searches as the agreement
@@ -69,17 +69,18 @@ from dataclasses import dataclass, field
 import control
 import numpy as np
 
-from .experiment.build import build_controller, build_curve, build_plant, build_servo
-from .experiment.catalogue import CONTROLLERS, PLANTS, SERVOS
-from .experiment.validate import experiment_from_data
-from .experiment.schema import GLOBAL_SECTION
-from .core.margins import GainScaledLoops, axis_loop, coupled_loop, margins, quick_robustness
-from .core.servo import PIDServo
-from .core.tuning_space import Space, TuningContext, combine, gain_magnitude, log_box
-from .errors import ConfigError
+from ..experiment.build import build_controller, build_curve, build_plant, build_servo
+from ..experiment.catalogue import CONTROLLERS, PLANTS, SERVOS
+from ..experiment.validate import experiment_from_data
+from ..experiment.schema import GLOBAL_SECTION
+from ..core.margins import GainScaledLoops, axis_loop, coupled_loop, margins, quick_robustness
+from ..core.servo import PIDServo
+from ..core.tuning_space import Space, TuningContext, combine, gain_magnitude, log_box
+from ..errors import ConfigError
 from .learning import passes, simulate_last_passes
 from .search import IPOPCMAES, Agreement, agreement, run_side_by_side
-from .sweep import apply_settings, score_one, simulate_experiments
+from .sweep import score_one, simulate_experiments
+from ..experiment.settings import apply_settings
 
 __all__ = ["REALISTIC", "SATURATION_MARGIN", "varied_parameters", "Protocol", "Outcome",
            "Evaluation", "Tuned", "gain_keys", "machine_settings", "perturbations", "draw_settings",
@@ -191,7 +192,7 @@ class Tuned:
 
     @property
     def converged(self) -> bool:
-        """Whether the searches agreed (:func:`contouring_ros.search.agreement`)."""
+        """Whether the searches agreed (:func:`contouring_ros.studies.search.agreement`)."""
         return bool(self.agreement is not None and self.agreement.converged)
 
     @property
@@ -249,7 +250,7 @@ def _plants(data: dict) -> dict:
 
 
 def machine_settings(data: dict, kind: str, peak_command: tuple = ()) -> dict:
-    """Grid settings (see :mod:`contouring_ros.sweep`) that put the file's plants on a machine ``kind``:
+    """Grid settings (see :mod:`contouring_ros.studies.sweep`) that put the file's plants on a machine ``kind``:
     'ideal' (no settings) or 'realistic' (:data:`REALISTIC`, each key the file does not set; an actuator
     limit of :data:`SATURATION_MARGIN` x ``peak_command`` of the axis where the file sets none)."""
     if kind == "ideal":
@@ -313,10 +314,10 @@ def draw_settings(data: dict, j: int, mismatch: float) -> dict:
 def _outcomes(experiments: list, from_time: float, limits: list) -> list:
     """An :class:`Outcome` per experiment, ``limits[i]`` the actuator limits of experiment i's axes: those of
     one structure run as one vectorised batch where every class has a batch path
-    (:func:`contouring_ros.sweep.simulate_experiments`), the others one by one. A learning experiment (more
-    than one pass, :mod:`contouring_ros.learning`) runs every pass and is judged by its last: what the part
+    (:func:`contouring_ros.studies.sweep.simulate_experiments`), the others one by one. A learning experiment (more
+    than one pass, :mod:`contouring_ros.studies.learning`) runs every pass and is judged by its last: what the part
     is like once the correction has been learned; the learning experiments' passes run together, pass by
-    pass (:func:`contouring_ros.learning.simulate_last_passes`)."""
+    pass (:func:`contouring_ros.studies.learning.simulate_last_passes`)."""
     learning = [i for i, e in enumerate(experiments) if passes(e) > 1]
     rest = [i for i, e in enumerate(experiments) if passes(e) <= 1]
     out = [None] * len(experiments)
@@ -627,7 +628,7 @@ def best_search(searches: list) -> Search:
 
 
 def searches_agreement(searches: list, protocol: Protocol) -> Agreement:
-    """How far a row's searches agree (:func:`contouring_ros.search.agreement` with the protocol's tolerance):
+    """How far a row's searches agree (:func:`contouring_ros.studies.search.agreement` with the protocol's tolerance):
     on the robust choices' nominal TACE; where no search found a robust point, on the worst cases of their
     not-robust choices."""
     values = [s.value for s in searches]
@@ -788,7 +789,7 @@ class Tuning:
     def search(self, indices: list, optimiser=None) -> list:
         """Searches ``indices`` (search i: seed protocol.seed + i) and the choice each ends with
         (:meth:`choose`). Search 0 evaluates the file's gains first. The searches run side by side, their
-        populations in one batch (:func:`contouring_ros.search.run_side_by_side`); another ``optimiser``
+        populations in one batch (:func:`contouring_ros.studies.search.run_side_by_side`); another ``optimiser``
         runs them one at a time."""
         p = self.protocol
         runs = [_Run(i) for i in indices]

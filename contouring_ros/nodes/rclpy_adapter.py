@@ -1,6 +1,6 @@
 """The one home of the rclpy internals the package uses, with a check at import that they are there.
 
-The graph's lean loops (:mod:`contouring_ros.nodes.lockstep`, :mod:`contouring_ros.composed`, bench/pingpong.py)
+The graph's lean loops (:mod:`contouring_ros.nodes.lockstep`, :mod:`contouring_ros.run.composed`, bench/pingpong.py)
 run without an executor: a node waits on one persistent wait set holding its subscriptions, takes each
 message as serialised bytes straight from the subscription (no callback, no rclpy message object: the cdr
 codec reads the wire format) and answers its parameter services between steps. rclpy's public API offers
@@ -33,7 +33,7 @@ import functools
 
 from rclpy.impl.implementation_singleton import rclpy_implementation as _implementation
 
-from .errors import IncompatibleRclpy
+from ..errors import IncompatibleRclpy
 
 __all__ = ["WRITTEN_FOR", "RCLPY_DISTRIBUTIONS", "installed_version", "missing_internals", "check_internals",
            "taker", "take_request", "SubscriptionWaitSet"]

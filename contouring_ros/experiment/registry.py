@@ -37,7 +37,7 @@ from dataclasses import dataclass
 from importlib import metadata
 from typing import Callable
 
-from .errors import ConfigError, ContouringError, one_line
+from ..errors import ConfigError, ContouringError, one_line
 from .guard import guard
 
 __all__ = ["Entry", "Role", "BuildContext", "ROLES", "entry_from_class", "section_arguments"]
@@ -215,7 +215,7 @@ class Role(Mapping):
             elif callable(target):
                 entry = entry_from_class(name, target, point.value)
             else:
-                raise TypeError(f"expected a class or a contouring_ros.registry.Entry, got {type(target).__name__}")
+                raise TypeError(f"expected a class or a contouring_ros.experiment.registry.Entry, got {type(target).__name__}")
             if not isinstance(entry.params, dict):
                 raise TypeError("params must be a mapping of key -> Param")
             if self.on_register is not None:
@@ -241,7 +241,7 @@ class Role(Mapping):
 
     def build(self, section: dict, context: BuildContext | None = None):
         """The core object of a validated ``section``. A plugin's object is built, and its methods run, under a
-        guard (:mod:`contouring_ros.guard`): what it raises (SystemExit included) or returns that is not
+        guard (:mod:`contouring_ros.experiment.guard`): what it raises (SystemExit included) or returns that is not
         finite becomes one RunError line naming the plugin, the step or the argument, and what failed."""
         entry = self.entry(section[self.type_key])
         context = context if context is not None else BuildContext()

@@ -52,11 +52,11 @@ import numpy as np
 import yaml
 
 from .claims import verdict
-from .core.simulation import simulate
-from .errors import ConfigError, Diverged
-from .experiment.build import build_loop
-from .experiment.files import load_experiment
-from .experiment.scenarios import CONFIG_DIR
+from ..core.simulation import simulate
+from ..errors import ConfigError, Diverged
+from ..experiment.build import build_loop
+from ..experiment.files import load_experiment
+from ..experiment.scenarios import CONFIG_DIR
 from .sweep import experiments_for, score_experiments
 
 __all__ = ["READINGS_DIR", "METRICS", "Alternative", "Reading", "Gap", "PaperReadings", "readings_files",

@@ -1,0 +1,10 @@
+"""Recorded runs: bags and what is read from them, with no rclpy.
+
+- :mod:`.bag`: MCAP bags in the rosbag2 layout, written and read (a hardened reader), decoded into runs,
+- :mod:`.scoring`: the scores of a run (bag or in-process result) and their tables,
+- :mod:`.blocks`: results per block of a tool path run,
+- :mod:`.export`: a run's per-step signals and exact contour error as CSV,
+- :mod:`.analysis`: comparisons of runs, estimator replay, figures and an HTML report,
+- :mod:`.outputs`: what a command may write (never an input, never a user's file without ``--force``).
+
+Nothing is imported here."""

@@ -1,0 +1,11 @@
+"""Studies over many in-process runs: sweeps, learning passes, tuning, the benchmark, the papers' claims.
+
+- :mod:`.sweep`: every combination of a grid, batched,
+- :mod:`.learning`: the passes of an ILC experiment,
+- :mod:`.search`, :mod:`.tuning`: the batched global search and the fair tuning of a method's gains,
+- :mod:`.benchmark`: every estimator and controller tuned alike on every paper scenario, and its report,
+- :mod:`.parts`, :mod:`.checkpoints`: a benchmark's saved parts and the rows kept as they finish,
+- :mod:`.claims`, :mod:`.readings`, :mod:`.paper`: each paper's claims, its open readings, its report,
+- :mod:`.executors`: local processes or a Dask cluster that run them.
+
+Nothing is imported here."""
