@@ -387,7 +387,7 @@ def _blocks(args):
 
 
 def _compare(args):
-    from .records.analysis import compare_table, experiment_differences, format_differences, run_names
+    from .records.comparison import compare_table, experiment_differences, format_differences, run_names
     if args.baseline:
         args.bags = [args.baseline] + [bag for bag in args.bags if bag != args.baseline]
     results = _scored(args)
@@ -410,7 +410,7 @@ def _replay(args):
         except KeyboardInterrupt:      # the player has said where it stopped
             raise SystemExit(130)
         return
-    from .records.analysis import parse_estimator_spec, replay_estimators
+    from .records.replay import parse_estimator_spec, replay_estimators
     from .records.scoring import read_run
     if not args.estimator:
         raise SystemExit("error: replay needs --estimator NAME[:key=value,...] (or --play)")
@@ -427,7 +427,8 @@ def _replay(args):
 def _plot(args):
     import numpy as np
 
-    from .records.analysis import figures, html_report, write_figures
+    from .records.figures import figures, write_figures
+    from .records.html_report import html_report
     from .records.scoring import curve_of, read_run, score_run
     from .records import outputs
     if args.baseline:

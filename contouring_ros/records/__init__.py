@@ -4,7 +4,11 @@
 - :mod:`.scoring`: the scores of a run (bag or in-process result) and their tables,
 - :mod:`.blocks`: results per block of a tool path run,
 - :mod:`.export`: a run's per-step signals and exact contour error as CSV,
-- :mod:`.analysis`: comparisons of runs, estimator replay, figures and an HTML report,
+- :mod:`.comparison`: runs compared: their names, scores side by side and as ratios, how their experiments differ,
+- :mod:`.replay`: estimators replayed over a recorded run against its exact contour error,
+- :mod:`.traces`: runs made ready to draw (one name and one colour each, exact contour error, reference path),
+- :mod:`.figures`: the figures of a run or a comparison (matplotlib), written as PNG files,
+- :mod:`.html_report`: a self-contained HTML report of a run or a comparison,
 - :mod:`.outputs`: what a command may write (never an input, never a user's file without ``--force``).
 
 Nothing is imported here."""

@@ -180,7 +180,7 @@ def curve_of(run: RecordedRun):
 
 
 #: (label, value of a Scores) of the contour rows every score table starts with (:func:`format_scores`, the
-#: comparison tables of :mod:`contouring_ros.records.analysis`)
+#: comparison tables of :mod:`contouring_ros.records.comparison` and :mod:`contouring_ros.records.html_report`)
 SCORE_ROWS = [("MCE [um]", lambda s: s.mce * 1e6), ("TACE [um]", lambda s: s.tace * 1e6),
               ("RMS contour error [um]", lambda s: s.rms * 1e6),
               ("estimation deviation max [um]", lambda s: s.estimation_max * 1e6),

@@ -7,7 +7,8 @@ import sys
 import numpy as np
 import pytest
 
-from contouring_ros.records.analysis import compare_table, replay_estimators
+from contouring_ros.records.comparison import compare_table
+from contouring_ros.records.replay import replay_estimators
 from contouring_ros.records.bag import write_simulation
 from contouring_ros.config import build_loop, parse_experiment
 from contouring_ros.core.simulation import simulate
@@ -128,7 +129,7 @@ def test_replaying_the_recorded_estimator_s_type_changes_only_the_keys_given(tmp
     """`replay BAG --estimator newton:k_prime=800` (the command's own example) on a Newton run takes the
     recorded section with k_prime changed (was: 'newton.c_prime: missing required key'); the same gains as
     recorded replay the recorded estimate."""
-    from contouring_ros.records.analysis import parse_estimator_spec
+    from contouring_ros.records.replay import parse_estimator_spec
     from contouring_ros.records.bag import write_simulation
     from contouring_ros.config import build_loop, parse_experiment
     from contouring_ros.core.simulation import simulate

@@ -116,7 +116,7 @@ def test_the_blocks_command_prints_the_table_and_writes_csv(part_run, capsys):
 
 
 def test_the_html_report_has_the_per_block_table(part_run):
-    from contouring_ros.records.analysis import html_report
+    from contouring_ros.records.html_report import html_report
     from contouring_ros.records.scoring import read_run
     directory, experiment, loop, result = part_run
     bag = write_simulation(directory / "report.mcap", experiment, result)

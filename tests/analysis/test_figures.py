@@ -7,8 +7,10 @@ import numpy as np
 import pytest
 from conftest import CONFIG, DEFAULT, shortened
 
-from contouring_ros.records.analysis import figures, html_report, run_names
 from contouring_ros.records.bag import RecordedRun, write_simulation
+from contouring_ros.records.comparison import run_names
+from contouring_ros.records.figures import figures
+from contouring_ros.records.html_report import html_report
 from contouring_ros.cli import main
 from contouring_ros.config import build_loop, parse_experiment
 from contouring_ros.core.simulation import simulate

@@ -156,3 +156,25 @@ def test_old_import_paths_give_the_moved_modules():
     from contouring_ros.registry import Entry             # the plugin documentation's own path
     assert Entry.__module__ == "contouring_ros.experiment.registry"
     assert not (ROOT / PACKAGE / "bag.py").exists()
+
+
+def test_old_import_paths_of_split_modules_give_their_parts_names():
+    import importlib
+    import sys
+    import warnings
+
+    from contouring_ros._moved import SPLIT
+    for old, parts in SPLIT.items():
+        sys.modules.pop(f"{PACKAGE}.{old}", None)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            module = importlib.import_module(f"{PACKAGE}.{old}")
+        new = ", ".join(f"{PACKAGE}.{part}" for part in parts)
+        assert [str(w.message) for w in caught] == [f"{PACKAGE}.{old} has been split into {new}"], old
+        for part in parts:
+            moved = importlib.import_module(f"{PACKAGE}.{part}")
+            assert all(getattr(module, name) is getattr(moved, name) for name in moved.__all__), (old, part)
+    from contouring_ros.analysis import compare_table, figures, html_report, replay_estimators, run_names
+    assert (compare_table.__module__, run_names.__module__, replay_estimators.__module__, figures.__module__,
+            html_report.__module__) == tuple(f"{PACKAGE}.records.{name}" for name in (
+                "comparison", "comparison", "replay", "figures", "html_report"))
