@@ -8,7 +8,8 @@ import pytest
 from conftest import CONFIG, DEFAULT, shortened
 
 from contouring_ros.records.analysis import figures, html_report, run_names
-from contouring_ros.records.bag import RecordedRun, write_simulation
+from contouring_ros.records.bag import RecordedRun
+from contouring_ros.records.bag_writer import write_simulation
 from contouring_ros.cli import main
 from contouring_ros.config import build_loop, parse_experiment
 from contouring_ros.core.simulation import simulate
