@@ -37,7 +37,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from contouring_ros.records.bag import node_reports  # noqa: E402
+from contouring_ros.records.bag_reader import node_reports  # noqa: E402
 from contouring_ros.experiment.files import load_experiment  # noqa: E402
 from contouring_ros.errors import RunError  # noqa: E402
 from contouring_ros.run.runner import DomainLease, private_environment  # noqa: E402

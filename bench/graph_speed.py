@@ -22,7 +22,8 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from contouring_ros.wire import graph  # noqa: E402
-from contouring_ros.records.bag import RUN_METADATA, read_metadata  # noqa: E402
+from contouring_ros.records.bag_reader import read_metadata  # noqa: E402
+from contouring_ros.records.bag_writer import RUN_METADATA  # noqa: E402
 from contouring_ros.experiment.build import build_loop  # noqa: E402
 from contouring_ros.experiment.files import load_experiment  # noqa: E402
 from contouring_ros.core.simulation import simulate  # noqa: E402

@@ -1,6 +1,6 @@
 """Benchmark: seconds and peak memory to score a long bag (default: 60 s, 3 axes, 1 kHz).
 
-The bag is recorded from the in-process simulation with the recorder's layout (bag.write_simulation),
+The bag is recorded from the in-process simulation with the recorder's layout (bag_writer.write_simulation),
 then scored in a fresh process so that its peak resident memory is the scoring's own.
 
 Usage: python bench/score_speed.py [CONFIG]
@@ -28,7 +28,7 @@ print(f"{run.complete_steps} {elapsed:.3f} {peak:.1f} {scores.mce * 1e6:.4f}")
 
 
 def main():
-    from contouring_ros.records.bag import write_simulation
+    from contouring_ros.records.bag_writer import write_simulation
     from contouring_ros.experiment.build import build_loop
     from contouring_ros.experiment.files import load_experiment
     from contouring_ros.core.simulation import simulate

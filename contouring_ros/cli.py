@@ -179,7 +179,7 @@ def _run_config(args, config: Path, experiment=None):
     from .records.scoring import curve_of, cutting_lines
     for line in cutting_lines(curve_of(run), run.result, run.require_experiment()):
         print(line)
-    from .records.bag import node_reports
+    from .records.bag_reader import node_reports
     from .records.scoring import format_realtime
     realtime = format_realtime(node_reports(bag))
     if realtime:
@@ -277,8 +277,8 @@ def _bag_target(given: str, experiment) -> Path:
 
 def _write_simulation_bag(given: str, experiment, result) -> Path:
     """The in-process run's bag, as the node graph's recorder would have written it (the same topics, types
-    and payloads: :func:`contouring_ros.records.bag.write_simulation`)."""
-    from .records.bag import write_simulation
+    and payloads: :func:`contouring_ros.records.bag_writer.write_simulation`)."""
+    from .records.bag_writer import write_simulation
     from .records.outputs import write_atomically
     path = _bag_target(given, experiment)
     path.parent.mkdir(parents=True, exist_ok=True)

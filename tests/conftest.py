@@ -57,15 +57,15 @@ def pytest_collection_modifyitems(config, items):
 def recorded_bag(folder: Path, duration: float, name: str) -> tuple:
     """The default experiment shortened to ``duration`` s, simulated and written as a bag in ``folder``:
     (result, path, the bag's bytes, (complete, chunks) of its summary)."""
-    from contouring_ros.records import bag
+    from contouring_ros.records import bag_reader, bag_writer
     from contouring_ros.config import build_loop, parse_experiment
     from contouring_ros.core.simulation import simulate
     experiment = parse_experiment(shortened(DEFAULT, duration), "short")
     result = simulate(build_loop(experiment))
-    path = bag.write_simulation(folder / name, experiment, result)
+    path = bag_writer.write_simulation(folder / name, experiment, result)
     data = path.read_bytes()
     with open(path, "rb") as stream:
-        complete, chunks, _ = bag.summary_chunks(stream, len(data), path, [])
+        complete, chunks, _ = bag_reader.summary_chunks(stream, len(data), path, [])
     return result, path, data, (complete, chunks)
 
 

@@ -22,7 +22,7 @@ from rclpy.serialization import deserialize_message
 
 from .._version import __version__
 from ..wire import cdr, graph
-from ..records.bag import EXPERIMENT_METADATA, RUN_METADATA, BagWriter
+from ..records.bag_writer import EXPERIMENT_METADATA, RUN_METADATA, BagWriter
 from ..experiment.build import interpolator_takes_state
 from ..experiment.files import recorded_text
 from ..errors import ConfigError

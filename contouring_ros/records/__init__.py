@@ -1,6 +1,8 @@
 """Recorded runs: bags and what is read from them, with no rclpy.
 
-- :mod:`.bag`: MCAP bags in the rosbag2 layout, written and read (a hardened reader), decoded into runs,
+- :mod:`.bag_writer`: MCAP bags in the rosbag2 layout, written (the recorder's, and in-process runs),
+- :mod:`.bag_reader`: MCAP bags read, hardened (bounded whatever a file holds; damaged chunks skipped),
+- :mod:`.bag`: a bag decoded into a run, checked against its experiment,
 - :mod:`.scoring`: the scores of a run (bag or in-process result) and their tables,
 - :mod:`.blocks`: results per block of a tool path run,
 - :mod:`.export`: a run's per-step signals and exact contour error as CSV,

@@ -211,13 +211,13 @@ def format_scores(named: list, axes=None) -> str:
 
 def miss_rate(values: dict) -> float:
     """A node's deadline misses in percent of its ticks, a tick skipped (``on_overrun: skip``) counting as a
-    miss; ``values`` is one node's end-of-run report (:func:`contouring_ros.records.bag.node_reports`)."""
+    miss; ``values`` is one node's end-of-run report (:func:`contouring_ros.records.bag_reader.node_reports`)."""
     skipped = int(values.get("skipped ticks", 0))
     return 100.0 * (int(values["deadline misses"]) + skipped) / max(1, int(values["ticks"]) + skipped)
 
 
 def format_realtime(reports: dict) -> str:
-    """The realtime summary of a run, one row per node, from :func:`contouring_ros.records.bag.node_reports`
+    """The realtime summary of a run, one row per node, from :func:`contouring_ros.records.bag_reader.node_reports`
     ('' when the run was not realtime)."""
     rows = {name: values for name, values in reports.items() if "deadline misses" in values}
     if not rows:

@@ -59,7 +59,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..wire import cdr, graph
-from ..records.bag import iter_records, summary_chunks
+from ..records.bag_reader import iter_records, summary_chunks
 from ..errors import BagError
 
 __all__ = ["play_bag", "installed_message_class", "UnplayableType", "WINDOW", "SETTLE", "ACK_TIMEOUT",

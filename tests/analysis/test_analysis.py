@@ -9,7 +9,7 @@ import pytest
 
 from contouring_ros.records.comparison import compare_table
 from contouring_ros.records.replay import replay_estimators
-from contouring_ros.records.bag import write_simulation
+from contouring_ros.records.bag_writer import write_simulation
 from contouring_ros.config import build_loop, parse_experiment
 from contouring_ros.core.simulation import simulate
 from contouring_ros.records.scoring import read_run, score_bag, score_run
@@ -43,7 +43,7 @@ def test_bag_from_another_writer_scores_the_same(tmp_path):
     """A bag laid out like rosbag2's (mcap_ros2 writer, dict messages, no experiment stored)."""
     from mcap_ros2.writer import Writer
     from contouring_ros.wire import graph
-    from contouring_ros.records.bag import message_definition
+    from contouring_ros.records.bag_writer import message_definition
     text = shortened(DEFAULT, 0.3)
     experiment, loop, result = _simulated(text)
     axes = list(experiment.axes)
@@ -130,7 +130,7 @@ def test_replaying_the_recorded_estimator_s_type_changes_only_the_keys_given(tmp
     recorded section with k_prime changed (was: 'newton.c_prime: missing required key'); the same gains as
     recorded replay the recorded estimate."""
     from contouring_ros.records.replay import parse_estimator_spec
-    from contouring_ros.records.bag import write_simulation
+    from contouring_ros.records.bag_writer import write_simulation
     from contouring_ros.config import build_loop, parse_experiment
     from contouring_ros.core.simulation import simulate
     experiment = parse_experiment(shortened(DEFAULT, 0.2), "default")

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 import contouring_ros as cr
-from contouring_ros.records.bag import write_simulation
+from contouring_ros.records.bag_writer import write_simulation
 from contouring_ros.config import build_loop
 from contouring_ros.core.simulation import simulate
 from contouring_ros.records.scoring import score_run

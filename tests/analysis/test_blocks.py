@@ -4,7 +4,7 @@ import csv
 import numpy as np
 import pytest
 
-from contouring_ros.records.bag import write_simulation
+from contouring_ros.records.bag_writer import write_simulation
 from contouring_ros.records.blocks import block_results, cutting_scores, cutting_steps
 from contouring_ros.cli import main
 from contouring_ros.config import build_loop, load_experiment

@@ -11,7 +11,7 @@ import sys
 import numpy as np
 import pytest
 
-from contouring_ros.records.bag import write_simulation
+from contouring_ros.records.bag_writer import write_simulation
 from contouring_ros.studies.claims import (SCALES, Claim, Decisive, MapAxis, Pair, RegimeMap, ScenarioScores, ccc_helps_scores,
                                    claim_files, draw_map, evaluate, interval_verdict, load_claims, map_ratios, plan_pair,
                                    robustness, verdict)

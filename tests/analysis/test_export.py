@@ -6,7 +6,7 @@ import sys
 import numpy as np
 import pytest
 
-from contouring_ros.records.bag import write_simulation
+from contouring_ros.records.bag_writer import write_simulation
 from contouring_ros.config import build_loop, load_experiment, parse_experiment
 from contouring_ros.core.simulation import simulate
 from contouring_ros.errors import BagError

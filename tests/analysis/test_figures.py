@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 from conftest import CONFIG, DEFAULT, shortened
 
-from contouring_ros.records.bag import RecordedRun, write_simulation
+from contouring_ros.records.bag import RecordedRun
+from contouring_ros.records.bag_writer import write_simulation
 from contouring_ros.records.comparison import run_names
 from contouring_ros.records.figures import figures
 from contouring_ros.records.html_report import html_report

@@ -6,7 +6,7 @@ import sys
 import numpy as np
 import pytest
 
-from contouring_ros.records.bag import write_simulation
+from contouring_ros.records.bag_writer import write_simulation
 from contouring_ros.config import build_loop, parse_experiment
 from contouring_ros.core.simulation import first_divergence, simulate
 from contouring_ros.errors import BagError, Diverged
@@ -80,11 +80,11 @@ def test_simulate_command_says_diverged_in_one_line(tmp_path):
 
 def test_a_topic_without_messages_is_named_not_a_traceback(tmp_path, monkeypatch):
     """A bag whose /x/command channel exists but holds no message (a node that never published)."""
-    from contouring_ros.records import bag as bag_module
+    from contouring_ros.records import bag_writer
     experiment = parse_experiment(shortened(PIDFF, 0.05), "short")
     result = simulate(build_loop(experiment))
-    write = bag_module.BagWriter.write
-    monkeypatch.setattr(bag_module.BagWriter, "write",
+    write = bag_writer.BagWriter.write
+    monkeypatch.setattr(bag_writer.BagWriter, "write",
                         lambda self, topic, *args: None if topic == "/x/command" else write(self, topic, *args))
     path = write_simulation(tmp_path / "silent.mcap", experiment, result)
     monkeypatch.undo()

@@ -70,7 +70,7 @@ def test_the_graph_holds_and_resumes_as_the_simulation_does(tmp_path):
 
 def test_feed_png_marks_each_hold_where_it_came(runs, tmp_path):
     from contouring_ros.records.figures import figures
-    from contouring_ros.records.bag import write_simulation
+    from contouring_ros.records.bag_writer import write_simulation
     from contouring_ros.records.scoring import read_run
     _, held = runs
     bag = write_simulation(tmp_path / "held.mcap", held.experiment, held.result)

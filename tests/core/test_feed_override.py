@@ -80,7 +80,7 @@ def test_the_graph_overrides_as_the_simulation_does(tmp_path):
 
 def test_feed_png_marks_each_override_where_it_came(stepped, tmp_path):
     from contouring_ros.records.figures import figures
-    from contouring_ros.records.bag import write_simulation
+    from contouring_ros.records.bag_writer import write_simulation
     from contouring_ros.records.scoring import read_run
     bag = write_simulation(tmp_path / "override.mcap", stepped.experiment, stepped.result)
     top = figures([("override", read_run(bag))])["feed"].axes[0]

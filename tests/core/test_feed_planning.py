@@ -305,7 +305,7 @@ def test_example_part_square_corners_under_20_um_and_feeds_within_f():
 
 def test_tool_path_runs_get_the_feed_and_per_block_figure(tmp_path):
     from contouring_ros.records.figures import figures
-    from contouring_ros.records.bag import write_simulation
+    from contouring_ros.records.bag_writer import write_simulation
     from contouring_ros.records.scoring import read_run
     path = write(tmp_path, "G1 X3 F600 (a corner)\nY3\nG2 X6 Y3 R1.5\n", SCHEDULE)
     experiment = load_experiment(path)

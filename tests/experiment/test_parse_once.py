@@ -9,7 +9,7 @@ import pytest
 from conftest import DEFAULT, shortened
 
 from contouring_ros import api, cli, config
-from contouring_ros.records import bag
+from contouring_ros.records import bag_writer
 from contouring_ros.config import build_loop, load_experiment
 from contouring_ros.core.simulation import simulate
 from contouring_ros.errors import ConfigError
@@ -38,7 +38,7 @@ def recorded(tmp_path):
     path = tmp_path / "short.yaml"
     path.write_text(shortened(DEFAULT, 0.2))
     experiment = load_experiment(path)
-    return path, experiment, bag.write_simulation(tmp_path / "short.mcap", experiment,
+    return path, experiment, bag_writer.write_simulation(tmp_path / "short.mcap", experiment,
                                                   simulate(build_loop(experiment)))
 
 

@@ -7,7 +7,7 @@ import time
 from mcap.reader import make_reader
 
 from contouring_ros.wire import cdr
-from contouring_ros.records.bag import BagWriter
+from contouring_ros.records.bag_writer import BagWriter
 
 TOPICS = [("/x/state", "sensor_msgs/msg/JointState")]
 

@@ -77,7 +77,7 @@ def test_graph_payloads_equal_the_simulation_writer(default_runs, tmp_path):
     topic (so the pinned payload hashes of tests/graph/test_payload_hashes.py hold for the graph too); the
     reference's one point is due now (time_from_start 0) and carries theta's rates."""
     from contouring_ros.wire import cdr
-    from contouring_ros.records.bag import write_simulation
+    from contouring_ros.records.bag_writer import write_simulation
     path, bags = default_runs
     experiment = load_experiment(path)
     written = write_simulation(tmp_path / "simulation.mcap", experiment, simulate(build_loop(experiment)))
@@ -197,7 +197,7 @@ def test_realtime_run_records_every_step_and_its_timing(layout, tmp_path, monkey
     latency percentiles in the bag's /diagnostics, and the loop stable under the extra delays. (On this
     shared 2-core machine the process layout gets more time to start and a wider max_lag: the overrun trip
     has its own tests, tests/graph/test_overrun.py.)"""
-    from contouring_ros.records.bag import node_reports
+    from contouring_ros.records.bag_reader import node_reports
     from contouring_ros.records.scoring import format_realtime
     if layout == "process":
         monkeypatch.setattr("contouring_ros.run.runner.REALTIME_START_DELAY", 12.0)

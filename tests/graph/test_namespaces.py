@@ -9,7 +9,7 @@ import pytest
 from mcap.reader import make_reader
 
 from contouring_ros.wire import graph
-from contouring_ros.records.bag import write_simulation
+from contouring_ros.records.bag_writer import write_simulation
 from contouring_ros.config import build_loop, load_experiment, namespaced_parameter_file, read_yaml
 from contouring_ros.core.simulation import simulate
 from contouring_ros.run.runner import DomainLease, run_graph

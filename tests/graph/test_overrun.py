@@ -53,7 +53,7 @@ def test_overrun_stops_the_run_in_one_line(layout, culprit, tmp_path, monkeypatc
 
 @pytest.mark.parametrize("layout", ["process", "composed"])
 def test_overrun_skip_completes_and_reports_the_skipped_ticks(layout, tmp_path, monkeypatch):
-    from contouring_ros.records.bag import node_reports
+    from contouring_ros.records.bag_reader import node_reports
     from contouring_ros.records.scoring import format_realtime, miss_rate
     monkeypatch.setenv("CONTOURING_ROS_SLOW_TICK", "/x/servo=0.002")
     _start_delay(layout, monkeypatch)

@@ -5,7 +5,7 @@ build (elementwise IEEE arithmetic, math.sqrt/exp/fsum, and the explicit product
 :func:`contouring_ros.core.geometry.dot`, ``norm``, ``matvec``, ``matmul`` in place of ``@``, np.dot and
 np.linalg.norm on the one-step path), so the bag of the default experiment is byte-identical on any
 machine. This test pins a SHA-256 per topic of its payloads, concatenated in step order, as
-:func:`contouring_ros.records.bag.write_simulation` writes them (the graph's bags carry the same payloads:
+:func:`contouring_ros.records.bag_writer.write_simulation` writes them (the graph's bags carry the same payloads:
 tests/graph/test_graph.py and tests/experiment/test_every_scenario.py).
 
 Updating the hashes: any deliberate numeric change anywhere on the published path (a curve, the schedule,
@@ -23,7 +23,7 @@ from pathlib import Path
 
 from mcap.reader import make_reader
 
-from contouring_ros.records.bag import write_simulation
+from contouring_ros.records.bag_writer import write_simulation
 from contouring_ros.config import build_loop, load_experiment
 from contouring_ros.core.simulation import simulate
 

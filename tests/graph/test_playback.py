@@ -10,7 +10,7 @@ import sys
 import pytest
 
 from contouring_ros.wire import graph
-from contouring_ros.records.bag import write_simulation
+from contouring_ros.records.bag_writer import write_simulation
 from contouring_ros.config import build_loop, parse_experiment
 from contouring_ros.core.simulation import simulate
 from contouring_ros.run.playback import UnplayableType, installed_message_class

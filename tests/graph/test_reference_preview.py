@@ -10,7 +10,7 @@ import pytest
 from mcap.reader import make_reader
 
 from contouring_ros.wire import cdr
-from contouring_ros.records.bag import write_simulation
+from contouring_ros.records.bag_writer import write_simulation
 from contouring_ros.core.interpolation import reference
 from contouring_ros.core.simulation import simulate
 from contouring_ros.experiment.build import build_curve, build_loop, build_schedule

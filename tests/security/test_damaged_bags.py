@@ -11,7 +11,8 @@ import sys
 import numpy as np
 import pytest
 
-from contouring_ros.records import bag
+from contouring_ros.errors import BagError
+from contouring_ros.records.bag_reader import iter_records
 from contouring_ros.records.scoring import read_run
 from conftest import recorded_bag
 
@@ -134,7 +135,7 @@ def test_records_reader_without_a_damage_list_warns_in_times(recorded, tmp_path)
     damaged = bytearray(data)
     damaged[chunk[0] + chunk[1] // 2] ^= 0x10
     warnings: list = []
-    messages = sum(1 for record in bag.iter_records(_write(tmp_path, "play.mcap", damaged), warnings)
+    messages = sum(1 for record in iter_records(_write(tmp_path, "play.mcap", damaged), warnings)
                    if hasattr(record, "log_time"))
     assert messages > 0 and len(warnings) == 1
     assert re.search(r"the chunk at byte \d+ is damaged .*: messages from t = [0-9.]+ s to t = [0-9.]+ s lost",
@@ -143,5 +144,5 @@ def test_records_reader_without_a_damage_list_warns_in_times(recorded, tmp_path)
 
 def test_not_an_mcap_file(tmp_path):
     path = _write(tmp_path, "text.mcap", b"hello, not a bag\n" * 10)
-    with pytest.raises(bag.BagError, match="not an MCAP file"):
+    with pytest.raises(BagError, match="not an MCAP file"):
         read_run(path)

@@ -18,10 +18,10 @@ import zlib
 import numpy as np
 import pytest
 
-from contouring_ros.records import bag as bagmod
 from contouring_ros.wire import cdr
 from contouring_ros import cli
-from contouring_ros.records.bag import BagWriter, read_metadata
+from contouring_ros.records.bag_reader import read_metadata
+from contouring_ros.records.bag_writer import EXPERIMENT_METADATA, BagWriter
 from contouring_ros.errors import BagError
 from contouring_ros.records.scoring import read_run
 from conftest import ROOT, recorded_bag
@@ -164,9 +164,9 @@ def _rewrite(base, tmp_path, change=None, metadata=None, extra=(), first=()):
     ``first``: the same, with their channels listed before the base bag's."""
     source = base[0]
     records = read_metadata(source)
-    experiment = dict(records[bagmod.EXPERIMENT_METADATA])
+    experiment = dict(records[EXPERIMENT_METADATA])
     experiment.update(metadata or {})
-    records[bagmod.EXPERIMENT_METADATA] = experiment
+    records[EXPERIMENT_METADATA] = experiment
     messages, types = [], {}
     for topic, type_name, log_time, data in first:
         types[topic] = type_name
@@ -283,6 +283,6 @@ def test_thousands_of_stray_topics_and_a_huge_stored_experiment_are_bounded(base
     run = read_run(_rewrite(base, tmp_path, first=crowd))     # listed before the run's own: not crowding them out
     assert run.complete_steps == base[4]
     assert any("more than 4096 JointState and JointTrajectory topics; from /stray/t4096 on" in w for w in run.warnings)
-    text = read_metadata(base[0])[bagmod.EXPERIMENT_METADATA]["yaml"]
+    text = read_metadata(base[0])[EXPERIMENT_METADATA]["yaml"]
     with pytest.raises(BagError, match="an experiment file has at most 1048576"):
         read_run(_rewrite(base, tmp_path, metadata={"yaml": text + "#" * (2 << 20)}))
