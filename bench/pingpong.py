@@ -20,7 +20,7 @@ import rclpy  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 
 from contouring_ros.wire import cdr  # noqa: E402
-from contouring_ros.nodes.lockstep import GRAPH_QOS  # noqa: E402
+from contouring_ros.nodes.base import GRAPH_QOS  # noqa: E402
 from contouring_ros.nodes.rclpy_adapter import SubscriptionWaitSet, taker  # noqa: E402
 
 

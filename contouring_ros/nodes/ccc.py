@@ -13,7 +13,8 @@ import numpy as np
 from ..wire import cdr, graph
 from ..experiment.build import build_controller, build_curve
 from ..experiment.validate import check_ccc_takes_state, controller_uses_state
-from .lockstep import LockstepNode, run_node
+from .node import LockstepNode
+from .process import run_node
 
 
 class CCCNode(LockstepNode):

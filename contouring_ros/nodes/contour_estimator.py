@@ -7,7 +7,8 @@ from ..wire import cdr, graph
 from ..experiment.build import build_curve, build_estimator, build_schedule
 from ..core.simulation import diverged_message, path_bound, step_time
 from ..errors import RunError
-from .lockstep import LockstepNode, run_node
+from .node import LockstepNode
+from .process import run_node
 
 
 class ContourEstimatorNode(LockstepNode):

@@ -20,7 +20,8 @@ from ..experiment.build import (build_clock, build_curve, build_feed_control, bu
 from ..core.interpolation import reference, reference_ahead
 from ..records.blocks import breach_line
 from ..core.simulation import step_time
-from .lockstep import LockstepNode, run_node
+from .node import LockstepNode
+from .process import run_node
 
 
 class InterpolatorNode(LockstepNode):

@@ -4,7 +4,8 @@ from __future__ import annotations
 from ..wire import cdr, graph
 from ..experiment.build import build_plant, initial_state
 from ..core.simulation import step_time
-from .lockstep import LockstepNode, run_node
+from .node import LockstepNode
+from .process import run_node
 
 
 class PlantNode(LockstepNode):

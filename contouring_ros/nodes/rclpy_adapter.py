@@ -1,12 +1,12 @@
 """The one home of the rclpy internals the package uses, with a check at import that they are there.
 
-The graph's lean loops (:mod:`contouring_ros.nodes.lockstep`, :mod:`contouring_ros.run.composed`, bench/pingpong.py)
-run without an executor: a node waits on one persistent wait set holding its subscriptions, takes each
-message as serialised bytes straight from the subscription (no callback, no rclpy message object: the cdr
-codec reads the wire format) and answers its parameter services between steps. rclpy's public API offers
-none of this: its executors wait on a wait set rebuilt every turn and hand each message to a Python
-callback through a task. Each step of the graph is a handful of messages, so those per-message layers
-would be most of a step's cost. The internals used, all from rclpy's C extension
+The graph's lean loops (:mod:`contouring_ros.nodes.lockstep`, :mod:`contouring_ros.nodes.realtime`,
+:mod:`contouring_ros.run.composed`, bench/pingpong.py) run without an executor: a node waits on one persistent
+wait set holding its subscriptions, takes each message as serialised bytes straight from the subscription (no
+callback, no rclpy message object: the cdr codec reads the wire format) and answers its parameter services
+between steps. rclpy's public API offers none of this: its executors wait on a wait set rebuilt every turn and
+hand each message to a Python callback through a task. Each step of the graph is a handful of messages, so
+those per-message layers would be most of a step's cost. The internals used, all from rclpy's C extension
 (``rclpy.impl.implementation_singleton.rclpy_implementation``):
 
 - ``WaitSet(n_subscriptions, 0, 0, 0, 0, 0, context.handle)`` with ``clear_entities``, ``add_subscription``

@@ -26,7 +26,9 @@ from ..records.bag_writer import EXPERIMENT_METADATA, RUN_METADATA, BagWriter
 from ..experiment.build import interpolator_takes_state
 from ..experiment.files import recorded_text
 from ..errors import ConfigError
-from .lockstep import DIAGNOSTICS_QOS, GRAPH_QOS, LockstepNode, run_node
+from .base import DIAGNOSTICS_QOS, GRAPH_QOS
+from .node import LockstepNode
+from .process import run_node
 
 DIAGNOSTICS_LINGER = 0.3   # s the recorder keeps taking /diagnostics after the last lockstep message
 REALTIME_GRACE = 2.0       # s after the last realtime tick the recorder waits for steps that never came

@@ -5,7 +5,7 @@ with one line on stderr and exit status 1, never a traceback: an rclpy that lack
 use (:class:`~contouring_ros.errors.IncompatibleRclpy`, raised by the check that importing
 :mod:`contouring_ros.nodes.rclpy_adapter` makes), or any other ContouringError (a plugin registry that cannot be
 listed). Once imported, the node's ``main`` reports its own errors the same way
-(:func:`contouring_ros.nodes.lockstep.run_node`). ``python -m contouring_ros.nodes.<node>``, as the runner
+(:func:`contouring_ros.nodes.process.run_node`). ``python -m contouring_ros.nodes.<node>``, as the runner
 starts a node, runs the node's module itself; the runner then names the node with the last line it wrote.
 """
 from __future__ import annotations

@@ -3,7 +3,8 @@ from __future__ import annotations
 
 from ..wire import cdr, graph
 from ..experiment.build import build_servo, initial_state
-from .lockstep import LockstepNode, run_node
+from .node import LockstepNode
+from .process import run_node
 
 
 class ServoNode(LockstepNode):

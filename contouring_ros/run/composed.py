@@ -1,6 +1,6 @@
 """The composed layout: every node of the graph as its own rclpy node, all in one process on one lean loop
 (or under one SingleThreadedExecutor: the stock callback path of
-:class:`~contouring_ros.nodes.lockstep.LockstepNode`). The same loop over a subset of the nodes is one
+:class:`~contouring_ros.nodes.node.LockstepNode`). The same loop over a subset of the nodes is one
 process of the grouped layout (``--nodes``; the runner starts the other nodes elsewhere).
 
 Same nodes, same topics, same step semantics as the process layout, hence the same bag payloads.
@@ -21,7 +21,8 @@ from ..experiment.files import load_experiment
 from ..errors import ContouringError, RunError
 from ..nodes.rclpy_adapter import SubscriptionWaitSet
 from ..wire import catalogue
-from ..nodes.lockstep import COMPOSED_LOOP, interrupted_code, realtime_loop, track_signals, wait_until
+from ..nodes.process import interrupted_code, track_signals
+from ..nodes.realtime import COMPOSED_LOOP, realtime_loop, wait_until
 from ..nodes.recorder import REALTIME_GRACE
 from .runner import group_label, override_arguments, shared_overrides, write_parameter_file
 
@@ -110,20 +111,7 @@ def run_composed(experiment_path: str, bag: str, executor_kind: str = "lean", st
             spin_once = executor.spin_once
         if experiment.timing == "realtime":
             _run_realtime(nodes, label)
-        last, last_progress = -1, time.monotonic()
-        while not all(node.finished for node in nodes):
-            spin_once(timeout_sec=0.2)
-            if executor_kind == "lean":
-                for node in nodes:
-                    node.serve_requests()
-            progress = sum(node.next_step for node in nodes) + sum(getattr(node, "counts", {}).values())
-            if progress != last:
-                last, last_progress = progress, time.monotonic()
-            elif time.monotonic() - last_progress > experiment.stall_timeout:
-                stuck = [node for node in nodes if not node.finished]
-                raise RunError(f"{label} stalled for {experiment.stall_timeout:g} s: "
-                               + "; ".join(f"{n.name} at step {n.next_step}, no message on "
-                                           f"{', '.join(n.missing_inputs())}" for n in stuck if n.missing_inputs()))
+        _run_to_the_end(nodes, spin_once, executor_kind == "lean", experiment.stall_timeout, label)
         for node in nodes:
             if node is not recorder:
                 node.finish()
@@ -143,8 +131,28 @@ def run_composed(experiment_path: str, bag: str, executor_kind: str = "lean", st
         directory.cleanup()
 
 
+def _run_to_the_end(nodes, spin_once, serve: bool, stall_timeout: float, label: str):
+    """Turn ``spin_once`` until every node finished (the lockstep, or a realtime run's recorder catching up),
+    answering the nodes' service requests between turns when ``serve`` (the lean loop). After
+    ``stall_timeout`` seconds without progress stop with one line naming each node still waiting and on what."""
+    last, last_progress = -1, time.monotonic()
+    while not all(node.finished for node in nodes):
+        spin_once(timeout_sec=0.2)
+        if serve:
+            for node in nodes:
+                node.serve_requests()
+        progress = sum(node.next_step for node in nodes) + sum(getattr(node, "counts", {}).values())
+        if progress != last:
+            last, last_progress = progress, time.monotonic()
+        elif time.monotonic() - last_progress > stall_timeout:
+            stuck = [node for node in nodes if not node.finished]
+            raise RunError(f"{label} stalled for {stall_timeout:g} s: "
+                           + "; ".join(f"{n.name} at step {n.next_step}, no message on "
+                                       f"{', '.join(n.missing_inputs())}" for n in stuck if n.missing_inputs()))
+
+
 def _run_realtime(nodes, label: str):
-    """The nodes' realtime ticks in one loop (:func:`~contouring_ros.nodes.lockstep.realtime_loop`): wait for
+    """The nodes' realtime ticks in one loop (:func:`~contouring_ros.nodes.realtime.realtime_loop`): wait for
     tick k on all subscriptions, then tick each node in graph order (interpolator, plants, estimator, CCC,
     servos); the recorder, if one of them, takes what arrives after each tick."""
     import rclpy

@@ -230,7 +230,7 @@ def test_wait_until_returns_at_the_deadline_when_spinning():
     import time
 
     import rclpy
-    from contouring_ros.nodes.lockstep import wait_until
+    from contouring_ros.nodes.realtime import wait_until
     context = rclpy.Context()
     rclpy.init(context=context)
     try:

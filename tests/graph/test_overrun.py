@@ -91,7 +91,7 @@ def test_overrun_keys_are_validated():
 
 
 def test_slow_tick_knob_names_nodes(monkeypatch):
-    from contouring_ros.nodes.lockstep import SLOW_TICK_ENV, slow_tick_seconds
+    from contouring_ros.nodes.realtime import SLOW_TICK_ENV, slow_tick_seconds
     monkeypatch.setenv(SLOW_TICK_ENV, "x/servo=0.002, /ccc=0.001")
     assert slow_tick_seconds("/x/servo") == 0.002
     assert slow_tick_seconds("/ccc") == 0.001

@@ -168,7 +168,7 @@ def test_take_wait_and_take_request_on_a_real_node(ros_context):
     from sensor_msgs.msg import JointState
 
     from contouring_ros.wire import cdr
-    from contouring_ros.nodes.lockstep import GRAPH_QOS
+    from contouring_ros.nodes.base import GRAPH_QOS
 
     node = rclpy.create_node("adapter_probe", context=ros_context)
     publisher = node.create_publisher(JointState, "/probe", GRAPH_QOS)
@@ -221,7 +221,8 @@ def test_a_node_that_looks_late_counts_a_publisher_that_left_by_the_messages_it_
 
     from contouring_ros.wire import cdr, graph
     from contouring_ros.errors import RunError
-    from contouring_ros.nodes.lockstep import GRAPH_QOS, LockstepNode
+    from contouring_ros.nodes.base import GRAPH_QOS
+    from contouring_ros.nodes.node import LockstepNode
 
     x_state, y_state = graph.state_topic("x"), graph.state_topic("y")
     ros_node = rclpy.create_node("late_looker", context=ros_context)

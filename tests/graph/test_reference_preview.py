@@ -99,7 +99,7 @@ def test_each_ilc_pass_through_the_graph_equals_its_simulated_pass(tmp_path):
 def test_a_reference_with_fewer_preview_points_than_read_stops_the_node_in_one_line():
     from types import SimpleNamespace
     from contouring_ros.errors import RunError
-    from contouring_ros.nodes.lockstep import LockstepNode
+    from contouring_ros.nodes.node import LockstepNode
     message = cdr.decode_joint_trajectory(cdr.encode_joint_trajectory(
         0, 0, ["x", "y", "theta"], [0.0] * 3, [0.0] * 3, [0.0] * 3, preview=[((0, 1_000_000), [0.0] * 3)]))
     node = SimpleNamespace(name="/x/servo")

@@ -7,8 +7,8 @@ import pytest
 
 from contouring_ros.wire import cdr, graph
 from contouring_ros.errors import RunError
-from contouring_ros.nodes import lockstep
-from contouring_ros.nodes.lockstep import LockstepNode
+from contouring_ros.nodes import intake
+from contouring_ros.nodes.node import LockstepNode
 
 
 class _Experiment:
@@ -36,9 +36,9 @@ def _node(name: str, axes, counter: list) -> LockstepNode:
 
 @pytest.fixture(autouse=True)
 def _empty_shared_decoding():
-    lockstep._DECODED.clear()
+    intake._DECODED.clear()
     yield
-    lockstep._DECODED.clear()
+    intake._DECODED.clear()
 
 
 def test_a_message_two_nodes_take_is_decoded_once():

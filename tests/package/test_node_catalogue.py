@@ -13,7 +13,7 @@ from contouring_ros import config
 from contouring_ros.wire import graph
 from contouring_ros.nodes import parameters
 from contouring_ros.wire import catalogue
-from contouring_ros.nodes.lockstep import LockstepNode
+from contouring_ros.nodes.node import LockstepNode
 from conftest import DEFAULT, ROOT
 from test_launch import _launched, launch_file  # noqa: F401 (launch_file: the fixture)
 

@@ -27,7 +27,7 @@ INTRUDER = r'''
 import sys, time, os
 import rclpy
 from contouring_ros.wire import cdr
-from contouring_ros.nodes.lockstep import DIAGNOSTICS_QOS, GRAPH_QOS, message_class
+from contouring_ros.nodes.base import DIAGNOSTICS_QOS, GRAPH_QOS, message_class
 from contouring_ros.run.runner import recording_path
 topic, type_name, mode, bag = sys.argv[1:5]
 bag = str(recording_path(bag))                         # the recorder's file while the run lasts
@@ -132,7 +132,7 @@ def test_past_duplicate_and_far_future_stamps_are_held_out_and_reported(tmp_path
 
 
 def _fake_node(timing="lockstep", n_steps=100, next_step=10):
-    from contouring_ros.nodes.lockstep import LockstepNode
+    from contouring_ros.nodes.node import LockstepNode
     topics = {t.name: t for t in graph_module.recorded_topics(["x", "y"])}
     fake = SimpleNamespace(_topics=topics, _sequence={"/x/state": 1}, _last_step={"/x/state": -1},
                            sample_time_ns=1_000_000, n_steps=n_steps, next_step=next_step,
