@@ -27,7 +27,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from contouring_ros.studies import benchmark  # noqa: E402
 from contouring_ros.core.tuning_space import Dimension, Space  # noqa: E402
-from contouring_ros.studies.tuning import Protocol, fit_to_machine, interval, tune, tuning_space  # noqa: E402
+from contouring_ros.studies.machine import fit_to_machine  # noqa: E402
+from contouring_ros.studies.space import tuning_space  # noqa: E402
+from contouring_ros.studies.summaries import interval  # noqa: E402
+from contouring_ros.studies.tuner import tune  # noqa: E402
+from contouring_ros.studies.tuning import Protocol  # noqa: E402
 
 
 def raw_space(data: dict, sections: dict, keys: tuple, protocol: Protocol, decades: float, machine: dict) -> Space:

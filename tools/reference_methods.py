@@ -4,7 +4,7 @@ run: no model mismatch, the machine's first noise seeds).
 
 It reads the tuned gains of a benchmark CSV (``contouring-ros benchmark`` writes reports/benchmark.csv),
 rebuilds each row's sections as the benchmark did (:func:`contouring_ros.studies.benchmark.plan`,
-:func:`~contouring_ros.studies.tuning.fit_to_machine`) and runs them in-process. ``--file-gains`` runs the rows'
+:func:`~contouring_ros.studies.machine.fit_to_machine`) and runs them in-process. ``--file-gains`` runs the rows'
 file gains instead (for a scenario whose tuning found no admissible point).
 
 Usage: python tools/reference_methods.py [reports/benchmark.csv] [--file-gains]
@@ -27,8 +27,9 @@ from contouring_ros.core.simulation import simulate  # noqa: E402
 from contouring_ros.experiment.build import build_loop  # noqa: E402
 from contouring_ros.studies.learning import simulate_passes  # noqa: E402
 from contouring_ros.studies.sweep import score_one  # noqa: E402
-from contouring_ros.studies.tuning import (  # noqa: E402
-    experiment_for, fit_to_machine, machine_settings, run_outcomes, sections_with_gains)
+from contouring_ros.studies.gains import sections_with_gains  # noqa: E402
+from contouring_ros.studies.machine import fit_to_machine, machine_settings  # noqa: E402
+from contouring_ros.studies.outcomes import experiment_for, run_outcomes  # noqa: E402
 
 
 def _sections(family, row: dict, file_gains: bool) -> tuple:

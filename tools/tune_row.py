@@ -27,7 +27,8 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from contouring_ros.studies.benchmark import fit_to_machine, plan, reference_job, scenario_families  # noqa: E402
-from contouring_ros.studies.tuning import Protocol, Tuning, searches_agreement  # noqa: E402
+from contouring_ros.studies.tuner import Tuning, searches_agreement  # noqa: E402
+from contouring_ros.studies.tuning import Protocol  # noqa: E402
 
 
 def kind(evaluation) -> str:

@@ -2,7 +2,10 @@
 
 - :mod:`.sweep`: every combination of a grid, batched,
 - :mod:`.learning`: the passes of an ILC experiment,
-- :mod:`.search`, :mod:`.tuning`: the batched global search and the fair tuning of a method's gains,
+- :mod:`.search`, :mod:`.tuning`: the batched global search and the fair tuning of a method's gains (its
+  protocol and records), in steps: :mod:`.machine` (the realistic machine and its draws), :mod:`.gains`,
+  :mod:`.outcomes` (the runs and their figures), :mod:`.loops` (linear loops, margins, Ms), :mod:`.space` (the
+  tuning space), :mod:`.objective` (its penalties), :mod:`.tuner` (the searches), :mod:`.summaries` (intervals),
 - :mod:`.benchmark`: every estimator and controller tuned alike on every paper scenario, and its report,
 - :mod:`.parts`, :mod:`.checkpoints`: a benchmark's saved parts and the rows kept as they finish,
 - :mod:`.claims`, :mod:`.readings`, :mod:`.paper`: each paper's claims, its open readings, its report,

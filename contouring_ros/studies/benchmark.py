@@ -59,10 +59,12 @@ from ..core.margins import LoopMargins
 from ..core.metrics import Scores
 from .parts import load as read_part, register as allow_in_parts, save as write_part
 from .search import Agreement
-from .tuning import (
-    REALISTIC, SATURATION_MARGIN, Evaluation, Outcome, Protocol, Search, Tuned, experiment_for, fit_to_machine,
-    gain_keys, interval, machine_settings, pareto_front, run_outcomes, tune, worst_case
-)
+from .gains import gain_keys
+from .machine import REALISTIC, SATURATION_MARGIN, fit_to_machine, machine_settings
+from .outcomes import experiment_for, run_outcomes, worst_case
+from .summaries import interval, pareto_front
+from .tuner import tune
+from .tuning import Evaluation, Outcome, Protocol, Search, Tuned
 
 __all__ = ["GOAL", "Family", "Combination", "Excluded", "Row", "Reference",
            "scenario_families", "select_families", "plan", "fit_to_machine", "reference_ranks", "Part", "save_part",
@@ -334,7 +336,7 @@ class Reference:
     published: object             # tuning.Outcome: the proposed file's gains on that machine
     ideal_published: object       # ... on the ideal machine (the file as it is)
     noise_limit: float            # the noise sensitivity every combination must stay under
-    worst: float = math.nan       # the proposed method's worst TACE [m] at +-perturbation (tuning.worst_case)
+    worst: float = math.nan       # the proposed method's worst TACE [m] at +-perturbation (outcomes.worst_case)
 
 
 @dataclass

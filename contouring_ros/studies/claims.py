@@ -34,11 +34,11 @@ A paper's claims live in ``config/claims/paper<N>.yaml``::
 Scenario names are files of ``config/``. A ratio is proposed / baseline of the claim's metric (lower: the
 proposed method better). :func:`verdict` turns a ratio and the paper's into a verdict.
 
-Machine and uncertainty. A claim is measured on the *realistic* machine of :mod:`contouring_ros.studies.tuning`
+Machine and uncertainty. A claim is measured on the *realistic* machine of :mod:`contouring_ros.studies.machine`
 (encoder, noise, one sample of delay, velocity from the encoder, an actuator limit of 2x the proposed file's
 peak command where the file states none): the machine is made from the proposed file (its ideal run's peak
 command) and put under BOTH files of the pair. The ratio is the median over :data:`DRAWS` paired draws (draw
-j, :func:`contouring_ros.studies.tuning.draw_settings`: noise seeds and +-:data:`MISMATCH` on every plant parameter,
+j, :func:`contouring_ros.studies.machine.draw_settings`: noise seeds and +-:data:`MISMATCH` on every plant parameter,
 the same draw for both files) with the 2.5-97.5 percentile interval of the per-draw ratios;
 :func:`interval_verdict` gives a verdict only where the whole interval has one (else 'undecided'). The ideal
 machine's ratio (no imperfections, no draws) is kept beside it. Sensitivity: each ``decisive`` entry's keys
@@ -68,7 +68,9 @@ from .executors import pool as executor
 from ..experiment.scenarios import CONFIG_DIR
 from .sweep import experiments_for, score_experiments
 from ..experiment.settings import grid_key_location
-from .tuning import draw_settings, interval, machine_settings, run_outcomes
+from .machine import draw_settings, machine_settings
+from .outcomes import run_outcomes
+from .summaries import interval
 
 __all__ = ["VERDICTS", "METRICS", "DRAWS", "MISMATCH", "SCALES", "verdict", "interval_verdict", "robustness",
            "Decisive", "Plan", "plan_pair", "Measured", "peak_commands", "Pair", "MapAxis", "RegimeMap", "Claim", "CCCHelps", "PaperClaims",

@@ -7,7 +7,10 @@ import numpy as np
 import pytest
 from scipy.stats import qmc
 
-from contouring_ros.studies import benchmark, tuning
+from contouring_ros.studies import benchmark, loops, objective, outcomes, summaries, tuner, tuning
+from contouring_ros.studies.gains import _set_gain
+from contouring_ros.studies.machine import (REALISTIC, SATURATION_MARGIN, draw_settings, fit_to_machine, machine_settings,
+                                           perturbations)
 from contouring_ros.studies.benchmark import plan, run_benchmark, scenario_families, select_families, verdict
 from contouring_ros.cli import main
 from contouring_ros.errors import ConfigError
@@ -77,7 +80,7 @@ def test_a_method_that_models_its_drive_is_given_the_realistic_machine():
     families = {f.name: f for f in scenario_families()}
     family = families["paper000_h50"]
     data = family.data[family.proposed]
-    machine = tuning.machine_settings(data, "realistic", (2.0, 3.0))
+    machine = machine_settings(data, "realistic", (2.0, 3.0))
     sections = {"/x/servo": {"law": "zpetc", "kp": 8.0, "ki": 90.0, "gain": 10.3, "time_constant": 0.04},
                 "/y/servo": {"law": "ismc"}, "/ccc": {"type": "mpcc", "command_limit": None}}
     fitted = benchmark.fit_to_machine(data, sections, machine)
@@ -100,11 +103,11 @@ def test_a_learning_controller_is_judged_by_its_last_pass():
     path = ROOT / "config" / "ilc_ellipse.yaml"
     data = read_yaml(path.read_text(), str(path))
     settings = {"ccc.passes": 3}
-    last, = tuning.run_outcomes(data, {}, [settings], 0.5, "ilc")
-    first, = tuning.run_outcomes(data, {}, [{"ccc.passes": 1}], 0.5, "ilc")
-    passes = simulate_passes(tuning.experiment_for(data, {}, settings, "ilc"))
+    last, = outcomes.run_outcomes(data, {}, [settings], 0.5, "ilc")
+    first, = outcomes.run_outcomes(data, {}, [{"ccc.passes": 1}], 0.5, "ilc")
+    passes = simulate_passes(outcomes.experiment_for(data, {}, settings, "ilc"))
     assert len(passes) == 3
-    expected = tuning._figures(*passes[-1], 0.5, ())
+    expected = outcomes._figures(*passes[-1], 0.5, ())
     assert last.tace == expected.tace and last.mce == expected.mce
     assert last.tace < 0.5 * first.tace                                  # it learned
 
@@ -168,50 +171,50 @@ def test_a_plugin_without_a_space_is_searched_in_the_log_box_of_its_raw_gains():
     assert gains["kp"] == 0.0 and gains["ki"] == pytest.approx(60.0) and gains["kd"] == pytest.approx(2e-3 * 1e4)
     # a per-axis list keeps its proportions
     section = {"coupling": [1.0, 3.0]}
-    tuning._set_gain(section, "coupling", 6.0)
+    _set_gain(section, "coupling", 6.0)
     assert section["coupling"] == [2.0, 6.0]
 
 
 def test_the_objective_penalises_noise_saturation_and_divergence():
     protocol = Protocol(saturation_share=0.01)
     quiet = tuning.Outcome(tace=1e-6, noise=1.0, saturated=0.0)
-    assert tuning._objective(quiet, 2.0, protocol) == (0.0, True)
+    assert objective.objective(quiet, 2.0, protocol) == (0.0, True)
     loud = tuning.Outcome(tace=1e-7, noise=20.0, saturated=0.0)
-    value, admissible = tuning._objective(loud, 2.0, protocol)
+    value, admissible = objective.objective(loud, 2.0, protocol)
     assert not admissible and value > 0.0          # 10x lower error does not buy 10x the noise
     saturated = tuning.Outcome(tace=1e-7, noise=1.0, saturated=0.2)
-    assert tuning._objective(saturated, 2.0, protocol)[1] is False
-    assert tuning._objective(tuning.Outcome(failure="diverged"), 2.0, protocol) == (100.0, False)
+    assert objective.objective(saturated, 2.0, protocol)[1] is False
+    assert objective.objective(tuning.Outcome(failure="diverged"), 2.0, protocol) == (100.0, False)
 
 
 def test_machine_settings_put_the_plants_on_a_realistic_machine_and_keep_what_the_file_sets():
     families = {f.name: f for f in scenario_families()}
     data = families["paper000_h50"].data["paper000_b_ismc_h50_newton"]
-    assert tuning.machine_settings(data, "ideal") == {}
-    settings = tuning.machine_settings(data, "realistic", (0.01, 0.02))
+    assert machine_settings(data, "ideal") == {}
+    settings = machine_settings(data, "realistic", (0.01, 0.02))
     for axis in ("x", "y"):
-        for key, value in tuning.REALISTIC.items():
+        for key, value in REALISTIC.items():
             assert settings[f"{axis}/plant.{key}"] == value
-    assert settings["x/plant.saturation"] == pytest.approx(tuning.SATURATION_MARGIN * 0.01)
+    assert settings["x/plant.saturation"] == pytest.approx(SATURATION_MARGIN * 0.01)
     assert settings["x/plant.noise_seed"] != settings["y/plant.noise_seed"]
     # paper 003's XY stage states its +-10 V limit: kept
     stage = families["paper003_ellipse"].data["paper003_ellipse_natural_local_fn100"]
-    assert not any(k.endswith(".saturation") for k in tuning.machine_settings(stage, "realistic", (1.0, 1.0)))
+    assert not any(k.endswith(".saturation") for k in machine_settings(stage, "realistic", (1.0, 1.0)))
     with pytest.raises(ValueError, match="machine"):
-        tuning.machine_settings(data, "perfect")
+        machine_settings(data, "perfect")
 
 
 def test_robustness_and_draws_vary_every_plant_parameter_and_are_the_same_for_every_method():
     families = {f.name: f for f in scenario_families()}
     data = families["paper004_saddle"].data["paper004_saddle_eso"]
-    checks = tuning.perturbations(data, 0.2)
+    checks = perturbations(data, 0.2)
     assert len(checks) == 6                        # mass, damping, gain; each -20% and +20%
     assert checks[0]["x/plant.mass"] == pytest.approx(0.8 * 5.8) and checks[1]["x/plant.mass"] == pytest.approx(1.2 * 5.8)
-    assert tuning.draw_settings(data, 3, 0.1) == tuning.draw_settings(data, 3, 0.1)
-    assert tuning.draw_settings(data, 3, 0.1) != tuning.draw_settings(data, 4, 0.1)
-    factors = [tuning.draw_settings(data, j, 0.1)["x/plant.mass"] / 5.8 for j in range(20)]
+    assert draw_settings(data, 3, 0.1) == draw_settings(data, 3, 0.1)
+    assert draw_settings(data, 3, 0.1) != draw_settings(data, 4, 0.1)
+    factors = [draw_settings(data, j, 0.1)["x/plant.mass"] / 5.8 for j in range(20)]
     assert all(0.9 <= f <= 1.1 for f in factors)
-    assert "x/plant.disturbance.phase" in tuning.draw_settings(data, 1, 0.1)
+    assert "x/plant.disturbance.phase" in draw_settings(data, 1, 0.1)
 
 
 def test_a_diverged_draw_makes_the_ratio_interval_reach_infinity_not_nan():
@@ -227,11 +230,11 @@ def test_a_diverged_draw_makes_the_ratio_interval_reach_infinity_not_nan():
 
 
 def test_intervals_verdicts_and_fronts():
-    assert tuning.interval([1.0, 2.0, 3.0, float("nan")])[0] == 2.0
-    assert all(math.isnan(v) for v in tuning.interval([]))
+    assert summaries.interval([1.0, 2.0, 3.0, float("nan")])[0] == 2.0
+    assert all(math.isnan(v) for v in summaries.interval([]))
     assert verdict(0.2, 0.8) == "lower" and verdict(1.1, 3.0) == "higher" and verdict(0.5, 1.5) == "undecided"
     assert verdict(0.1, 0.4, threshold=0.5) == "lower" and verdict(1.0, 1.0) == "same"
-    front = tuning.pareto_front([(1.0, 5.0), (2.0, 3.0), (3.0, 4.0), (0.5, 9.0), (4.0, 1.0)])
+    front = summaries.pareto_front([(1.0, 5.0), (2.0, 3.0), (3.0, 4.0), (0.5, 9.0), (4.0, 1.0)])
     assert front == [(0.5, 9.0), (1.0, 5.0), (2.0, 3.0), (4.0, 1.0)]
 
 
@@ -320,10 +323,10 @@ def test_quick_robustness_agrees_with_the_margins_and_the_ms_bound_refuses_befor
     data = family.data["paper002_butterfly_c4_foot_point_ccc"]
     combo = next(c for c in plan(family)[0] if c.label == "foot_point_search + variable_gain / pid_feedforward")
     sections = dict(combo.sections, **{"/ccc": dict(combo.sections["/ccc"], kp=1e6, ki=0.0, kd=0.0)})
-    experiment = tuning.experiment_for(data, sections, {}, "test")
-    ms, stable, allowed = tuning.loop_robustness(experiment)
+    experiment = outcomes.experiment_for(data, sections, {}, "test")
+    ms, stable, allowed = loops.loop_robustness(experiment)
     assert not ms <= allowed
-    search = tuning.Tuning(data, combo.sections, combo.gain_keys, {}, math.inf, family.from_time, Protocol(), "test")
+    search = tuner.Tuning(data, combo.sections, combo.gain_keys, {}, math.inf, family.from_time, Protocol(), "test")
     beyond, = search.measure([([], {}, {"kp": 1e6, "ki": 0.0, "kd": 0.0})])
     assert not beyond.admissible
     assert beyond.outcome.failure.startswith("refused: its linear loop is unstable" if not stable else "Ms ")
@@ -337,10 +340,10 @@ def test_runs_together_equal_the_runs_one_by_one(monkeypatch):
     families = {f.name: f for f in scenario_families()}
     family = families["paper000_h50"]
     data = family.data[family.proposed]
-    machine = tuning.machine_settings(data, "realistic", (0.05, 0.05))
-    settings = [dict(machine, **c) for c in tuning.perturbations(data, 0.2)[:3]]
-    together = tuning.run_outcomes(data, {}, settings, family.from_time, "test")
-    alone = [tuning.run_outcomes(data, {}, [s], family.from_time, "test")[0] for s in settings]
+    machine = machine_settings(data, "realistic", (0.05, 0.05))
+    settings = [dict(machine, **c) for c in perturbations(data, 0.2)[:3]]
+    together = outcomes.run_outcomes(data, {}, settings, family.from_time, "test")
+    alone = [outcomes.run_outcomes(data, {}, [s], family.from_time, "test")[0] for s in settings]
     assert len({round(o.tace, 15) for o in together}) == 3           # the perturbations differ
     for a, b in zip(together, alone):
         assert a.ok and b.ok
@@ -353,7 +356,7 @@ def _small_tune(**options):
     family = families[0]
     data = family.data[family.proposed]
     combo = next(c for c in plan(family)[0] if c.estimator == "natural_local")
-    return tuning.tune(data, combo.sections, combo.gain_keys, {}, math.inf, family.from_time,
+    return tuner.tune(data, combo.sections, combo.gain_keys, {}, math.inf, family.from_time,
                        dataclasses.replace(Protocol(evaluations=8, popsize=4, design=0, draws=1, searches=1,
                                                     max_searches=1),
                                            **options.pop("protocol", {})),
@@ -367,7 +370,7 @@ def test_the_robustness_floor_and_every_point_that_could_be_chosen_checked(monke
     admissible = [e for e in tuned.evaluations if e.admissible]
     assert tuned.ok and tuned.nominal.tace == min(e.outcome.tace for e in admissible)
     family = select_families(scenario_families(), [SMALL])[0]
-    checks = tuning.perturbations(family.data[family.proposed], Protocol().perturbation)
+    checks = perturbations(family.data[family.proposed], Protocol().perturbation)
     assert len(checks) == 6                                   # mass, damping, gain; -20% and +20%
     ran = [e for e in tuned.evaluations if e.outcome.ok]
     checked = [e for e in ran if math.isfinite(e.worst)]
@@ -380,9 +383,9 @@ def test_the_robustness_floor_and_every_point_that_could_be_chosen_checked(monke
             assert not e.admissible
             assert e.objective > math.log10(e.outcome.tace * 1e6) or e.outcome.tace >= tuned.nominal.tace
     # ... so checking every point gives the same choice
-    measure = tuning.Tuning.measure
-    monkeypatch.setattr(tuning.Tuning, "STAGES", (math.inf,))
-    monkeypatch.setattr(tuning.Tuning, "measure", lambda self, points, groups=None, best=None:
+    measure = tuner.Tuning.measure
+    monkeypatch.setattr(tuner.Tuning, "STAGES", (math.inf,))
+    monkeypatch.setattr(tuner.Tuning, "measure", lambda self, points, groups=None, best=None:
                         measure(self, points))
     everything = _small_tune(robust_floor=math.inf)
     assert everything.gains == tuned.gains and everything.nominal.tace == tuned.nominal.tace
@@ -442,13 +445,13 @@ def test_the_kept_search_prefers_robust_then_the_lowest_worst_case():
         chosen = tuning.Evaluation({}, tuning.Outcome(tace=tace), 0.0, status == "ok", worst)
         return tuning.Search(chosen, status, worst / tace if math.isfinite(worst) else math.nan)
     robust_high, robust_low, fragile = search(2e-6), search(1e-6), search(1e-8, "not robust: ...", 9e-6)
-    assert tuning.best_search([robust_high, fragile, robust_low]) is robust_low      # never the fragile point
-    assert tuning.best_search([robust_low, search(1e-6)]) is robust_low               # a tie: the earlier
+    assert tuner.best_search([robust_high, fragile, robust_low]) is robust_low      # never the fragile point
+    assert tuner.best_search([robust_low, search(1e-6)]) is robust_low               # a tie: the earlier
     worse = search(1e-8, "not robust: ...", 5e-5)
-    assert tuning.best_search([worse, fragile]) is fragile                             # lowest worst case
+    assert tuner.best_search([worse, fragile]) is fragile                             # lowest worst case
     none = tuning.Search(None, "no admissible gain: every point diverged")
-    assert tuning.best_search([none, tuning.Search(None, "no admissible gain: other")]) is none
-    assert tuning.best_search([none, fragile]) is fragile
+    assert tuner.best_search([none, tuning.Search(None, "no admissible gain: other")]) is none
+    assert tuner.best_search([none, fragile]) is fragile
 
 
 def test_two_runs_compared_row_by_row_name_what_a_protocol_change_moved(tmp_path):
@@ -497,15 +500,15 @@ def test_a_linear_pid_contour_controller_is_searched_at_a_chosen_ms():
     family = {f.name: f for f in scenario_families()}["paper001_caseIII"]
     data = family.data[family.proposed]
     combo = next(c for c in plan(family)[0] if c.label == "tangent_line + variable_gain / pid")
-    machine = tuning.machine_settings(data, "realistic", (1.0, 1.0))
-    sections = tuning.fit_to_machine(data, combo.sections, machine)
-    search = tuning.Tuning(data, sections, combo.gain_keys, machine, math.inf, family.from_time, Protocol(), "test")
+    machine = machine_settings(data, "realistic", (1.0, 1.0))
+    sections = fit_to_machine(data, combo.sections, machine)
+    search = tuner.Tuning(data, sections, combo.gain_keys, machine, math.inf, family.from_time, Protocol(), "test")
     assert [d.name for d in search.space.dimensions] == ["f_c", "t_d", "ms"]
     rng = np.random.default_rng(3)
     for u in [list(rng.uniform(0.05, 1.0, 3)) for _ in range(6)] + [[0.6, 0.6, 1.0]]:
         values, gains = search.space.decode(u)
-        ms, stable, allowed = tuning.loop_robustness(
-            tuning.experiment_for(data, search.with_gains(gains), machine, "test"))
+        ms, stable, allowed = loops.loop_robustness(
+            outcomes.experiment_for(data, search.with_gains(gains), machine, "test"))
         if gains["kp"] > 0:          # a target below the drive's own Ms leaves the controller off
             assert ms == pytest.approx(values["ms"] * allowed / tuning.MS_LIMIT, rel=1e-3)
     back = search.space.point(search.with_gains(gains))
@@ -524,24 +527,24 @@ def test_the_zpetc_pid_is_searched_at_a_chosen_ms_of_each_axis_loop(scenario):
     family = {f.name: f for f in scenario_families()}[scenario]
     data = family.data[family.proposed]
     combo = next(c for c in plan(family)[0] if c.label.endswith("none / zpetc"))
-    machine = tuning.machine_settings(data, "realistic", (1.0, 1.0))
-    sections = tuning.fit_to_machine(data, combo.sections, machine)
-    search = tuning.Tuning(data, sections, combo.gain_keys, machine, math.inf, family.from_time, Protocol(), "test")
+    machine = machine_settings(data, "realistic", (1.0, 1.0))
+    sections = fit_to_machine(data, combo.sections, machine)
+    search = tuner.Tuning(data, sections, combo.gain_keys, machine, math.inf, family.from_time, Protocol(), "test")
     assert [d.name for d in search.space.dimensions] == ["servo f_c", "servo t_d", "servo ms"] and search.servo_tuned
     stable_points, conditionally = 0, 0
     for u in qmc.Sobol(3, seed=5).random(16):
         values, gains = search.space.decode(list(u))
         if not all(v for k, v in gains.items() if k.endswith(".kp")):
             with pytest.raises(ConfigError, match="kp or ki must be positive"):
-                tuning.experiment_for(data, search.with_gains(gains), machine, "test")
+                outcomes.experiment_for(data, search.with_gains(gains), machine, "test")
             continue
-        experiment = tuning.experiment_for(data, search.with_gains(gains), machine, "test")
-        ms, stable, allowed = tuning.loop_robustness(experiment, servo_tuned=True)
+        experiment = outcomes.experiment_for(data, search.with_gains(gains), machine, "test")
+        ms, stable, allowed = loops.loop_robustness(experiment, servo_tuned=True)
         assert stable and allowed == tuning.MS_LIMIT
         assert ms == pytest.approx(values["servo ms"], rel=2e-3)
         stable_points += 1
-        small = tuning.experiment_for(data, search.with_gains({k: 1e-3 * v for k, v in gains.items()}), machine, "test")
-        conditionally += not tuning.loop_robustness(small, servo_tuned=True)[1]
+        small = outcomes.experiment_for(data, search.with_gains({k: 1e-3 * v for k, v in gains.items()}), machine, "test")
+        conditionally += not loops.loop_robustness(small, servo_tuned=True)[1]
     assert stable_points >= 4 and (conditionally >= 1 or scenario == "paper000_h50")
     file_point = search.space.point(search.validated)
     _, file_gains = search.space.decode(search.space.start(search.validated))

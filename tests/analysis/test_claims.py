@@ -16,7 +16,7 @@ from contouring_ros.studies.claims import (SCALES, Claim, Decisive, MapAxis, Pai
                                    claim_files, draw_map, evaluate, interval_verdict, load_claims, map_ratios, plan_pair,
                                    robustness, verdict)
 from contouring_ros.studies.paper import CONFIG_DIR
-from contouring_ros.studies.tuning import interval
+from contouring_ros.studies.summaries import interval
 from contouring_ros.config import WHOLE_COMMAND_CONTROLLERS, build_loop, parse_experiment
 from contouring_ros.core.metrics import score
 from contouring_ros.core.simulation import simulate

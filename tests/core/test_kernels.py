@@ -13,7 +13,7 @@ from contouring_ros.core.batch import simulate_batch
 from contouring_ros.core.estimators import NewtonEstimator
 from contouring_ros.core.simulation import simulate
 from contouring_ros.studies.sweep import combinations
-from contouring_ros.studies.tuning import REALISTIC
+from contouring_ros.studies.machine import REALISTIC
 
 CONFIG = Path(__file__).resolve().parents[2] / "config"
 

@@ -20,7 +20,7 @@ from contouring_ros.core.interpolation import Reference
 from contouring_ros.core.margins import (LoopMargins, axis_loop, coupled_loop, margins,
                                          plant_transfer)
 from contouring_ros.core.plants import FirstOrderVelocityAxis, MassDamperAxis
-from contouring_ros.studies.tuning import experiment_margins
+from contouring_ros.studies.loops import experiment_margins
 
 TS = 1e-3
 PIDFF = CONFIG / "paper000_a_pidff_h50_newton.yaml"

@@ -1,5 +1,5 @@
 """Contour controllers (core/contouring.py): the ``/ccc`` section. ``gains``: the keys the benchmark tunes
-(contouring_ros/studies/tuning.py); ``whole_command``: the controller computes every axis' whole command (its servos
+(contouring_ros/studies/gains.py); ``whole_command``: the controller computes every axis' whole command (its servos
 must then be 'direct'); ``needs_state``: it uses the reference and the axis states (the CCC node takes them)."""
 from __future__ import annotations
 

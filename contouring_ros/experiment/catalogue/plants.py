@@ -1,7 +1,7 @@
 """Plants (core/plants.py): each ``/<axis>/plant`` section, one feed drive. Every type also takes the
 imperfections of a real drive (encoder quantisation, measurement noise, computation delay, the velocity
 reading), all off by default. ``varied``: the physical parameters the benchmark's robustness checks and
-model-mismatch draws vary (contouring_ros/studies/tuning.py)."""
+model-mismatch draws vary (contouring_ros/studies/machine.py)."""
 from __future__ import annotations
 
 from ...core import plants
