@@ -21,7 +21,7 @@ from ..errors import BagError, ConfigError, ContouringError, ScoreError
 
 __all__ = ["read_run", "score_run", "score_bag", "check_experiment_matches", "curve_of", "format_scores",
            "format_realtime", "miss_rate", "tolerance_line", "cutting_lines", "motion_steps", "breach_of", "breach_message", "SCORE_ROWS",
-           "BAG_EXPERIMENT"]
+           "BAG_EXPERIMENT", "scores_lines", "recorded_lines", "json_scores"]
 
 #: the name a bag's experiment goes by in messages (its ``where``)
 BAG_EXPERIMENT = "the bag's experiment"
@@ -207,6 +207,38 @@ def format_scores(named: list, axes=None) -> str:
             cells.append((f"{value:d}" if isinstance(value, int) else f"{value:.4g}").rjust(w))
         lines.append("  ".join([label.ljust(width)] + cells))
     return "\n".join(lines)
+
+
+def scores_lines(name: str, scores: Scores, axes, from_time: float = 0.0) -> list:
+    """One run's scores as ``run`` and ``simulate`` print them: the table of :func:`format_scores`, after a
+    heading where only the samples at t >= ``from_time`` count."""
+    heading = [f"scores of the samples at t >= {from_time:g} s"] if from_time else []
+    return heading + [format_scores([(name, scores)], axes)]
+
+
+def recorded_lines(path, name: str, scores: Scores, run: RecordedRun, from_time: float = 0.0):
+    """What the bag of a graph run tells once scored (``scores``, of the samples at t >= ``from_time``), line
+    by line as each is ready: the scores (:func:`scores_lines`), the cutting moves' scores and the
+    contour-tolerance verdict (:func:`cutting_lines`), and the realtime summary of its nodes
+    (:func:`format_realtime`) where the run was realtime."""
+    yield from scores_lines(name, scores, run.axes, from_time)
+    yield from cutting_lines(curve_of(run), run.result, run.require_experiment())
+    realtime = format_realtime(bag.node_reports(path))
+    if realtime:
+        yield realtime
+
+
+def json_scores(scores: Scores, axes) -> dict:
+    """A run's scores for JSON: the Scores fields as they are (mce, tace, rms ... in metres), and the same
+    per-axis values keyed by axis name, with the units spelled out."""
+    out = scores.as_dict()
+    out["axes"] = list(axes)
+    for key in ("tracking_max", "tracking_rms", "effort_rms"):
+        out[f"{key}_by_axis"] = dict(zip(axes, out[key]))
+    out["units"] = {"mce": "m", "tace": "m", "rms": "m", "estimation_max": "m", "estimation_rms": "m",
+                    "tracking_max": "m", "tracking_rms": "m", "effort_rms": "command units", "travel_time": "s",
+                    "from_time": "s"}
+    return out
 
 
 def miss_rate(values: dict) -> float:

@@ -9,11 +9,12 @@ from conftest import ROOT
 
 PACKAGE = "contouring_ros"
 
-# (importing module, imported module or "*" for any) -> why the import is made inside a function
+# (importing module, imported module) -> why the import is made inside a function; "*" stands for any module,
+# "package.*" for the package and every module in it
 LOCAL_IMPORTS_ALLOWED = {
     ("contouring_ros", "contouring_ros.api"):
         "the top level loads the Python API on first attribute use (PEP 562), so a node's process does not",
-    ("contouring_ros.cli", "*"):
+    ("contouring_ros.cli.*", "*"):
         "the command line loads a subcommand's modules only when it runs: --help, argument errors and run's "
         "launch start without numpy, scipy and the validation",
     ("contouring_ros.studies.executors", "contouring_ros.studies.executors"):
@@ -70,13 +71,14 @@ def _imports() -> tuple:
     return top, local
 
 
+def _names(pattern: str, module: str) -> bool:
+    """Whether an entry's ``pattern`` names ``module``: the module itself, "*" any, "package.*" the package and
+    every module in it."""
+    return pattern in ("*", module) or (pattern.endswith(".*") and f"{module}.".startswith(pattern[:-1]))
+
+
 def _allowed(module: str, target: str) -> bool:
-    for importer, imported in LOCAL_IMPORTS_ALLOWED:
-        if importer != module:
-            continue
-        if imported in ("*", target) or (imported.endswith(".*") and target.startswith(imported[:-1])):
-            return True
-    return False
+    return any(_names(importer, module) and _names(imported, target) for importer, imported in LOCAL_IMPORTS_ALLOWED)
 
 
 def test_the_graph_is_read_from_the_package():
@@ -105,8 +107,7 @@ def test_every_allowed_entry_is_used_and_has_a_reason():
     _, local = _imports()
     for (importer, imported), reason in LOCAL_IMPORTS_ALLOWED.items():
         assert reason.strip(), (importer, imported)
-        assert any(module == importer and _allowed(importer, target) and
-                   (imported in ("*", target) or (imported.endswith(".*") and target.startswith(imported[:-1])))
+        assert any(_names(importer, module) and _names(imported, target)
                    for module, target, _ in local), f"unused entry {importer} -> {imported}"
 
 
@@ -137,6 +138,7 @@ def test_every_arrow_points_down_the_roles():
 def test_the_top_level_holds_no_role():
     """Every module outside the role folders is the package's face, the command line or the ground."""
     flat = {path.stem for path in (ROOT / PACKAGE).glob("*.py")}
+    flat |= {path.parent.name for path in (ROOT / PACKAGE).glob("*/__init__.py") if path.parent.name not in ROLES}
     assert flat == {"__init__", "_version", "_moved", "api", "cli", "config", "errors", "notices"}, flat
 
 
