@@ -532,7 +532,8 @@ def _paper(args):
     print(f"wrote {write_report(text, args.paper, args.out, args.readings)}", file=sys.stderr)
     if args.readings:
         return
-    from .studies.claims import claim_files, claims_report, write_claims_report
+    from .studies.claims_file import claim_files
+    from .studies.claims_report import claims_report, write_claims_report
     with_claims = [p for p in chosen if any(path.stem == f"paper{p}" for path in claim_files())]
     if with_claims:
         report = claims_report(with_claims, args.out, maps=not args.no_maps, workers=args.workers, progress=say,
@@ -579,7 +580,7 @@ def _scheduler_option(parser) -> None:
 
 
 def _benchmark(args):
-    from .studies.benchmark import main_benchmark
+    from .studies.benchmark_report import main_benchmark
     from .studies.tuning import Protocol
     if args.budget < 2:
         raise ConfigError(f"--budget {args.budget}: expected at least 2 evaluations per combination")
@@ -607,7 +608,8 @@ def _benchmark(args):
     if args.checkpoints:
         outputs.active().claim_folder(args.checkpoints, "--checkpoints")
     if args.from_parts:
-        from .studies.benchmark import load_parts, write_outputs
+        from .studies.benchmark_parts import load_parts
+        from .studies.benchmark_report import write_outputs
         if args.methods or args.scenarios or args.save_part or args.checkpoints:
             raise ConfigError("--from-parts runs nothing: --methods, --scenarios, --save-part and --checkpoints belong "
                               "to the runs that wrote the parts")
