@@ -26,7 +26,7 @@ import sys
 
 import numpy as np
 
-from contouring_ros.studies.benchmark import best_other_rank
+from contouring_ros.studies.benchmark_report import best_other_rank
 
 KEY = ("scenario", "estimator", "controller", "servo")
 NEEDED = ("status", "proposed", "tace_median_um", "tace_verdict", "tace_ratio", "tace_ratio_lo", "tace_ratio_hi", "mce_ratio")
@@ -56,8 +56,8 @@ def _kind(status: str) -> str:
 
 def best_other(rows: dict, scenario: str):
     """The label of the row the report puts against the proposed method in ``scenario``
-    (:func:`contouring_ros.studies.benchmark.best_other_rank`, as :func:`~contouring_ros.studies.benchmark.paper_best` ranks
-    its rows), or None."""
+    (:func:`contouring_ros.studies.benchmark_report.best_other_rank`, as
+    :func:`~contouring_ros.studies.benchmark_report.paper_best` ranks its rows), or None."""
     others = []
     for key, row in rows.items():
         if key[0] != scenario or row["proposed"] == "yes" or row["status"] != "ok":

@@ -69,7 +69,7 @@ def _protocol_options(parser) -> None:
 def main(args) -> None:
     """Tune and run every combination (or write the report from ``--from-parts``), writing benchmark.md, .csv
     and the heat map into ``--out``."""
-    from ..studies.benchmark import main_benchmark
+    from ..studies.benchmark_report import main_benchmark
     protocol = _protocol(args)
     command = _command(args, protocol.max_searches)
     _claim_outputs(args)
@@ -132,7 +132,8 @@ def _claim_outputs(args) -> None:
 
 def _from_parts(args) -> None:
     """Write the report, the table and the figures from the parts ``--from-parts`` names; nothing is run."""
-    from ..studies.benchmark import load_parts, write_outputs
+    from ..studies.benchmark_parts import load_parts
+    from ..studies.benchmark_report import write_outputs
     if args.methods or args.scenarios or args.save_part or args.checkpoints:
         raise ConfigError("--from-parts runs nothing: --methods, --scenarios, --save-part and --checkpoints belong "
                           "to the runs that wrote the parts")

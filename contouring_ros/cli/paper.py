@@ -84,7 +84,8 @@ def _sections(args, chosen: list) -> list:
 
 def _claims(args, chosen: list) -> None:
     """Measure the claims of the chosen papers that have a claims file, and write their report."""
-    from ..studies.claims import claim_files, claims_report, write_claims_report
+    from ..studies.claims_file import claim_files
+    from ..studies.claims_report import claims_report, write_claims_report
     with_claims = [p for p in chosen if any(path.stem == f"paper{p}" for path in claim_files())]
     if with_claims:
         report = claims_report(with_claims, args.out, maps=not args.no_maps, workers=args.workers, progress=_say,

@@ -51,7 +51,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from .claims import verdict
+from .claims_file import claim_verdict
 from ..core.simulation import simulate
 from ..errors import ConfigError, Diverged
 from ..experiment.build import build_loop
@@ -501,5 +501,5 @@ def readings_report(analysis: Analysis) -> str:
         for r, theirs, default, closest in analysis.relations:
             fmt = lambda v: "-" if v is None else f"{v:.3g}"  # noqa: E731
             lines.append(f"| {short[r['proposed']]} | {short[r['baseline']]} | {r['metric'].upper()} | {theirs:.3g} | "
-                         f"{fmt(default)} | {verdict(default, theirs)} | {fmt(closest)} | {verdict(closest, theirs)} |")
+                         f"{fmt(default)} | {claim_verdict(default, theirs)} | {fmt(closest)} | {claim_verdict(closest, theirs)} |")
     return "\n".join(lines)

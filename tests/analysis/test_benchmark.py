@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 from scipy.stats import qmc
 
-from contouring_ros.studies import benchmark, loops, objective, outcomes, summaries, tuner, tuning
+from contouring_ros.studies import benchmark, benchmark_parts, benchmark_report, loops, objective, outcomes, summaries, tuner, tuning
 from contouring_ros.studies.gains import _set_gain
 from contouring_ros.studies.machine import (REALISTIC, SATURATION_MARGIN, draw_settings, fit_to_machine, machine_settings,
                                            perturbations)
-from contouring_ros.studies.benchmark import plan, run_benchmark, scenario_families, select_families, verdict
+from contouring_ros.studies.benchmark import lower_or_higher, plan, run_benchmark, scenario_families, select_families
 from contouring_ros.cli import main
 from contouring_ros.errors import ConfigError
 from contouring_ros.studies.tuning import Protocol
@@ -115,13 +115,13 @@ def test_a_learning_controller_is_judged_by_its_last_pass():
 def test_parts_run_apart_are_reported_together(small_run, tmp_path):
     families, rows = small_run
     part = benchmark.Part(families, rows, FAST, 60.0, 100.0, 2, "contouring-ros benchmark --scenarios x", "here")
-    first = benchmark.save_part(part, tmp_path / "a.pkl")
-    benchmark.save_part(part, tmp_path / "b.pkl")
-    loaded = benchmark.load_parts([first])
+    first = benchmark_parts.save_part(part, tmp_path / "a.pkl")
+    benchmark_parts.save_part(part, tmp_path / "b.pkl")
+    loaded = benchmark_parts.load_parts([first])
     assert [r.label for r in loaded[0].rows] == [r.label for r in rows]
     assert loaded[0].rows[0].figure("tace") == rows[0].figure("tace")
-    _, direct, _ = benchmark.write_outputs([part], tmp_path / "direct")       # the table the run itself writes
-    _, saved, _ = benchmark.write_outputs(loaded, tmp_path / "saved")
+    _, direct, _ = benchmark_report.write_outputs([part], tmp_path / "direct")       # the table the run itself writes
+    _, saved, _ = benchmark_report.write_outputs(loaded, tmp_path / "saved")
     assert saved.read_bytes() == direct.read_bytes()
     assert main(["benchmark", "--from-parts", str(first), str(tmp_path / "b.pkl"), "--out", str(tmp_path)]) == 0
     text = (tmp_path / "benchmark.md").read_text()
@@ -136,11 +136,11 @@ def test_a_method_rerun_alone_takes_its_rows_place_in_an_earlier_full_run(small_
     families, rows = small_run
     full = benchmark.Part(families, rows, FAST, 60.0, 100.0, 2, "full")
     alone = run_benchmark(families, FAST, workers=2, methods=("tangent_line",))
-    proposed = [r for r in alone if r.combination and benchmark._is_proposed(families[0], r.combination)]
+    proposed = [r for r in alone if r.combination and benchmark.is_proposed_combination(families[0], r.combination)]
     assert len(proposed) == 1 and proposed[0].combination.estimator != "tangent_line"   # run for the ratios
     assert all(r is proposed[0] or (r.combination or r.excluded).estimator == "tangent_line" for r in alone)
     part = benchmark.Part(families, alone, FAST, 10.0, 20.0, 2, "methods", methods=("tangent_line",))
-    merged_families, merged = benchmark.merged_rows([full, part])
+    merged_families, merged = benchmark_parts.merged_rows([full, part])
     assert sorted(r.label for r in merged) == sorted(r.label for r in rows)          # nothing lost, none twice
     replaced = {r.label for r in alone}
     assert all((r in alone) == (r.label in replaced) for r in merged)
@@ -149,10 +149,10 @@ def test_a_method_rerun_alone_takes_its_rows_place_in_an_earlier_full_run(small_
         [d.tace for d in next(r for r in rows if r.is_proposed).tuned.draws]          # the same tuning
     # a part whose proposed combination tuned otherwise ran other code: refused, naming the scenario
     other = copy.deepcopy(part)
-    mine = next(r for r in other.rows if r.combination and benchmark._is_proposed(other.families[0], r.combination))
+    mine = next(r for r in other.rows if r.combination and benchmark.is_proposed_combination(other.families[0], r.combination))
     mine.tuned.draws[0] = dataclasses.replace(mine.tuned.draws[0], tace=1.5 * mine.tuned.draws[0].tace)
     with pytest.raises(ConfigError, match=f"{families[0].name}'s proposed combination"):
-        benchmark.merged_rows([full, other])
+        benchmark_parts.merged_rows([full, other])
     with pytest.raises(ConfigError, match=r"^--methods zpetc_nowhere: no estimator, controller or servo set"):
         run_benchmark(families, FAST, workers=1, methods=("zpetc_nowhere",))
 
@@ -226,14 +226,15 @@ def test_a_diverged_draw_makes_the_ratio_interval_reach_infinity_not_nan():
         assert benchmark._infinite_aware(values, 2.5) == pytest.approx(0.5 + 0.025 * 7 * 0.1)    # numpy's linear
         assert benchmark._infinite_aware(values, 50.0) == pytest.approx(0.85)
         assert benchmark._infinite_aware(np.array([1.0, 2.0, 3.0]), 97.5) == np.percentile([1.0, 2.0, 3.0], 97.5)
-    assert verdict(1.46, math.inf) == "higher"
+    assert lower_or_higher(1.46, math.inf) == "higher"
 
 
 def test_intervals_verdicts_and_fronts():
     assert summaries.interval([1.0, 2.0, 3.0, float("nan")])[0] == 2.0
     assert all(math.isnan(v) for v in summaries.interval([]))
-    assert verdict(0.2, 0.8) == "lower" and verdict(1.1, 3.0) == "higher" and verdict(0.5, 1.5) == "undecided"
-    assert verdict(0.1, 0.4, threshold=0.5) == "lower" and verdict(1.0, 1.0) == "same"
+    assert lower_or_higher(0.2, 0.8) == "lower" and lower_or_higher(1.1, 3.0) == "higher"
+    assert lower_or_higher(0.5, 1.5) == "undecided"
+    assert lower_or_higher(0.1, 0.4, threshold=0.5) == "lower" and lower_or_higher(1.0, 1.0) == "same"
     front = summaries.pareto_front([(1.0, 5.0), (2.0, 3.0), (3.0, 4.0), (0.5, 9.0), (4.0, 1.0)])
     assert front == [(0.5, 9.0), (1.0, 5.0), (2.0, 3.0), (4.0, 1.0)]
 
@@ -250,8 +251,8 @@ def small_run():
 def test_the_findings_written_for_the_default_run_are_shown_only_under_its_protocol(small_run):
     families, rows = small_run
     notes = {families[0].paper: "FINDINGS OF THE DEFAULT RUN"}
-    default = benchmark.benchmark_report(rows, families, Protocol(), "here", notes=notes)
-    other = benchmark.benchmark_report(rows, families, Protocol(searches=4), "here", notes=notes)
+    default = benchmark_report.benchmark_report(rows, families, Protocol(), "here", notes=notes)
+    other = benchmark_report.benchmark_report(rows, families, Protocol(searches=4), "here", notes=notes)
     assert "FINDINGS OF THE DEFAULT RUN" in default and "are left out" not in default
     assert "FINDINGS OF THE DEFAULT RUN" not in other and "notes.yaml) are left out" in other
 
@@ -260,7 +261,7 @@ def test_one_row_per_scenario_and_combination(small_run, tmp_path):
     families, rows = small_run
     combos, excluded = plan(families[0])
     assert len(rows) == len(combos) + len(excluded)
-    path = benchmark.write_csv(rows, tmp_path / "benchmark.csv")
+    path = benchmark_report.write_csv(rows, tmp_path / "benchmark.csv")
     table = list(csv.DictReader(path.open()))
     keys = [(r["scenario"], r["estimator"], r["controller"], r["servo"]) for r in table]
     assert len(keys) == len(rows) == len(set(keys))
@@ -435,7 +436,7 @@ def test_the_report_counts_converged_rows_and_names_the_others():
         return SimpleNamespace(tuned=SimpleNamespace(agreement=a), converged=a.converged, family=family,
                                label="est + ccc / servo")
     rows = [row([1e-6, 1.01e-6, 1.02e-6]), row([1e-6, 3e-6, 1.5e-6, 2e-6, 1.2e-6, 4e-6])]
-    text = benchmark.convergence_text(rows)
+    text = benchmark_report.convergence_text(rows)
     assert "1 of 2 tuned rows converged (50%)" in text and "at most 6" in text
     assert "scenario est + ccc / servo (1 of 6 agree, spread 4x)" in text
 

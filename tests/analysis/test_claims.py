@@ -12,9 +12,10 @@ import numpy as np
 import pytest
 
 from contouring_ros.records.bag_writer import write_simulation
-from contouring_ros.studies.claims import (SCALES, Claim, Decisive, MapAxis, Pair, RegimeMap, ScenarioScores, ccc_helps_scores,
-                                   claim_files, draw_map, evaluate, interval_verdict, load_claims, map_ratios, plan_pair,
-                                   robustness, verdict)
+from contouring_ros.studies.claims import SCALES, ScenarioScores, ccc_helps_scores, evaluate, plan_pair
+from contouring_ros.studies.claims_file import (Claim, Decisive, MapAxis, Pair, RegimeMap, claim_files, claim_verdict,
+                                                interval_verdict, load_claims, robustness, scenario_experiment)
+from contouring_ros.studies.claims_maps import draw_map, map_ratios
 from contouring_ros.studies.paper import CONFIG_DIR
 from contouring_ros.studies.summaries import interval
 from contouring_ros.config import WHOLE_COMMAND_CONTROLLERS, build_loop, parse_experiment
@@ -40,23 +41,23 @@ def scores():
 
 
 def test_verdict_rule():
-    assert verdict(0.05, 0.069) == "holds"
-    assert verdict(0.30, 0.069) == "holds"            # 70% of the way: 1 - 0.30 >= 0.75 * 0.931
-    assert verdict(0.35, 0.069) == "holds weaker"
-    assert verdict(0.96, 0.069) == "does not hold"
-    assert verdict(1.04, 0.5) == "does not hold"
-    assert verdict(1.2, 0.5) == "reversed"
-    assert verdict(None, 0.5) == "not testable"
-    assert verdict(math.nan, 0.5) == "not testable"
-    assert verdict(0.9625, None) == "lowers"          # no paper figure: only 'lowers' or not, whatever the size
-    assert verdict(1.0, None) == "does not lower"
-    assert verdict(None, None) == "not testable"
+    assert claim_verdict(0.05, 0.069) == "holds"
+    assert claim_verdict(0.30, 0.069) == "holds"            # 70% of the way: 1 - 0.30 >= 0.75 * 0.931
+    assert claim_verdict(0.35, 0.069) == "holds weaker"
+    assert claim_verdict(0.96, 0.069) == "does not hold"
+    assert claim_verdict(1.04, 0.5) == "does not hold"
+    assert claim_verdict(1.2, 0.5) == "reversed"
+    assert claim_verdict(None, 0.5) == "not testable"
+    assert claim_verdict(math.nan, 0.5) == "not testable"
+    assert claim_verdict(0.9625, None) == "lowers"          # no paper figure: only 'lowers' or not, whatever the size
+    assert claim_verdict(1.0, None) == "does not lower"
+    assert claim_verdict(None, None) == "not testable"
 
 
 def test_the_interval_verdict_is_given_only_where_the_interval_crosses_no_threshold():
     paper = 0.069                                     # holds where r <= 1 - 0.75 * 0.931 = 0.302
     _, low, high = interval([0.20, 0.25, 0.28, 0.31, 0.33])       # made up: crosses 0.302
-    assert verdict(low, paper) == "holds" and verdict(high, paper) == "holds weaker"
+    assert claim_verdict(low, paper) == "holds" and claim_verdict(high, paper) == "holds weaker"
     assert interval_verdict(low, high, paper) == "undecided"
     _, low, high = interval([0.40, 0.45, 0.5, 0.6])                # inside 'holds weaker'
     assert interval_verdict(low, high, paper) == "holds weaker"
@@ -165,8 +166,7 @@ def test_each_ccc_lowers_the_contour_error_on_its_mechanism_scenario(entry, scor
 def test_the_ccc_check_fails_when_the_ccc_sign_is_flipped(entry):
     """The check above is not a formality: with the correction's sign flipped the CCC no longer lowers the
     contour error by its factor (the ``without`` run, unchanged, is the reference)."""
-    from contouring_ros.studies.claims import _experiment
-    experiment = _experiment(entry.scenario)
+    experiment = scenario_experiment(entry.scenario)
     loop = build_loop(experiment)
     kind = experiment.controller["type"]
     if kind == "tvt":                    # its output is the whole velocity command: flip the contour term
@@ -184,7 +184,7 @@ def test_the_ccc_check_fails_when_the_ccc_sign_is_flipped(entry):
         flipped = getattr(score_run(loop.curve, simulate(loop), entry.from_time), entry.metric)
     except Diverged:
         return                        # flipped, the loop diverges: the check fails, as it must
-    without = build_loop(_experiment(entry.scenario, entry.without))
+    without = build_loop(scenario_experiment(entry.scenario, entry.without))
     baseline = getattr(score_run(without.curve, simulate(without), entry.from_time), entry.metric)
     assert not flipped * entry.factor <= baseline
 
@@ -240,13 +240,12 @@ def test_a_regime_map_is_the_ratio_of_the_two_runs_cell_by_cell(tmp_path, monkey
                      MapAxis("h", ("curve.h",), (50.0, 200.0)))
     ratios = map_ratios(claim, spec, workers=1)
     assert ratios["tace"].shape == (2, 2)
-    from contouring_ros.studies.claims import _experiment
     for j, h in enumerate((50.0, 200.0)):
         for i, duration in enumerate((0.3, 0.4)):
             settings = {"schedule.duration": duration, "duration": duration, "curve.h": h}
             tace = []
             for name in (claim.faithful.proposed, claim.faithful.baseline):
-                loop = build_loop(_experiment(name, settings))
+                loop = build_loop(scenario_experiment(name, settings))
                 tace.append(score_run(loop.curve, simulate(loop), 0.1).tace)
             assert ratios["tace"][j, i] == pytest.approx(tace[0] / tace[1], rel=1e-9)
     png = draw_map(claim, spec, ratios, tmp_path / "maps" / "map.png")

@@ -10,7 +10,7 @@ import pickle
 import numpy as np
 import pytest
 
-from contouring_ros.studies import benchmark, parts, tuning
+from contouring_ros.studies import benchmark, benchmark_parts, parts, tuning
 from contouring_ros.cli import main
 from contouring_ros.errors import ConfigError
 from contouring_ros.studies.search import agreement
@@ -45,8 +45,8 @@ def _payload(path) -> dict:
 
 def test_a_part_comes_back_with_its_values_types_and_shared_objects(tmp_path):
     part = _part()
-    path = benchmark.save_part(part, tmp_path / "p.part")
-    back, = benchmark.load_parts([path])
+    path = benchmark_parts.save_part(part, tmp_path / "p.part")
+    back, = benchmark_parts.load_parts([path])
     assert back is not part and parts.dumps(back) == parts.dumps(part)      # nan fields: equal by their bytes
     proposed = back.rows[0]
     assert proposed.reference is proposed and proposed.family is back.families[0] is back.rows[1].family
@@ -55,7 +55,7 @@ def test_a_part_comes_back_with_its_values_types_and_shared_objects(tmp_path):
     assert back.protocol == part.protocol and back.rows[0].tuned.agreement == part.rows[0].tuned.agreement
     assert back.rows[0].tuned.converged and back.rows[0].tuned.point == {"f_p": 12.5, "r_d": 0.0}
     assert proposed.combination.gain_keys == ("ccc.kp",) and back.methods == ()
-    assert path.read_bytes() == benchmark.save_part(part, tmp_path / "q.part").read_bytes()    # deterministic
+    assert path.read_bytes() == benchmark_parts.save_part(part, tmp_path / "q.part").read_bytes()    # deterministic
 
 
 def test_a_pickle_runs_nothing_and_is_one_line(tmp_path, capsys):
@@ -84,15 +84,15 @@ def test_a_pickle_runs_nothing_and_is_one_line(tmp_path, capsys):
     (lambda p: p["fields"].update(seconds={"$": "np", "dtype": "O", "v": 1}), "dtype object is not one"),
 ])
 def test_a_part_with_odd_contents_is_one_line_naming_what(tmp_path, change, message):
-    payload = _payload(benchmark.save_part(_part(), tmp_path / "p.part"))
+    payload = _payload(benchmark_parts.save_part(_part(), tmp_path / "p.part"))
     change(payload)
     _file(tmp_path / "odd.part", payload)
     with pytest.raises(ConfigError, match=message):
-        benchmark.load_parts([tmp_path / "odd.part"])
+        benchmark_parts.load_parts([tmp_path / "odd.part"])
 
 
 def test_a_changed_cut_or_foreign_file_is_refused_before_anything_is_built(tmp_path, monkeypatch):
-    good = benchmark.save_part(_part(), tmp_path / "p.part")
+    good = benchmark_parts.save_part(_part(), tmp_path / "p.part")
     payload = _payload(good)
     _file(tmp_path / "sum.part", payload, sha256="0" * 64)
     _file(tmp_path / "version.part", payload, version=99)
@@ -105,7 +105,7 @@ def test_a_changed_cut_or_foreign_file_is_refused_before_anything_is_built(tmp_p
                           ("cut", "not a readable benchmark part"), ("text", "not gzip data"),
                           ("gz", "no part header"), ("missing", "cannot read it")]:
         with pytest.raises(ConfigError, match=f"^--from-parts .*{name}.part: .*{message}"):
-            benchmark.load_parts([tmp_path / f"{name}.part"])
+            benchmark_parts.load_parts([tmp_path / f"{name}.part"])
     assert built == []
 
 
@@ -114,10 +114,10 @@ def test_sizes_are_bounded_before_reading_or_decompressing(tmp_path, monkeypatch
     path.write_bytes(gzip.compress(b"\0" * 5_000_000))          # 5 MB of text in ~5 kB
     monkeypatch.setattr(parts, "MAX_TEXT_BYTES", 1_000_000)
     with pytest.raises(ConfigError, match="decompresses to over"):
-        benchmark.load_parts([path])
+        benchmark_parts.load_parts([path])
     monkeypatch.setattr(parts, "MAX_FILE_BYTES", 100)
     with pytest.raises(ConfigError, match="over the 0 MiB a part may have"):
-        benchmark.load_parts([path])
+        benchmark_parts.load_parts([path])
 
 
 def test_a_field_added_to_a_class_is_carried_without_touching_the_serialiser(monkeypatch):
