@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -193,6 +193,41 @@ def _name(letter: str, value: float) -> str:
     return f"{letter}{value:.4f}".rstrip("0").rstrip(".")
 
 
+@dataclass
+class _Modal:
+    """The modal state of a program as far as it has been read (NISTIR 6556's modal groups): where the
+    tool is [m], the units [m per program unit], the distance mode, the plane, the motion mode, the feed
+    rate (program units per minute; None before the first F word) and the path control: ``tolerance``
+    None (the experiment's), 0 (G61) or G64 P [m]; ``naive`` G64 Q [m] (0: no merging)."""
+
+    position: np.ndarray
+    unit: float = MM
+    absolute: bool = True
+    plane: tuple = _PLANES[17]
+    motion: int | None = None
+    feed: float | None = None
+    tolerance: float | None = None
+    naive: float = 0.0
+
+
+@dataclass
+class _Line:
+    """What one line of a program says for itself: its words as written (letter -> (value, word)), the axis
+    words (axis index -> value), the centre offsets I J K (axis index -> value), R, and its motion (G0 ..
+    G3), G9, G4, G64 and M2 / M30 (``end``)."""
+
+    number: int
+    words: dict = field(default_factory=dict)
+    axes: dict = field(default_factory=dict)
+    centre: dict = field(default_factory=dict)
+    radius: float | None = None
+    motion: int | None = None
+    exact_once: bool = False
+    dwell: bool = False
+    blend: bool = False
+    end: int | None = None
+
+
 def parse_program(text: str, start=(0.0, 0.0, 0.0), strict: bool = False) -> Program:
     """Read a part program (see the module docstring) starting at ``start`` [m].
 
@@ -246,13 +281,9 @@ class ProgramReader:
         of lines, where known (a ``%`` on it ends the program); None (a stream): a ``%`` on any line after the
         first ends it, and a feed move before the first F word is refused when an F word follows (the move
         has already run at the schedule's feed)."""
-        position = np.array(list(self.start) + [0.0] * (3 - len(self.start)), dtype=float)
-        unit, absolute, plane, motion, feed = MM, True, _PLANES[17], None, None
-        tolerance = None                            # the path control mode: None (the experiment's), 0 (G61), P
-        naive = 0.0                                 # G64 Q: the naive CAM tolerance [m] (0: no merging)
-        strict, warnings = self.strict, self._seen
+        modal = _Modal(np.array(list(self.start) + [0.0] * (3 - len(self.start)), dtype=float))
         pending, ended, feedless, moved = None, None, None, False
-        self._moved_z = bool(position[2] != 0.0)   # a start off the XY plane keeps Z
+        self._moved_z = bool(modal.position[2] != 0.0)     # a start off the XY plane keeps Z
         number = 0
         for number, raw in enumerate(lines, start=1):
             body = _strip_comments(raw, number).strip()
@@ -267,138 +298,171 @@ class ProgramReader:
                 raise ProgramError(f"line {number}: after the program end ({mark} on an earlier line)")
             if body.startswith("/"):
                 raise ProgramError(f"line {number}: block delete '/' is not supported")
-            axes, centre, radius, seen, words = {}, {}, None, set(), {}
-            block_motion, exact_once, dwell, blend = None, False, False, False
-            for letter, value, word in _words(body, number):
-                if letter in "XYZIJKRFNPQSTO" and letter in seen:
-                    raise ProgramError(f"line {number}: {letter} given twice")
-                seen.add(letter)
-                words[letter] = (value, word)
-                name = _name(letter, value) if letter in "GM" else letter
-                if name in _REFUSED:
-                    raise ProgramError(f"line {number}: unsupported word {word} ({_REFUSED[name]}: the project runs "
-                                       "the programmed path as it is, in either mode)")
-                if name in _SETUP_KIND:
-                    kind = _SETUP_KIND[name]
-                    meaning = SETUP_WORDS[kind][0]
-                    if strict:
-                        raise ProgramError(f"line {number}: {word} ({meaning}) is a setup word; strict: true "
-                                           "refuses them (leave strict out to read and report them)")
-                    warnings.setdefault(name, (word, number))
-                    continue
-                if letter in "NPQ":
-                    continue
-                if letter == "G":
-                    code = _code(value)
-                    if code in (0, 1, 2, 3):
-                        if block_motion is not None:
-                            raise ProgramError(f"line {number}: two motion words (G{block_motion} and {word})")
-                        block_motion = code
-                    elif code in _PLANES:
-                        plane = _PLANES[code]
-                    elif code in (20, 21):
-                        unit = INCH if code == 20 else MM
-                    elif code in (90, 91):
-                        absolute = code == 90
-                    elif name in ("G61", "G61.1"):
-                        tolerance, naive = 0.0, 0.0
-                    elif code == 64:
-                        blend = True
-                    elif code == 9:
-                        exact_once = True
-                    elif code == 4:
-                        dwell = True
-                    else:
-                        raise ProgramError(f"line {number}: unsupported word {word} (supported: G0 G1 G2 G3 G4 G9 "
-                                           "G17 G18 G19 G20 G21 G61 G61.1 G64 G90 G91 and the setup words G40 G49 "
-                                           "G54-G59 G80 G94)")
-                elif letter == "M":
-                    code = _code(value)
-                    if code not in (2, 30):
-                        raise ProgramError(f"line {number}: unsupported word {word} (supported: M2 M30 and the "
-                                           "setup words M3 M4 M5 M6 M7 M8 M9)")
-                    ended = code
-                elif letter in "XYZ":
-                    axes["XYZ".index(letter)] = value
-                elif letter in "IJK":
-                    centre["IJK".index(letter)] = value
-                elif letter == "R":
-                    radius = value
-                elif letter == "F":
-                    if value <= 0.0:
-                        raise ProgramError(f"line {number}: {word}: the feed rate must be positive")
-                    if last is None and feedless is not None:
-                        raise ProgramError(f"line {feedless.line}: {_code_of(feedless)} before any feed rate (F)")
-                    feed, self.has_feed = value, True
-                else:
-                    raise ProgramError(f"line {number}: unsupported word {word}")
-            if dwell and blend:
-                raise ProgramError(f"line {number}: G4 and G64 on one line (both take P)")
-            if "P" in words and not (dwell or blend):
-                raise ProgramError(f"line {number}: {words['P'][1]} without G4 or G64")
-            if "Q" in words and not blend:
-                raise ProgramError(f"line {number}: {words['Q'][1]} without G64")
-            if blend:
-                p = words.get("P", (None,))[0]
-                if p is not None and p < 0.0:
-                    raise ProgramError(f"line {number}: {words['P'][1]}: the blending tolerance must not be "
-                                       "negative")
-                tolerance = JUNCTION_DEVIATION if p is None else p * unit
-                q = words.get("Q", (0.0,))[0]
-                if q < 0.0:
-                    raise ProgramError(f"line {number}: {words['Q'][1]}: the naive CAM tolerance must not be "
-                                       "negative")
-                naive = q * unit
-            if dwell:
-                if "P" not in words:
-                    raise ProgramError(f"line {number}: G4 needs its dwell P (seconds)")
-                seconds = words["P"][0]
-                if not 0.0 <= seconds <= 3600.0:
-                    raise ProgramError(f"line {number}: {words['P'][1]}: a dwell of 0 to 3600 s")
-                if axes:
-                    raise ProgramError(f"line {number}: G4 with a motion on one line (give the dwell its own line)")
+            line = self._read_words(body, number, modal, feedless if last is None else None)
+            ended = line.end
+            seconds = _path_control(line, modal)
+            if seconds is not None:
                 if pending is not None:
                     pending = replace(pending, dwell=pending.dwell + seconds)
                 elif not moved:
                     self.first_dwell += seconds
-            if block_motion is not None:
-                motion = block_motion
-            if not axes:
-                if centre or radius is not None:
-                    raise ProgramError(f"line {number}: arc words without an end point (X, Y or Z)")
+            if line.motion is not None:
+                modal.motion = line.motion
+            block = self._motion(line, modal)
+            if block is None:
                 continue
-            if motion is None:
-                raise ProgramError(f"line {number}: coordinates without a motion mode (G0, G1, G2 or G3)")
-            end = position.copy()
-            for axis, value in axes.items():
-                end[axis] = (value * unit) if absolute else position[axis] + value * unit
-            if (2 in axes and end[2] != position[2]) or (motion in (2, 3) and plane != _PLANES[17]):
-                self._moved_z = True                            # an arc in the ZX or YZ plane moves Z
-            block_feed = None if motion == 0 or feed is None else feed * unit / 60.0
-            block_tolerance = 0.0 if exact_once else tolerance
-            label = _code(words["N"][0]) if "N" in words else None
-            if self._first_unit is None:
-                self._first_unit = unit
-            if motion in (0, 1):
-                if centre or radius is not None:
-                    raise ProgramError(f"line {number}: {'I, J, K' if centre else 'R'} on a G{motion} line")
-                if (end == position).all():
-                    continue                                    # a move to where the tool is: no motion
-                block = Block("rapid" if motion == 0 else "line", position, end, block_feed, number,
-                              tolerance=block_tolerance, number=label,
-                              merge_tolerance=naive if motion == 1 and block_tolerance else 0.0)
-            else:
-                block = replace(_arc(number, motion, plane, position, end, centre, radius, unit, block_feed),
-                                tolerance=block_tolerance, number=label)
             if block.kind != "rapid" and block.feed is None and feedless is None:
                 feedless = block
             if pending is not None:
                 yield pending
             pending, moved = block, True
-            position = end
         if pending is None:
             raise ProgramError("the program has no motion")
         yield pending
+
+    def _read_words(self, body: str, number: int, modal: _Modal, feedless: Block | None) -> _Line:
+        """The words of line ``number`` (its text ``body``): the modal ones (plane, units, distance mode, G61,
+        F) change ``modal`` as they are read, in their order on the line; the setup words are reported (refused
+        when strict). ``feedless``: a feed move a stream has already run before any F word, which an F word
+        refuses."""
+        line = _Line(number)
+        for letter, value, word in _words(body, number):
+            if letter in "XYZIJKRFNPQSTO" and letter in line.words:
+                raise ProgramError(f"line {number}: {letter} given twice")
+            line.words[letter] = (value, word)
+            name = _name(letter, value) if letter in "GM" else letter
+            if name in _REFUSED:
+                raise ProgramError(f"line {number}: unsupported word {word} ({_REFUSED[name]}: the project runs "
+                                   "the programmed path as it is, in either mode)")
+            if name in _SETUP_KIND:
+                kind = _SETUP_KIND[name]
+                meaning = SETUP_WORDS[kind][0]
+                if self.strict:
+                    raise ProgramError(f"line {number}: {word} ({meaning}) is a setup word; strict: true "
+                                       "refuses them (leave strict out to read and report them)")
+                self._seen.setdefault(name, (word, number))
+                continue
+            if letter in "NPQ":
+                continue
+            if letter == "G":
+                _g_word(line, modal, value, name, word)
+            elif letter == "M":
+                code = _code(value)
+                if code not in (2, 30):
+                    raise ProgramError(f"line {number}: unsupported word {word} (supported: M2 M30 and the "
+                                       "setup words M3 M4 M5 M6 M7 M8 M9)")
+                line.end = code
+            elif letter in "XYZ":
+                line.axes["XYZ".index(letter)] = value
+            elif letter in "IJK":
+                line.centre["IJK".index(letter)] = value
+            elif letter == "R":
+                line.radius = value
+            elif letter == "F":
+                if value <= 0.0:
+                    raise ProgramError(f"line {number}: {word}: the feed rate must be positive")
+                if feedless is not None:
+                    raise ProgramError(f"line {feedless.line}: {_code_of(feedless)} before any feed rate (F)")
+                modal.feed, self.has_feed = value, True
+            else:
+                raise ProgramError(f"line {number}: unsupported word {word}")
+        return line
+
+    def _motion(self, line: _Line, modal: _Modal) -> Block | None:
+        """The motion block of ``line`` in the ``modal`` state, which then moves to its end; None for a line
+        without coordinates or a move to where the tool is."""
+        number, motion, position, unit = line.number, modal.motion, modal.position, modal.unit
+        centre, radius = line.centre, line.radius
+        if not line.axes:
+            if centre or radius is not None:
+                raise ProgramError(f"line {number}: arc words without an end point (X, Y or Z)")
+            return None
+        if motion is None:
+            raise ProgramError(f"line {number}: coordinates without a motion mode (G0, G1, G2 or G3)")
+        end = position.copy()
+        for axis, value in line.axes.items():
+            end[axis] = (value * unit) if modal.absolute else position[axis] + value * unit
+        if (2 in line.axes and end[2] != position[2]) or (motion in (2, 3) and modal.plane != _PLANES[17]):
+            self._moved_z = True                            # an arc in the ZX or YZ plane moves Z
+        block_feed = None if motion == 0 or modal.feed is None else modal.feed * unit / 60.0
+        block_tolerance = 0.0 if line.exact_once else modal.tolerance
+        label = _code(line.words["N"][0]) if "N" in line.words else None
+        if self._first_unit is None:
+            self._first_unit = unit
+        if motion in (0, 1):
+            if centre or radius is not None:
+                raise ProgramError(f"line {number}: {'I, J, K' if centre else 'R'} on a G{motion} line")
+            if (end == position).all():
+                return None                                 # a move to where the tool is: no motion
+            block = Block("rapid" if motion == 0 else "line", position, end, block_feed, number,
+                          tolerance=block_tolerance, number=label,
+                          merge_tolerance=modal.naive if motion == 1 and block_tolerance else 0.0)
+        else:
+            block = replace(_arc(number, motion, modal.plane, position, end, centre, radius, unit, block_feed),
+                            tolerance=block_tolerance, number=label)
+        modal.position = end
+        return block
+
+
+def _g_word(line: _Line, modal: _Modal, value: float, name: str, word: str) -> None:
+    """Read the G word ``word`` (its value, its canonical name) of ``line``: the modal groups (plane, units,
+    distance mode, G61) change ``modal``; a motion, G9, G4 and G64 are the line's."""
+    code = _code(value)
+    if code in (0, 1, 2, 3):
+        if line.motion is not None:
+            raise ProgramError(f"line {line.number}: two motion words (G{line.motion} and {word})")
+        line.motion = code
+    elif code in _PLANES:
+        modal.plane = _PLANES[code]
+    elif code in (20, 21):
+        modal.unit = INCH if code == 20 else MM
+    elif code in (90, 91):
+        modal.absolute = code == 90
+    elif name in ("G61", "G61.1"):
+        modal.tolerance, modal.naive = 0.0, 0.0
+    elif code == 64:
+        line.blend = True
+    elif code == 9:
+        line.exact_once = True
+    elif code == 4:
+        line.dwell = True
+    else:
+        raise ProgramError(f"line {line.number}: unsupported word {word} (supported: G0 G1 G2 G3 G4 G9 "
+                           "G17 G18 G19 G20 G21 G61 G61.1 G64 G90 G91 and the setup words G40 G49 "
+                           "G54-G59 G80 G94)")
+
+
+def _path_control(line: _Line, modal: _Modal) -> float | None:
+    """Check the P and Q words of ``line`` against its G4 / G64, take a G64's blending (P) and naive CAM (Q)
+    tolerances into ``modal``, and return a G4's dwell [s] (None without G4)."""
+    number, words = line.number, line.words
+    if line.dwell and line.blend:
+        raise ProgramError(f"line {number}: G4 and G64 on one line (both take P)")
+    if "P" in words and not (line.dwell or line.blend):
+        raise ProgramError(f"line {number}: {words['P'][1]} without G4 or G64")
+    if "Q" in words and not line.blend:
+        raise ProgramError(f"line {number}: {words['Q'][1]} without G64")
+    if line.blend:
+        p = words.get("P", (None,))[0]
+        if p is not None and p < 0.0:
+            raise ProgramError(f"line {number}: {words['P'][1]}: the blending tolerance must not be "
+                               "negative")
+        modal.tolerance = JUNCTION_DEVIATION if p is None else p * modal.unit
+        q = words.get("Q", (0.0,))[0]
+        if q < 0.0:
+            raise ProgramError(f"line {number}: {words['Q'][1]}: the naive CAM tolerance must not be "
+                               "negative")
+        modal.naive = q * modal.unit
+    if not line.dwell:
+        return None
+    if "P" not in words:
+        raise ProgramError(f"line {number}: G4 needs its dwell P (seconds)")
+    seconds = words["P"][0]
+    if not 0.0 <= seconds <= 3600.0:
+        raise ProgramError(f"line {number}: {words['P'][1]}: a dwell of 0 to 3600 s")
+    if line.axes:
+        raise ProgramError(f"line {number}: G4 with a motion on one line (give the dwell its own line)")
+    return seconds
 
 
 #: at most this many G1 blocks are merged into one (LinuxCNC's emccanon.cc: linkable, over 100 chained points)

@@ -41,6 +41,7 @@ from scipy.optimize import brentq, minimize_scalar
 
 from .contouring import NoCoupling, UnitVectorCCC, VariableGainCCC
 from .plants import FirstOrderVelocityAxis, MassDamperAxis
+from .polynomials import ZERO, cancel, polymul, rational_product, rational_sum, trim
 from .servo import CascadeServo, PIDFeedforwardServo, PIDServo, ZPETCServo
 
 __all__ = ["LoopMargins", "plant_transfer", "axis_loop", "coupled_loop", "margins", "quick_robustness"]
@@ -49,7 +50,6 @@ __all__ = ["LoopMargins", "plant_transfer", "axis_loop", "coupled_loop", "margin
 GRID_POINTS = 20001
 #: lowest frequency of the logarithmic grid, as a fraction of the Nyquist frequency
 GRID_LOW = 1e-7
-_CANCEL_TOLERANCE = 1e-10     # relative size of a polynomial's value at z = 0 or 1 that counts as a root there
 
 
 @dataclass(frozen=True)
@@ -81,57 +81,7 @@ class LoopMargins:
     stable: bool
 
 
-# --- polynomials in z (numpy order: highest power first), rationals (num, den) ---------------------------
-
-def _trim(p) -> np.ndarray:
-    p = np.atleast_1d(np.asarray(p, dtype=float))
-    nonzero = np.flatnonzero(p)
-    return p[nonzero[0]:] if nonzero.size else np.zeros(1)
-
-
-def _polymul(a, b) -> np.ndarray:
-    """a(z) b(z): numpy's polymul without its poly1d round trip (the same coefficients, leading zeros kept:
-    :func:`_trim` drops them). A search asks for a loop's robustness at every point."""
-    return np.convolve(np.atleast_1d(np.asarray(a, dtype=float)), np.atleast_1d(np.asarray(b, dtype=float)))
-
-
-def _has_root(p: np.ndarray, z: float) -> bool:
-    if len(p) < 2:
-        return False
-    scale = float(np.sum(np.abs(p)))
-    return abs(float(np.polyval(p, z))) <= _CANCEL_TOLERANCE * scale
-
-
-def _deflate(p: np.ndarray, z: float) -> np.ndarray:
-    """p(x) / (x - z) for a root z of p (the remainder, ~0, dropped)."""
-    return np.polydiv(p, np.array([1.0, -z]))[0]
-
-
-def _cancel(num, den) -> tuple:
-    """num / den with the common factors z and (z - 1) removed: the only poles the controllers and the
-    plants share with a numerator (integrators, backward differences, delays)."""
-    num, den = _trim(num), _trim(den)
-    changed = True
-    while changed and len(num) > 1 and len(den) > 1:
-        changed = False
-        for root in (0.0, 1.0):
-            if _has_root(num, root) and _has_root(den, root):
-                num, den = _trim(_deflate(num, root)), _trim(_deflate(den, root))
-                changed = True
-                break
-    return num, den
-
-
-def _add(f: tuple, g: tuple) -> tuple:
-    return _cancel(np.polyadd(_polymul(f[0], g[1]), _polymul(g[0], f[1])), _polymul(f[1], g[1]))
-
-
-def _mul(f: tuple, g: tuple) -> tuple:
-    return _cancel(_polymul(f[0], g[0]), _polymul(f[1], g[1]))
-
-
-_ZERO, _ONE = (np.zeros(1), np.ones(1)), (np.ones(1), np.ones(1))
-
+# --- the controllers ----------------------------------------------------------------------------------------
 
 def _pid(kp: float, ki: float, kd: float, ts: float) -> tuple:
     """C(z) = kp + ki Ts z / (z - 1) + kd (z - 1) / (Ts z): :class:`~.pid.DiscretePID` on an error it
@@ -139,9 +89,9 @@ def _pid(kp: float, ki: float, kd: float, ts: float) -> tuple:
     (e_k - e_{k-1}) / Ts). Terms with a zero gain leave their pole out."""
     c = (np.array([float(kp)]), np.ones(1))
     if ki:
-        c = _add(c, (np.array([ki * ts, 0.0]), np.array([1.0, -1.0])))
+        c = rational_sum(c, (np.array([ki * ts, 0.0]), np.array([1.0, -1.0])))
     if kd:
-        c = _add(c, (np.array([kd / ts, -kd / ts]), np.array([1.0, 0.0])))
+        c = rational_sum(c, (np.array([kd / ts, -kd / ts]), np.array([1.0, 0.0])))
     return c
 
 
@@ -180,21 +130,21 @@ def _plant_polynomials(plant, ts: float):
     _check_sample_time(plant, ts, "plant")
     num_p = np.array([pu, pv * vu - pu * alpha])
     num_v = np.array([vu, -vu])                       # vu (z - 1) over the common (z - 1)(z - alpha)
-    den = _polymul([1.0, -1.0], [1.0, -alpha])
+    den = polymul([1.0, -1.0], [1.0, -alpha])
     if getattr(plant, "velocity_measurement", "model") == "encoder":
         # the velocity read is the backward difference of the position readings: (z - 1) / (Ts z) P_p
-        num_v = _polymul([1.0, -1.0], num_p)
-        num_p = _polymul([ts, 0.0], num_p)
-        den = _polymul([ts, 0.0], den)
+        num_v = polymul([1.0, -1.0], num_p)
+        num_p = polymul([ts, 0.0], num_p)
+        den = polymul([ts, 0.0], den)
     delay = getattr(plant, "command_delay", 0)
     if int(delay) != delay or delay < 0:
         raise ValueError(f"command_delay must be a non-negative integer number of samples, got {delay!r}")
-    den = _polymul(den, np.r_[1.0, np.zeros(int(delay))])
+    den = polymul(den, np.r_[1.0, np.zeros(int(delay))])
     return num_p, num_v, den
 
 
 def _transfer(num, den, ts: float) -> control.TransferFunction:
-    num, den = _trim(num), _trim(den)
+    num, den = trim(num), trim(den)
     return control.tf(num / den[0], den / den[0], ts)
 
 
@@ -221,12 +171,12 @@ def plant_transfer(plant, sample_time: float) -> tuple | None:
     if polynomials is None:
         return None
     num_p, num_v, den = polynomials
-    return (_transfer(*_cancel(num_p, den), ts), _transfer(*_cancel(num_v, den), ts))
+    return (_transfer(*cancel(num_p, den), ts), _transfer(*cancel(num_v, den), ts))
 
 
 # --- the loops ----------------------------------------------------------------------------------------------
 
-def _servo_filters(servo, ts: float, ccc: tuple = _ZERO):
+def _servo_filters(servo, ts: float, ccc: tuple = ZERO):
     """(F_p, F_v): the servo's command is -(F_p position + F_v velocity) + (terms in the reference), with a
     linear contour correction ccc(z) acting on the position error normal to the path. None if the law is
     not linear time-invariant feedback."""
@@ -235,13 +185,13 @@ def _servo_filters(servo, ts: float, ccc: tuple = _ZERO):
         # (the ZPETC's: kp e + ki I(e) - kd V on the error from its filtered reference, the same loop)
         pid = servo.pid
         _check_sample_time(pid, ts, "servo")
-        return _add(_pid(pid.kp, pid.ki, 0.0, ts), ccc), (np.array([pid.kd]), np.ones(1))
+        return rational_sum(_pid(pid.kp, pid.ki, 0.0, ts), ccc), (np.array([pid.kd]), np.ones(1))
     if isinstance(servo, CascadeServo):
         # V* = R' + kp_position (R - P) + correction, T = PI(V* - V) [+ friction feedforward]
         loop = servo.velocity_loop
         _check_sample_time(loop, ts, "servo")
         velocity_pi = _pid(loop.kp, loop.ki, 0.0, ts)       # stepped with an error rate of 0: no derivative
-        return _mul(velocity_pi, _add((np.array([servo.kp_position]), np.ones(1)), ccc)), velocity_pi
+        return rational_product(velocity_pi, rational_sum((np.array([servo.kp_position]), np.ones(1)), ccc)), velocity_pi
     return None
 
 
@@ -251,8 +201,8 @@ def _loop(plant, filters, ts: float) -> control.TransferFunction | None:
         return None
     num_p, num_v, den = polynomials
     (fp_num, fp_den), (fv_num, fv_den) = filters
-    num = np.polyadd(_polymul(_polymul(fp_num, num_p), fv_den), _polymul(_polymul(fv_num, num_v), fp_den))
-    return _transfer(*_cancel(num, _polymul(_polymul(fp_den, fv_den), den)), ts)
+    num = np.polyadd(polymul(polymul(fp_num, num_p), fv_den), polymul(polymul(fv_num, num_v), fp_den))
+    return _transfer(*cancel(num, polymul(polymul(fp_den, fv_den), den)), ts)
 
 
 def axis_loop(plant, servo, sample_time: float) -> control.TransferFunction | None:
@@ -285,7 +235,7 @@ def axis_loop(plant, servo, sample_time: float) -> control.TransferFunction | No
 def _contour_pid(controller, ts: float):
     """The linear contour controller's C_ccc(z), (0, 1) for no coupling, None if not linear."""
     if isinstance(controller, NoCoupling):
-        return _ZERO
+        return ZERO
     if isinstance(controller, (VariableGainCCC, UnitVectorCCC)):
         pid = controller.pid
         _check_sample_time(pid, ts, "contour controller")
@@ -359,6 +309,121 @@ def _merged(found: list, candidates, residual, accept: float) -> list:
     return sorted(out)
 
 
+class _LoopResponse:
+    """L(e^{j theta}) of a loop num(z) / den(z), and the functions of theta = w Ts whose roots are its
+    crossings (:meth:`log_gain`: |L| = 1; :meth:`phase_sine`: L real) and whose minimum is 1 / Ms
+    (:meth:`distance`)."""
+
+    def __init__(self, num: np.ndarray, den: np.ndarray):
+        self.num, self.den = num, den
+
+    def __call__(self, theta):
+        return _response(self.num, self.den, theta)
+
+    def log_gain(self, t) -> float:
+        return float(np.log(np.abs(self(t))))
+
+    def phase_sine(self, t) -> float:
+        value = self(t)
+        return float(value.imag / abs(value))
+
+    def distance(self, t) -> float:
+        """|1 + L| at ``t`` (inf where it is not finite)."""
+        value = abs(1.0 + complex(self(t)))
+        return value if math.isfinite(value) else math.inf
+
+
+def _sample_time(loop: control.TransferFunction, sample_time: float) -> float:
+    """Ts [s] as a float, checked positive and against the loop's own time step."""
+    ts = float(sample_time)
+    if not ts > 0.0:
+        raise ValueError(f"sample_time must be positive, got {sample_time!r}")
+    dt = loop.dt
+    if dt is not None and not isinstance(dt, bool) and dt == 0:
+        raise ValueError("a continuous-time loop: the margins here are of a discrete-time L(z)")
+    if dt is not None and not isinstance(dt, bool) and not math.isclose(float(dt), ts, rel_tol=1e-9):
+        raise ValueError(f"the loop has time step {dt}, not the sample time {ts}")
+    return ts
+
+
+def _grid() -> np.ndarray:
+    """theta = w Ts [rad] of the margins' grid: logarithmic from :data:`GRID_LOW` Nyquist and linear, up to
+    Nyquist, :data:`GRID_POINTS` each."""
+    return np.unique(np.concatenate([np.geomspace(GRID_LOW * math.pi, math.pi, GRID_POINTS),
+                                     np.linspace(0.0, math.pi, GRID_POINTS)[1:]]))
+
+
+def _control_crossings(loop: control.TransferFunction, ts: float) -> tuple:
+    """theta of python-control's phase crossovers, gain crossovers and stability-margin points (polynomial
+    method, every crossing); none where it cannot give them (e.g. an improper L: the grid alone)."""
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            _, _, _, w_phase, w_gain, w_stab = control.stability_margins(loop, returnall=True, method="poly")
+        return np.asarray(w_phase) * ts, np.asarray(w_gain) * ts, np.asarray(w_stab) * ts
+    except (ValueError, np.linalg.LinAlgError):
+        return np.zeros(0), np.zeros(0), np.zeros(0)
+
+
+def _crossings(response: _LoopResponse, theta: np.ndarray, values: np.ndarray, theta_phase: np.ndarray,
+               theta_gain: np.ndarray) -> tuple:
+    """(gain crossovers, phase crossovers) in theta: the grid's sign changes of log|L| and Im L / |L| (L at
+    ``theta`` is ``values``), refined, merged with python-control's, the phase crossovers those where L < 0
+    and the Nyquist frequency where L(-1) < 0."""
+    magnitude = np.abs(values)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        gain_crossings = _merged(_grid_roots(response.log_gain, theta, np.log(magnitude)), theta_gain,
+                                 response.log_gain, 1e-9)
+        sine = values.imag / magnitude
+        near_nyquist = theta < math.pi * (1.0 - 1e-9)
+        phase_crossings = _merged(_grid_roots(response.phase_sine, theta[near_nyquist], sine[near_nyquist]),
+                                  theta_phase[theta_phase < math.pi * (1.0 - 1e-9)], response.phase_sine, 1e-9)
+    phase_crossings = [t for t in phase_crossings if response(t).real < 0.0]
+    at_nyquist = complex(response(math.pi))
+    if np.isfinite(at_nyquist) and at_nyquist.real < 0.0:
+        phase_crossings.append(math.pi)
+    return gain_crossings, phase_crossings
+
+
+def _gain_margin(response: _LoopResponse, phase_crossings: list) -> float:
+    """1 / |L| at the phase crossover whose margin is closest to 1 (inf without one)."""
+    if not phase_crossings:
+        return math.inf
+    with np.errstate(divide="ignore"):
+        candidates = 1.0 / np.abs(response(np.array(phase_crossings)))
+    finite = candidates[np.isfinite(candidates) & (candidates > 0.0)]
+    return float(finite[np.argmin(np.abs(np.log(finite)))]) if finite.size else math.inf
+
+
+def _phase_margin(response: _LoopResponse, gain_crossings: list, ts: float) -> tuple:
+    """(phase margin [deg], its crossover [Hz]) at the gain crossover of the smallest |margin| (inf, nan
+    without one)."""
+    if not gain_crossings:
+        return math.inf, math.nan
+    angles = np.angle(response(np.array(gain_crossings)), deg=True)
+    pms = np.remainder(angles, 360.0) - 180.0
+    best = int(np.argmin(np.abs(pms)))
+    return float(pms[best]), gain_crossings[best] / (2.0 * math.pi * ts)
+
+
+def _peak_sensitivity(response: _LoopResponse, theta: np.ndarray, values: np.ndarray,
+                      theta_stab: np.ndarray) -> float:
+    """Ms: 1 / the smallest |1 + L| on the grid (L at ``theta`` is ``values``), refined around it, and at
+    python-control's stability-margin points."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        distance = np.abs(1.0 + values)
+    distance = np.where(np.isfinite(distance), distance, np.inf)
+    i = int(np.argmin(distance))
+    smallest = float(distance[i])
+    lo, hi = theta[max(i - 1, 0)], theta[min(i + 1, len(theta) - 1)]
+    if hi > lo:
+        refined = minimize_scalar(response.distance, bounds=(lo, hi), method="bounded", options={"xatol": 1e-13})
+        smallest = min(smallest, float(refined.fun))
+    for t in np.remainder(theta_stab, 2.0 * math.pi):     # python-control's optimum (mirrored above Nyquist)
+        smallest = min(smallest, response.distance(min(t, 2.0 * math.pi - t)))
+    return 1.0 / smallest if smallest > 0.0 else math.inf
+
+
 def margins(loop: control.TransferFunction, sample_time: float) -> LoopMargins:
     """Gain margin, phase margin, peak sensitivity Ms and crossover of a discrete-time loop.
 
@@ -380,80 +445,17 @@ def margins(loop: control.TransferFunction, sample_time: float) -> LoopMargins:
     -------
     LoopMargins
     """
-    ts = float(sample_time)
-    if not ts > 0.0:
-        raise ValueError(f"sample_time must be positive, got {sample_time!r}")
-    dt = loop.dt
-    if dt is not None and not isinstance(dt, bool) and dt == 0:
-        raise ValueError("a continuous-time loop: the margins here are of a discrete-time L(z)")
-    if dt is not None and not isinstance(dt, bool) and not math.isclose(float(dt), ts, rel_tol=1e-9):
-        raise ValueError(f"the loop has time step {dt}, not the sample time {ts}")
-    num, den = _trim(loop.num[0][0]), _trim(loop.den[0][0])
+    ts = _sample_time(loop, sample_time)
+    num, den = trim(loop.num[0][0]), trim(loop.den[0][0])
     characteristic = np.polyadd(den, num)
-    stable = bool(np.all(np.abs(np.roots(characteristic)) < 1.0)) if len(_trim(characteristic)) > 1 else True
-    theta = np.unique(np.concatenate([np.geomspace(GRID_LOW * math.pi, math.pi, GRID_POINTS),
-                                      np.linspace(0.0, math.pi, GRID_POINTS)[1:]]))
-    response = _response(num, den, theta)
-    magnitude = np.abs(response)
-
-    def log_gain(t):
-        return float(np.log(np.abs(_response(num, den, t))))
-
-    def phase_sine(t):
-        value = _response(num, den, t)
-        return float(value.imag / abs(value))
-
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            _, _, _, w_phase, w_gain, w_stab = control.stability_margins(loop, returnall=True, method="poly")
-        theta_phase, theta_gain = np.asarray(w_phase) * ts, np.asarray(w_gain) * ts
-        theta_stab = np.asarray(w_stab) * ts
-    except (ValueError, np.linalg.LinAlgError):      # e.g. an improper L: the grid alone
-        theta_phase = theta_gain = theta_stab = np.zeros(0)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        gain_crossings = _merged(_grid_roots(log_gain, theta, np.log(magnitude)), theta_gain, log_gain, 1e-9)
-        sine = response.imag / magnitude
-        near_nyquist = theta < math.pi * (1.0 - 1e-9)
-        phase_crossings = _merged(_grid_roots(phase_sine, theta[near_nyquist], sine[near_nyquist]),
-                                  theta_phase[theta_phase < math.pi * (1.0 - 1e-9)], phase_sine, 1e-9)
-    phase_crossings = [t for t in phase_crossings if _response(num, den, t).real < 0.0]
-    at_nyquist = complex(_response(num, den, math.pi))
-    if np.isfinite(at_nyquist) and at_nyquist.real < 0.0:
-        phase_crossings.append(math.pi)
-
-    gain_margin = math.inf
-    if phase_crossings:
-        with np.errstate(divide="ignore"):
-            candidates = 1.0 / np.abs(_response(num, den, np.array(phase_crossings)))
-        finite = candidates[np.isfinite(candidates) & (candidates > 0.0)]
-        if finite.size:
-            gain_margin = float(finite[np.argmin(np.abs(np.log(finite)))])
-    phase_margin, crossover_hz = math.inf, math.nan
-    if gain_crossings:
-        angles = np.angle(_response(num, den, np.array(gain_crossings)), deg=True)
-        pms = np.remainder(angles, 360.0) - 180.0
-        best = int(np.argmin(np.abs(pms)))
-        phase_margin, crossover_hz = float(pms[best]), gain_crossings[best] / (2.0 * math.pi * ts)
-
-    with np.errstate(divide="ignore", invalid="ignore"):
-        distance = np.abs(1.0 + response)
-    distance = np.where(np.isfinite(distance), distance, np.inf)
-    i = int(np.argmin(distance))
-    smallest = float(distance[i])
-
-    def distance_at(t):
-        value = abs(1.0 + complex(_response(num, den, t)))
-        return value if math.isfinite(value) else math.inf
-
-    lo, hi = theta[max(i - 1, 0)], theta[min(i + 1, len(theta) - 1)]
-    if hi > lo:
-        refined = minimize_scalar(distance_at, bounds=(lo, hi), method="bounded", options={"xatol": 1e-13})
-        smallest = min(smallest, float(refined.fun))
-    for t in np.remainder(theta_stab, 2.0 * math.pi):     # python-control's optimum (mirrored above Nyquist)
-        smallest = min(smallest, distance_at(min(t, 2.0 * math.pi - t)))
-    ms = 1.0 / smallest if smallest > 0.0 else math.inf
-    return LoopMargins(gain_margin=gain_margin, phase_margin_deg=phase_margin, ms=ms, crossover_hz=crossover_hz,
+    stable = bool(np.all(np.abs(np.roots(characteristic)) < 1.0)) if len(trim(characteristic)) > 1 else True
+    response, theta = _LoopResponse(num, den), _grid()
+    values = response(theta)
+    theta_phase, theta_gain, theta_stab = _control_crossings(loop, ts)
+    gain_crossings, phase_crossings = _crossings(response, theta, values, theta_phase, theta_gain)
+    phase_margin, crossover_hz = _phase_margin(response, gain_crossings, ts)
+    return LoopMargins(gain_margin=_gain_margin(response, phase_crossings), phase_margin_deg=phase_margin,
+                       ms=_peak_sensitivity(response, theta, values, theta_stab), crossover_hz=crossover_hz,
                        stable=stable)
 
 
@@ -465,7 +467,7 @@ def _frequencies(points: int) -> np.ndarray:
 def _loop_response(loop: control.TransferFunction, theta) -> np.ndarray:
     """L(e^(j theta)) of a discrete-time loop (inf or nan where a pole lies on the grid)."""
     with np.errstate(divide="ignore", invalid="ignore"):
-        return _response(_trim(loop.num[0][0]), _trim(loop.den[0][0]), theta)
+        return _response(trim(loop.num[0][0]), trim(loop.den[0][0]), theta)
 
 
 def quick_robustness(loop: control.TransferFunction, points: int = 4096) -> tuple:
@@ -473,7 +475,7 @@ def quick_robustness(loop: control.TransferFunction, points: int = 4096) -> tupl
     Ms = max 1 / |1 + L| on ``points`` frequencies spaced logarithmically up to Nyquist (without the
     refinement of :func:`margins`, so at most a few per cent low at a sharp peak), stable when every root of
     the characteristic polynomial den + num lies inside the unit circle."""
-    num, den = _trim(loop.num[0][0]), _trim(loop.den[0][0])
+    num, den = trim(loop.num[0][0]), trim(loop.den[0][0])
     with np.errstate(divide="ignore", invalid="ignore"):
         sensitivity = 1.0 / np.abs(1.0 + _loop_response(loop, _frequencies(points)))
     ms = float(np.nanmax(sensitivity)) if np.isfinite(sensitivity).any() else math.inf

@@ -143,6 +143,23 @@ def _cut(result: SimulationResult, k: int) -> SimulationResult:
     return SimulationResult(**{name: value[:k] for name, value in vars(result).items()})
 
 
+def _allocate(m: int, n: int) -> SimulationResult:
+    """A result of ``m`` steps of ``n`` axes whose arrays are allocated, not yet written."""
+    return SimulationResult(time=np.empty(m), theta=np.empty(m), reference_position=np.empty((m, n)),
+                            reference_velocity=np.empty((m, n)), reference_acceleration=np.empty((m, n)),
+                            position=np.empty((m, n)), velocity=np.empty((m, n)), estimate_theta=np.empty(m),
+                            estimate_vector=np.empty((m, n)), estimate_signed=np.empty(m),
+                            correction=np.empty((m, n)), command=np.empty((m, n)))
+
+
+def _steps(m: int, progress: bool):
+    """The step indices 0 .. m - 1, behind a progress bar on stderr with ``progress``."""
+    if not progress:
+        return range(m)
+    from tqdm import tqdm
+    return tqdm(range(m), unit="step", unit_scale=True, mininterval=0.5, leave=False)
+
+
 def simulate(loop: ControlLoop, stop_on_divergence: bool = True, progress: bool = False) -> SimulationResult:
     """Run ``loop`` for its n_steps and return every signal (``progress``: a progress bar on stderr).
 
@@ -155,21 +172,18 @@ def simulate(loop: ControlLoop, stop_on_divergence: bool = True, progress: bool 
     """
     m, n = loop.n_steps, len(loop.plants)
     bound = path_bound(loop.curve, loop.schedule, loop.divergence_factor) if stop_on_divergence else math.nan
-    time = np.empty(m)
-    theta, est_theta, est_signed = np.empty(m), np.empty(m), np.empty(m)
-    ref_pos, ref_vel, ref_acc, positions, velocities, est_vector, corrections, commands = (
-        np.empty((m, n)) for _ in range(8))
+    result = _allocate(m, n)
+    time, theta, est_theta, est_signed = result.time, result.theta, result.estimate_theta, result.estimate_signed
+    ref_pos, ref_vel, ref_acc = result.reference_position, result.reference_velocity, result.reference_acceleration
+    positions, velocities, est_vector = result.position, result.velocity, result.estimate_vector
+    corrections, commands = result.correction, result.command
     curve, schedule, estimator, controller = loop.curve, loop.schedule, loop.estimator, loop.controller
     axes = list(zip(range(n), loop.plants, loop.servos))
     clock, monitor, control = loop.clock, loop.monitor, loop.feed_control
     table = loop.reference_table if clock is None and control is None else None
     previewing = [(i, plant, servo) for i, plant, servo in axes if getattr(servo, "preview", 0)]
     controller_preview = getattr(controller, "preview", 0)
-    steps = range(m)
-    if progress:
-        from tqdm import tqdm
-        steps = tqdm(steps, unit="step", unit_scale=True, mininterval=0.5, leave=False)
-    for k in steps:
+    for k in _steps(m, progress):
         if k % EVERY == EVERY - 1:
             count_steps(EVERY)
         t = step_time(k, loop.sample_time)
@@ -191,12 +205,7 @@ def simulate(loop: ControlLoop, stop_on_divergence: bool = True, progress: bool 
         for i in range(n if stop_on_divergence else 0):
             distance = abs(position[i] - ref.position[i])
             if not distance <= bound:        # also when not finite
-                partial = SimulationResult(time=time, theta=theta, reference_position=ref_pos,
-                                           reference_velocity=ref_vel, reference_acceleration=ref_acc,
-                                           position=positions, velocity=velocities, estimate_theta=est_theta,
-                                           estimate_vector=est_vector, estimate_signed=est_signed,
-                                           correction=corrections, command=commands)
-                raise Diverged(diverged_message(t, k, distance, bound), k, t, _cut(partial, k))
+                raise Diverged(diverged_message(t, k, distance, bound), k, t, _cut(result, k))
         estimate = estimator.step(ref, position)
         if monitor is not None:
             monitor.check(k, estimate.vector, ref.position, position, ref.theta)
@@ -220,7 +229,4 @@ def simulate(loop: ControlLoop, stop_on_divergence: bool = True, progress: bool 
         time[k], theta[k], est_theta[k], est_signed[k] = t, ref.theta, estimate.theta, estimate.signed
         ref_pos[k], ref_vel[k], ref_acc[k] = rp, rv, ra
         est_vector[k], corrections[k] = estimate.vector, correction
-    return SimulationResult(time=time, theta=theta, reference_position=ref_pos, reference_velocity=ref_vel,
-                            reference_acceleration=ref_acc, position=positions, velocity=velocities,
-                            estimate_theta=est_theta, estimate_vector=est_vector, estimate_signed=est_signed,
-                            correction=corrections, command=commands)
+    return result

@@ -102,24 +102,11 @@ def run_composed(experiment_path: str, bag: str, executor_kind: str = "lean", st
             node.wait_for_graph()
         for node in nodes:
             node.start()
-        if executor_kind == "lean" or experiment.timing == "realtime":
-            wait_set = _wait_set(nodes)
-
-            def spin_once(timeout_sec):
-                _lean_spin_once(nodes, wait_set, int(timeout_sec * 1e9))
-        else:
-            spin_once = executor.spin_once
+        spin_once = _spin_once(nodes, executor, executor_kind == "lean" or experiment.timing == "realtime")
         if experiment.timing == "realtime":
             _run_realtime(nodes, label)
-        _run_to_the_end(nodes, spin_once, executor_kind == "lean", experiment.stall_timeout, label)
-        for node in nodes:
-            if node is not recorder:
-                node.finish()
-        if recorder is not None:
-            deadline = time.monotonic() + 0.3        # let the recorder take the end-of-run diagnostics
-            while time.monotonic() < deadline:
-                spin_once(timeout_sec=0.02)
-            recorder.finish()
+        _run_to_end(nodes, spin_once, executor_kind == "lean", label, experiment.stall_timeout)
+        _finish(nodes, recorder, spin_once)
     finally:
         for node in reversed(nodes):      # the recorder first: its bag is closed whatever comes after
             try:
@@ -131,14 +118,25 @@ def run_composed(experiment_path: str, bag: str, executor_kind: str = "lean", st
         directory.cleanup()
 
 
-def _run_to_the_end(nodes, spin_once, serve: bool, stall_timeout: float, label: str):
-    """Turn ``spin_once`` until every node finished (the lockstep, or a realtime run's recorder catching up),
-    answering the nodes' service requests between turns when ``serve`` (the lean loop). After
-    ``stall_timeout`` seconds without progress stop with one line naming each node still waiting and on what."""
+def _spin_once(nodes, executor, lean: bool):
+    """``spin_once(timeout_sec)`` of the loop: one turn of the lean loop over one wait set of every node's
+    subscriptions (``lean``), else the stock ``executor``'s."""
+    if not lean:
+        return executor.spin_once
+    wait_set = _wait_set(nodes)
+
+    def spin_once(timeout_sec):
+        _lean_spin_once(nodes, wait_set, int(timeout_sec * 1e9))
+    return spin_once
+
+
+def _run_to_end(nodes, spin_once, lean: bool, label: str, stall_timeout: float):
+    """Spin until every node has finished its steps (``lean``: each node then serves its requests); raise
+    RunError naming the nodes still waiting, and for what, once nothing has moved for ``stall_timeout`` s."""
     last, last_progress = -1, time.monotonic()
     while not all(node.finished for node in nodes):
         spin_once(timeout_sec=0.2)
-        if serve:
+        if lean:
             for node in nodes:
                 node.serve_requests()
         progress = sum(node.next_step for node in nodes) + sum(getattr(node, "counts", {}).values())
@@ -149,6 +147,19 @@ def _run_to_the_end(nodes, spin_once, serve: bool, stall_timeout: float, label: 
             raise RunError(f"{label} stalled for {stall_timeout:g} s: "
                            + "; ".join(f"{n.name} at step {n.next_step}, no message on "
                                        f"{', '.join(n.missing_inputs())}" for n in stuck if n.missing_inputs()))
+
+
+def _finish(nodes, recorder, spin_once):
+    """Finish every node, the ``recorder`` (None: not one of them) last, once it has taken the end-of-run
+    diagnostics."""
+    for node in nodes:
+        if node is not recorder:
+            node.finish()
+    if recorder is not None:
+        deadline = time.monotonic() + 0.3        # let the recorder take the end-of-run diagnostics
+        while time.monotonic() < deadline:
+            spin_once(timeout_sec=0.02)
+        recorder.finish()
 
 
 def _run_realtime(nodes, label: str):

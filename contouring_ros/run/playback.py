@@ -329,38 +329,101 @@ class _Interrupts:
             raise KeyboardInterrupt
 
 
-def play_bag(path, rate: float = 1.0, progress: bool = False, say=print, *, loop: bool = False,
-             start: float = 0.0, topics=None, wait_subscribers: int = 1, wait_timeout: float = 10.0) -> int:
-    """Publish the messages of the bag at ``path``; ``rate`` 1 is real time, 0 as fast as possible.
+class _Player:
+    """Publishes the played records of the bag at ``path`` in the order of the file, paced by ``rate`` (0: as
+    fast as the acknowledgements allow), from ``start_ns`` (a log time) on, with /clock following their log
+    times unless the bag's own is played (``bag_clock``). ``sent`` counts the messages published (exact at a
+    Ctrl-C: ``interrupts`` holds it back while one goes out), ``passes`` the passes over the bag."""
 
-    ``loop`` repeats until Ctrl-C (KeyboardInterrupt, re-raised once the player has cleaned up);
-    ``start`` skips the messages before that many seconds after the bag's first; ``topics`` (names)
-    plays only those; ``wait_subscribers`` / ``wait_timeout``: see the module docstring.
-    Returns the number of messages published (/clock messages the player makes up not counted).
-    """
-    path = Path(path)
+    def __init__(self, path: Path, rate: float, publishers: dict, clock, bag_clock: bool, start_ns: int,
+                 interrupts: _Interrupts, say):
+        self.path, self.rate, self.publishers, self.clock, self.bag_clock = path, rate, publishers, clock, bag_clock
+        self.start_ns, self.interrupts, self.say = start_ns, interrupts, say
+        self.acks = _Acks(say)
+        self.sent = self.passes = 0
+
+    def play(self, warnings: list, loop: bool, progress: bool) -> None:
+        """Play the bag once (``loop``: again and again until Ctrl-C); say the reader's ``warnings`` of the
+        first pass once it ends."""
+        while True:
+            played = self._play_pass(warnings if self.passes == 0 else [], progress)
+            self.passes += 1
+            if self.passes == 1:
+                for warning in warnings:
+                    self.say(f"warning: {warning}")
+            if not loop or not played:
+                break
+            if progress:
+                self.say(f"pass {self.passes} done ({self.sent} messages so far); again (Ctrl-C stops)")
+
+    def _play_pass(self, warnings: list, progress: bool) -> bool:
+        """One pass over the bag; False where it had no message to play."""
+        path, rate, publishers, clock, bag_clock = self.path, self.rate, self.publishers, self.clock, self.bag_clock
+        acks, interrupts, start_ns = self.acks, self.interrupts, self.start_ns
+        first_log = wall_start = last_clock = None
+        for record in iter_records(path, warnings, progress):
+            if not hasattr(record, "log_time") or record.channel_id not in publishers:
+                continue
+            if record.log_time < start_ns:
+                continue
+            if wall_start is None:
+                first_log, wall_start = record.log_time, time.monotonic()
+            if rate > 0:
+                due = wall_start + (record.log_time - first_log) * 1e-9 / rate
+                if due - time.monotonic() > MAX_WAIT:
+                    raise BagError(f"{path}: the next message is {(due - time.monotonic()) * rate:.3g} s of "
+                                   f"the bag's time ahead, {due - time.monotonic():.3g} s at --rate {rate:g}: "
+                                   f"over the {MAX_WAIT:g} s the player waits for one (published {self.sent} "
+                                   "messages; --rate 0 plays without waiting)")
+                if due > time.monotonic():
+                    acks.idle(due)
+            with interrupts.deferred():       # a Ctrl-C lands between messages: the count is exact
+                if not bag_clock and record.log_time != last_clock:
+                    clock.publish(cdr.encode_clock(*divmod(record.log_time, 1_000_000_000)))
+                    last_clock = record.log_time
+                    acks.pending[clock] = acks.pending.get(clock, 0) + 1
+                publisher = publishers[record.channel_id]
+                publisher.publish(bytes(record.data))
+                self.sent += 1
+            acks.sent(publisher)
+            if not bag_clock:
+                acks.sent(clock, 0)
+        return wall_start is not None
+
+
+def _check_request(path: Path, rate: float, start: float) -> None:
+    """BagError in one line for a bag that is not a file, a negative rate, a start out of range."""
     if not path.is_file():
         raise BagError(f"{path}: no such bag")
     if rate < 0:
         raise BagError(f"--rate {rate:g}: must be 0 (as fast as possible) or positive")
     if not 0 <= start < 1e12:
         raise BagError(f"--start {start:g}: must be 0 or positive (and within the bag)")
-    warnings = []
-    index = _index(path, [])              # what the reader makes do with is said once, by the playing pass
+
+
+def _selected_topics(path: Path, index: _Index, start: float, topics) -> tuple:
+    """(the topics to play, ``topics`` as names from the root or None): ``topics`` (each of them the bag's)
+    or every topic of the bag; BagError for a topic the bag does not have or a ``start`` past its last
+    message."""
     if start and index.first_log is not None and index.last_log is not None \
             and start > (index.last_log - index.first_log) * 1e-9:
         raise BagError(f"--start {start:g}: beyond the bag, whose last message is at "
                        f"{(index.last_log - index.first_log) * 1e-9:g} s after its first")
     bag_topics = {channel.topic for channel in index.channels.values()}
-    if topics is not None:
-        topics = [topic if topic.startswith("/") else "/" + topic for topic in topics if topic]
-        for topic in topics:
-            if topic not in bag_topics:
-                raise BagError(f"{path}: no topic {topic} in the bag (it has {', '.join(sorted(bag_topics))})")
-    selected = set(topics) if topics is not None else bag_topics
+    if topics is None:
+        return bag_topics, None
+    topics = [topic if topic.startswith("/") else "/" + topic for topic in topics if topic]
+    for topic in topics:
+        if topic not in bag_topics:
+            raise BagError(f"{path}: no topic {topic} in the bag (it has {', '.join(sorted(bag_topics))})")
+    return set(topics), topics
 
-    # resolve every channel's type before ROS starts: a refused type is never imported
-    types, chosen = {}, {}         # channel id -> class; topic -> type name
+
+def _message_classes(path: Path, index: _Index, selected: set, say) -> tuple:
+    """({channel id: message class}, {topic: type name}) of the ``selected`` topics' channels, resolved
+    before ROS starts: a topic name ROS refuses is a BagError; a refused type is said in a warning line and
+    never imported."""
+    types, chosen = {}, {}
     for channel in sorted(index.channels.values(), key=lambda c: c.id):
         if channel.topic not in selected:
             continue
@@ -376,6 +439,37 @@ def play_bag(path, rate: float = 1.0, progress: bool = False, say=print, *, loop
         except UnplayableType as why:
             schema = index.schemas.get(channel.schema_id)
             say(f"warning: refusing {channel.topic}: type {getattr(schema, 'name', '?')!r}: {why}")
+    return types, chosen
+
+
+def _create_publishers(node, index: _Index, types: dict, clock_type, qos) -> tuple:
+    """({topic: publisher}, {channel id: its topic's publisher}): one publisher per played topic and one for
+    /clock."""
+    by_topic = {graph.CLOCK: node.create_publisher(clock_type, graph.CLOCK, qos)}
+    publishers = {}
+    for channel_id, cls in types.items():
+        topic = index.channels[channel_id].topic
+        if topic not in by_topic:
+            by_topic[topic] = node.create_publisher(cls, topic, qos)
+        publishers[channel_id] = by_topic[topic]
+    return by_topic, publishers
+
+
+def play_bag(path, rate: float = 1.0, progress: bool = False, say=print, *, loop: bool = False,
+             start: float = 0.0, topics=None, wait_subscribers: int = 1, wait_timeout: float = 10.0) -> int:
+    """Publish the messages of the bag at ``path``; ``rate`` 1 is real time, 0 as fast as possible.
+
+    ``loop`` repeats until Ctrl-C (KeyboardInterrupt, re-raised once the player has cleaned up);
+    ``start`` skips the messages before that many seconds after the bag's first; ``topics`` (names)
+    plays only those; ``wait_subscribers`` / ``wait_timeout``: see the module docstring.
+    Returns the number of messages published (/clock messages the player makes up not counted).
+    """
+    path = Path(path)
+    _check_request(path, rate, start)
+    warnings = []
+    index = _index(path, [])              # what the reader makes do with is said once, by the playing pass
+    selected, topics = _selected_topics(path, index, start, topics)
+    types, chosen = _message_classes(path, index, selected, say)
     if not types:
         raise BagError(f"{path}: nothing to play" + (f" on {', '.join(sorted(selected))}" if topics else ""))
 
@@ -390,74 +484,30 @@ def play_bag(path, rate: float = 1.0, progress: bool = False, say=print, *, loop
     qos = _player_qos()
     context = Context()
     rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)   # Ctrl-C: KeyboardInterrupt
-    node = acks = None
-    sent = 0
+    node = player = None
     start_ns = (index.first_log or 0) + round(start * 1e9)
     interrupts = _Interrupts()
     try:
         interrupts.__enter__()
         node = rclpy.create_node("bag_player", context=context)
-        by_topic = {graph.CLOCK: node.create_publisher(Clock, graph.CLOCK, qos)}
-        publishers = {}
-        for channel_id, cls in types.items():
-            topic = index.channels[channel_id].topic
-            if topic not in by_topic:
-                by_topic[topic] = node.create_publisher(cls, topic, qos)
-            publishers[channel_id] = by_topic[topic]
-        clock = by_topic[graph.CLOCK]
-        bag_clock = graph.CLOCK in chosen
+        by_topic, publishers = _create_publishers(node, index, types, Clock, qos)
         if wait_subscribers > 0:
             _wait_for_subscribers(node, by_topic, wait_subscribers, wait_timeout, say)
-        acks = _Acks(say)
-        passes = 0
-        while True:
-            first_log = wall_start = last_clock = None
-            for record in iter_records(path, warnings if passes == 0 else [], progress):
-                if not hasattr(record, "log_time") or record.channel_id not in publishers:
-                    continue
-                if record.log_time < start_ns:
-                    continue
-                if wall_start is None:
-                    first_log, wall_start = record.log_time, time.monotonic()
-                if rate > 0:
-                    due = wall_start + (record.log_time - first_log) * 1e-9 / rate
-                    if due - time.monotonic() > MAX_WAIT:
-                        raise BagError(f"{path}: the next message is {(due - time.monotonic()) * rate:.3g} s of "
-                                       f"the bag's time ahead, {due - time.monotonic():.3g} s at --rate {rate:g}: "
-                                       f"over the {MAX_WAIT:g} s the player waits for one (published {sent} "
-                                       "messages; --rate 0 plays without waiting)")
-                    if due > time.monotonic():
-                        acks.idle(due)
-                with interrupts.deferred():       # a Ctrl-C lands between messages: the count is exact
-                    if not bag_clock and record.log_time != last_clock:
-                        clock.publish(cdr.encode_clock(*divmod(record.log_time, 1_000_000_000)))
-                        last_clock = record.log_time
-                        acks.pending[clock] = acks.pending.get(clock, 0) + 1
-                    publisher = publishers[record.channel_id]
-                    publisher.publish(bytes(record.data))
-                    sent += 1
-                acks.sent(publisher)
-                if not bag_clock:
-                    acks.sent(clock, 0)
-            passes += 1
-            if passes == 1:
-                for warning in warnings:
-                    say(f"warning: {warning}")
-            if not loop or wall_start is None:
-                break
-            if progress:
-                say(f"pass {passes} done ({sent} messages so far); again (Ctrl-C stops)")
-        acks.drain(ACK_TIMEOUT)           # let reliable subscribers take the tail
+        player = _Player(path, rate, publishers, by_topic[graph.CLOCK], graph.CLOCK in chosen, start_ns,
+                         interrupts, say)
+        player.play(warnings, loop, progress)
+        player.acks.drain(ACK_TIMEOUT)           # let reliable subscribers take the tail
     except KeyboardInterrupt:
-        if acks is not None:
-            acks.drain(CTRL_C_DRAIN, quiet=True)   # the messages under way, briefly (a second Ctrl-C cuts it)
-        say(f"stopped (Ctrl-C): published {sent} messages from {path}")
+        if player is not None:
+            player.acks.drain(CTRL_C_DRAIN, quiet=True)   # the messages under way, briefly (a second Ctrl-C cuts it)
+        say(f"stopped (Ctrl-C): published {player.sent if player is not None else 0} messages from {path}")
         raise
     finally:
         interrupts.__exit__(None, None, None)
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown(context=context)
+    sent, passes = player.sent, player.passes
     if sent == 0:
         say(f"warning: no message at t >= {start:g} s" if start else "warning: no message to play")
     say(f"published {sent} messages from {path}" + (f" ({passes} pass{'es' if passes != 1 else ''})" if loop else ""))

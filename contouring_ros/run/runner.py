@@ -26,6 +26,8 @@ from ..experiment.files import load_experiment, namespaced_parameter_file
 from ..experiment.model import Experiment
 from ..experiment.validate import controller_uses_state, split_groups
 from ..errors import Interrupted, RunError
+from .interruptions import Terminated, note_interruptions, raise_pending_termination, restore_signals
+from .shared_memory import clean_shared_memory
 
 __all__ = ["NodeProcess", "DomainLease", "graph_commands", "grouped_commands", "parse_groups", "write_parameter_file",
            "private_environment", "run_graph", "default_bag_path"]
@@ -212,56 +214,6 @@ def _stop(nodes, grace: float = 5.0):
             signal.signal(sig, handler)
 
 
-SHARED_MEMORY = Path("/dev/shm")
-
-
-def shared_memory_in_use() -> set:
-    """Every /dev/shm path some live process has open or mapped (from /proc; what we can read)."""
-    held = set()
-    for proc in Path("/proc").iterdir():
-        if not proc.name.isdigit():
-            continue
-        try:
-            for line in (proc / "maps").read_text().splitlines():
-                if "/dev/shm/" in line:
-                    held.add(line[line.index("/dev/shm/"):].split(" (deleted)")[0].strip())
-            for fd in (proc / "fd").iterdir():
-                target = os.readlink(fd)
-                if target.startswith("/dev/shm/"):
-                    held.add(target)
-        except OSError:
-            continue
-    return held
-
-
-def clean_shared_memory(since: float) -> int:
-    """Remove the Fast DDS shared-memory files a killed node left behind: created since ``since`` (a
-    time.time()) and open or mapped by no live process. A node killed by a signal cannot release its
-    segments, and stale ones pile up across runs and slow every later participant's start. Returns how
-    many were removed."""
-    if not SHARED_MEMORY.is_dir():
-        return 0
-    candidates = []
-    for path in SHARED_MEMORY.iterdir():
-        if "fastrtps" in path.name or "fastdds" in path.name:
-            try:
-                if path.stat().st_mtime >= since:
-                    candidates.append(path)
-            except OSError:
-                continue
-    if not candidates:
-        return 0
-    held, removed = shared_memory_in_use(), 0
-    for path in candidates:
-        if str(path) not in held:
-            try:
-                path.unlink()
-                removed += 1
-            except OSError:
-                pass
-    return removed
-
-
 def _exit_description(code: int) -> str:
     if code < 0:
         try:
@@ -318,44 +270,6 @@ class DomainLease:
         self.release()
 
 
-class _Terminated(Exception):
-    """SIGINT or SIGTERM reached the runner while it started or watched the nodes."""
-
-    def __init__(self, signum: int):
-        super().__init__(signal.Signals(signum).name)
-        self.signum = signum
-
-
-#: SIGINTs and SIGTERMs received during the current run. The handler only notes the signal, and the runner
-#: raises _Terminated where it checks (after starting each node, at every poll of the nodes, 20 times a
-#: second): an exception raised in the handler itself (Python's own SIGINT handler raises KeyboardInterrupt
-#: there) is lost, with a traceback on stderr, where the signal lands in code whose exceptions Python ignores
-#: (an at-fork callback while a node is started, such as logging's lock release, or a finaliser), and the run
-#: went on to exit 0.
-_TERMINATIONS: list = []
-
-
-def _note_termination(signum, frame):
-    _TERMINATIONS.append(signum)
-
-
-def _raise_pending_termination() -> None:
-    if _TERMINATIONS:
-        raise _Terminated(_TERMINATIONS[0])
-
-
-def _note_interruptions() -> dict:
-    """Install :func:`_note_termination` for SIGTERM, and for SIGINT unless SIGINT is ignored (a runner
-    started in the background by a shell without job control keeps ignoring Ctrl-C meant for the
-    foreground); return the handlers it replaced."""
-    _TERMINATIONS.clear()
-    replaced = {}
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        if signal.getsignal(sig) is not signal.SIG_IGN:
-            replaced[sig] = signal.signal(sig, _note_termination)
-    return replaced
-
-
 def _composed_process(label: str, experiment_path, bag: Path, start_time: float, namespace: str,
                       nodes=None) -> NodeProcess:
     """A process of :mod:`contouring_ros.run.composed`: every node of the graph, or the ``nodes`` of one group."""
@@ -388,6 +302,120 @@ def grouped_commands(experiment_path, experiment: Experiment, bag: Path, groups,
     out += [_composed_process(group_label(group), experiment_path, bag, start_time, namespace, group)
             for group in shared]
     return out
+
+
+def _bag_destination(bag, experiment: Experiment) -> tuple:
+    """(where the run's bag ends, where the recorder writes it meanwhile): ``bag``, or :func:`default_bag_path`,
+    its folder made (RunError in one line where it is a folder or cannot be written), and its
+    :func:`recording_path`. The recorder writes beside the bag's name and the bag is moved into place as the
+    run ends: a file already there stays whole until then (and, if the run never opens its bag, after it)."""
+    final = Path(bag) if bag is not None else default_bag_path(experiment)
+    if final.is_dir():
+        raise RunError(f"the bag {final} is a folder: name a file")
+    try:
+        final.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        raise RunError(f"the bag {final} cannot be written ({error.strerror or type(error).__name__})") from None
+    return final, recording_path(final)
+
+
+def _namespace(namespace: str) -> str:
+    """The graph namespace normalised (:func:`graph.normalize_namespace`); RunError in one line for a bad one."""
+    try:
+        return graph.normalize_namespace(namespace)
+    except ValueError as error:
+        raise RunError(str(error)) from None
+
+
+def _layout(experiment: Experiment, layout: str | None, groups) -> tuple:
+    """(layout, groups) of a run: those given, else the experiment file's (``layout``, ``groups``)."""
+    if layout is None and not groups:        # the experiment file's layout
+        groups = split_groups(experiment.groups) if experiment.layout == "grouped" else None
+        layout = "composed" if experiment.layout == "composed" else "process"
+    layout = layout or "process"
+    if layout not in ("process", "composed"):
+        raise RunError(f"unknown layout {layout!r} (expected process or composed)")
+    if groups and layout != "process":
+        raise RunError("groups are a layout of their own: give them with layout process (the default)")
+    return layout, groups
+
+
+def _layout_commands(experiment_path: Path, experiment: Experiment, bag: Path, layout: str, groups,
+                     start_time: float, namespace: str, parameter_file) -> list:
+    """The NodeProcesses of the layout: :func:`grouped_commands`, :func:`graph_commands` or
+    :func:`composed_command`."""
+    if groups:
+        return grouped_commands(experiment_path, experiment, bag, parse_groups(groups, experiment.axes), start_time,
+                                namespace, parameter_file)
+    if layout == "process":
+        return graph_commands(experiment_path, experiment, bag, start_time, namespace, parameter_file)
+    return composed_command(experiment_path, bag, start_time, namespace)
+
+
+def _environment(lease: DomainLease, experiment: Experiment, directory) -> tuple:
+    """(the nodes' environment on the ``lease``'s domain, the file in ``directory`` the recorder writes its
+    progress to, empty)."""
+    env = private_environment(lease.domain_id, network=experiment.network)
+    progress_file = Path(directory) / "progress"
+    progress_file.write_bytes(b"")
+    env[graph.PROGRESS_ENV] = str(progress_file)
+    return env, progress_file
+
+
+def _starting_message(experiment: Experiment, nodes: list, namespace: str, domain_id: int, shared: bool) -> str:
+    """``starting N nodes [in ... processes] [under NAMESPACE] on ROS domain D [(shared)]: S steps``."""
+    count = len(graph.node_names(experiment.axes))
+    processes = "" if len(nodes) == count else " in one process" if len(nodes) == 1 else f" in {len(nodes)} processes"
+    under = f" under {namespace}" if namespace != "/" else ""
+    return (f"starting {count} nodes{processes}{under} on ROS domain {domain_id}"
+            + (" (shared)" if shared else "") + f": {experiment.n_steps} steps")
+
+
+def _start(nodes: list, env: dict, lease: DomainLease) -> None:
+    """Start every node's process with ``env``, its output in a temporary log; a SIGINT or SIGTERM noted
+    meanwhile raises Terminated after the node it came during."""
+    runner_pid = os.getpid()
+    for node in nodes:
+        node.log = tempfile.TemporaryFile()
+        # every node holds the domain's lock file open too: the lock is released once the
+        # runner and every node have exited, never while a node of this run still runs
+        node.process = subprocess.Popen(node.command, env=env, stdout=node.log,
+                                        stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
+                                        pass_fds=lease.lock_fds(),
+                                        preexec_fn=lambda node=node: node.preexec(runner_pid))
+        raise_pending_termination()
+
+
+def _interrupted(interrupt: BaseException, nodes: list, bag: Path, final: Path) -> Interrupted:
+    """Stop every node after a SIGINT or SIGTERM (``interrupt``) and say what of the bag exists."""
+    terminated = getattr(interrupt, "signum", signal.SIGINT) == signal.SIGTERM
+    _stop(nodes)          # every node gone (the recorder has closed the bag) before we say what exists
+    what = "SIGTERM" if terminated else "SIGINT"
+    if bag.is_file() and bag.stat().st_size > 0:
+        state = f"the bag {final} holds the steps recorded so far"
+    else:
+        state = f"no bag yet (the recorder had not opened {final})"
+    return Interrupted(f"interrupted by {what}: stopped every node; {state}",
+                       bag=final if bag.is_file() else None, code=143 if terminated else 130)
+
+
+def _interrupted_at_end(signum: int, final: Path) -> Interrupted:
+    """A SIGINT or SIGTERM (``signum``) noted after the last poll of the nodes, every node gone: the bag
+    ``final`` holds the whole run."""
+    return Interrupted(f"interrupted by {signal.Signals(signum).name} as the run ended: every node had "
+                       f"exited; the bag {final} holds the whole run", bag=final,
+                       code=143 if signum == signal.SIGTERM else 130)
+
+
+def _stop_and_close(nodes: list, wall_started: float) -> None:
+    """Stop every node, close the logs, and remove the shared memory a killed node left (created since
+    ``wall_started``, a time.time())."""
+    _stop(nodes)
+    for node in nodes:
+        if node.log is not None:
+            node.log.close()
+    if any(node.process is not None and (node.process.returncode or 0) < 0 for node in nodes):
+        clean_shared_memory(wall_started - 1.0)
 
 
 def run_graph(experiment_path, bag=None, *, timeout: float | None = None, domain_id: int | None = None,
@@ -433,100 +461,40 @@ def run_graph(experiment_path, bag=None, *, timeout: float | None = None, domain
     experiment_path = Path(experiment_path)
     if experiment is None:
         experiment = load_experiment(experiment_path)
-    final = Path(bag) if bag is not None else default_bag_path(experiment)
-    if final.is_dir():
-        raise RunError(f"the bag {final} is a folder: name a file")
-    try:
-        final.parent.mkdir(parents=True, exist_ok=True)
-    except OSError as error:
-        raise RunError(f"the bag {final} cannot be written ({error.strerror or type(error).__name__})") from None
-    # the recorder writes beside the bag's name and the bag is moved into place as the run ends: a file already
-    # there stays whole until then (and, if the run never opens its bag, after it)
-    bag = recording_path(final)
+    final, bag = _bag_destination(bag, experiment)
     timeout = timeout if timeout is not None else 60.0 + experiment.n_steps / 50.0
-    if layout is None and not groups:        # the experiment file's layout
-        groups = split_groups(experiment.groups) if experiment.layout == "grouped" else None
-        layout = "composed" if experiment.layout == "composed" else "process"
-    layout = layout or "process"
-    if layout not in ("process", "composed"):
-        raise RunError(f"unknown layout {layout!r} (expected process or composed)")
-    if groups and layout != "process":
-        raise RunError("groups are a layout of their own: give them with layout process (the default)")
-    try:
-        namespace = graph.normalize_namespace(namespace)
-    except ValueError as error:
-        raise RunError(str(error)) from None
+    layout, groups = _layout(experiment, layout, groups)
+    namespace = _namespace(namespace)
     start_time = time.time() + REALTIME_START_DELAY if experiment.timing == "realtime" else 0.0
     parameter_directory = tempfile.TemporaryDirectory(prefix="contouring_ros_")
     parameter_file = write_parameter_file(experiment_path.resolve(), namespace, parameter_directory.name)
-    if groups:
-        nodes = grouped_commands(experiment_path.resolve(), experiment, bag.resolve(),
-                                 parse_groups(groups, experiment.axes), start_time, namespace, parameter_file)
-    elif layout == "process":
-        nodes = graph_commands(experiment_path.resolve(), experiment, bag.resolve(), start_time, namespace,
-                               parameter_file)
-    else:
-        nodes = composed_command(experiment_path.resolve(), bag.resolve(), start_time, namespace)
+    nodes = _layout_commands(experiment_path.resolve(), experiment, bag.resolve(), layout, groups, start_time,
+                             namespace, parameter_file)
     say = progress or (lambda message: None)
-    in_main_thread = threading.current_thread() is threading.main_thread()
-    replaced_handlers = _note_interruptions() if in_main_thread else {}
+    replaced_handlers = note_interruptions() if threading.current_thread() is threading.main_thread() else {}
     started, wall_started = time.monotonic(), time.time()
     try:
         with DomainLease(domain_id, shared=shared_domain) as lease:
-            env = private_environment(lease.domain_id, network=experiment.network)
-            progress_file = Path(parameter_directory.name) / "progress"
-            progress_file.write_bytes(b"")
-            env[graph.PROGRESS_ENV] = str(progress_file)
-            count = len(graph.node_names(experiment.axes))
-            processes = "" if len(nodes) == count else " in one process" if len(nodes) == 1 else f" in {len(nodes)} processes"
-            under = f" under {namespace}" if namespace != "/" else ""
-            say(f"starting {count} nodes{processes}{under} on ROS domain {lease.domain_id}"
-                + (" (shared)" if shared_domain else "") + f": {experiment.n_steps} steps")
+            env, progress_file = _environment(lease, experiment, parameter_directory.name)
+            say(_starting_message(experiment, nodes, namespace, lease.domain_id, shared_domain))
             try:
-                runner_pid = os.getpid()
-                for node in nodes:
-                    node.log = tempfile.TemporaryFile()
-                    # every node holds the domain's lock file open too: the lock is released once the
-                    # runner and every node have exited, never while a node of this run still runs
-                    node.process = subprocess.Popen(node.command, env=env, stdout=node.log,
-                                                    stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
-                                                    pass_fds=lease.lock_fds(),
-                                                    preexec_fn=lambda node=node: node.preexec(runner_pid))
-                    _raise_pending_termination()
+                _start(nodes, env, lease)
                 if on_started is not None:
                     on_started(nodes)
                 _watch(nodes, timeout, started, say,
                        (lambda: on_step(graph.read_progress(progress_file) or 0)) if on_step else None)
-            except (KeyboardInterrupt, _Terminated) as interrupt:
-                terminated = getattr(interrupt, "signum", signal.SIGINT) == signal.SIGTERM
-                _stop(nodes)          # every node gone (the recorder has closed the bag) before we say what exists
-                what = "SIGTERM" if terminated else "SIGINT"
-                if bag.is_file() and bag.stat().st_size > 0:
-                    state = f"the bag {final} holds the steps recorded so far"
-                else:
-                    state = f"no bag yet (the recorder had not opened {final})"
-                raise Interrupted(f"interrupted by {what}: stopped every node; {state}",
-                                  bag=final if bag.is_file() else None, code=143 if terminated else 130) from None
+            except (KeyboardInterrupt, Terminated) as interrupt:
+                raise _interrupted(interrupt, nodes, bag, final) from None
             except RunError as error:
                 raise RunError(str(error), bag=final if bag.is_file() else None) from None
             finally:
-                _stop(nodes)
-                for node in nodes:
-                    if node.log is not None:
-                        node.log.close()
-                if any(node.process is not None and (node.process.returncode or 0) < 0 for node in nodes):
-                    clean_shared_memory(wall_started - 1.0)
+                _stop_and_close(nodes, wall_started)
     finally:
         _move_into_place(bag, final)
         parameter_directory.cleanup()
-        for sig, handler in replaced_handlers.items():
-            signal.signal(sig, handler)
-        late = list(_TERMINATIONS)
-        _TERMINATIONS.clear()
+        late = restore_signals(replaced_handlers)
     if late:        # it landed after the last poll: the run is whole, and the signal is still answered
-        raise Interrupted(f"interrupted by {signal.Signals(late[0]).name} as the run ended: every node had "
-                          f"exited; the bag {final} holds the whole run", bag=final,
-                          code=143 if late[0] == signal.SIGTERM else 130)
+        raise _interrupted_at_end(late[0], final)
     say(f"ran {experiment.n_steps} steps in {time.monotonic() - started:.1f} s wall time")
     return final
 
@@ -553,7 +521,7 @@ def _watch(nodes, timeout, started, say, poll_progress=None):
     naming the cause of a failure."""
     recorder_done = None
     while True:
-        _raise_pending_termination()
+        raise_pending_termination()
         if poll_progress is not None:
             poll_progress()
         codes = {node.name: node.process.poll() for node in nodes}

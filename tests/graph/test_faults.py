@@ -16,7 +16,8 @@ from contouring_ros.core.estimators import BranchCheck, NewtonEstimator
 from contouring_ros.core.interpolation import UniformSchedule, reference
 from contouring_ros.core.simulation import simulate
 from contouring_ros.errors import RunError
-from contouring_ros.run.runner import DomainLease, run_graph, shared_memory_in_use
+from contouring_ros.run.runner import DomainLease, run_graph
+from contouring_ros.run.shared_memory import shared_memory_in_use
 from contouring_ros.records.scoring import read_run, score_bag, score_run
 from conftest import DEFAULT, ROOT, machine_pace, recorded_bytes, shortened, sigint_as_from_a_terminal
 

@@ -117,7 +117,7 @@ def test_a_signal_landing_where_python_ignores_exceptions_still_interrupts_the_r
     next check raises it. With Python's own SIGINT handler the KeyboardInterrupt died in the finaliser and
     the run went on to exit 0."""
     import os
-    from contouring_ros.run import runner
+    from contouring_ros.run import interruptions
 
     class SignalledWhileFinalised:
         def __del__(self):
@@ -128,16 +128,16 @@ def test_a_signal_landing_where_python_ignores_exceptions_still_interrupts_the_r
     previous = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
     signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
-        replaced = runner._note_interruptions()
+        replaced = interruptions.note_interruptions()
         try:
             SignalledWhileFinalised()       # dropped at once: __del__ runs, its exceptions are ignored
-            with pytest.raises(runner._Terminated) as raised:
-                runner._raise_pending_termination()
+            with pytest.raises(interruptions.Terminated) as raised:
+                interruptions.raise_pending_termination()
             assert raised.value.signum == sig
         finally:
             for s, handler in replaced.items():
                 signal.signal(s, handler)
-            runner._TERMINATIONS.clear()
+            interruptions.TERMINATIONS.clear()
     finally:
         for s, handler in previous.items():
             signal.signal(s, handler)
@@ -145,10 +145,10 @@ def test_a_signal_landing_where_python_ignores_exceptions_still_interrupts_the_r
 
 def test_an_ignored_sigint_stays_ignored_during_a_run():
     """A runner started in the background by a shell without job control ignores SIGINT; the run keeps it so."""
-    from contouring_ros.run import runner
+    from contouring_ros.run import interruptions
     previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
-        replaced = runner._note_interruptions()
+        replaced = interruptions.note_interruptions()
         try:
             assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN
             assert signal.SIGTERM in replaced
