@@ -1,9 +1,10 @@
 """Old import paths of modules that moved into the role folders, kept working for code written against them.
 
-``import contouring_ros.bag`` (or ``from contouring_ros import bag``) gives :mod:`contouring_ros.records.bag`
-itself, with a DeprecationWarning that names the new path; nothing else is loaded until such a name is used.
-An old module whose names now live in several modules (``contouring_ros.analysis``) gives a module of its own
-that holds the public names of those, with a DeprecationWarning that names them.
+``import contouring_ros.scoring`` (or ``from contouring_ros import scoring``) gives
+:mod:`contouring_ros.records.scoring` itself, with a DeprecationWarning that names the new path; nothing else is
+loaded until such a name is used. An old module whose names now live in several modules
+(``contouring_ros.bag``, ``.analysis``, ``.tuning``, ``.benchmark``, ``.claims``) gives a module of its own that
+holds the public names of those, with a DeprecationWarning that names them.
 """
 from __future__ import annotations
 
@@ -19,16 +20,21 @@ MOVED = {
     "registry": "experiment.registry", "guard": "experiment.guard",
     "rclpy_adapter": "nodes.rclpy_adapter", "parameters": "nodes.parameters",
     "runner": "run.runner", "composed": "run.composed", "playback": "run.playback",
-    "bag": "records.bag", "scoring": "records.scoring", "blocks": "records.blocks", "export": "records.export",
+    "scoring": "records.scoring", "blocks": "records.blocks", "export": "records.export",
     "outputs": "records.outputs",
-    "sweep": "studies.sweep", "learning": "studies.learning", "tuning": "studies.tuning",
-    "search": "studies.search", "benchmark": "studies.benchmark", "claims": "studies.claims",
+    "sweep": "studies.sweep", "learning": "studies.learning", "search": "studies.search",
     "paper": "studies.paper", "readings": "studies.readings", "parts": "studies.parts",
     "checkpoints": "studies.checkpoints", "executors": "studies.executors",
 }
 #: old module -> the modules its names live in now (all under contouring_ros)
 SPLIT = {
     "analysis": ("records.comparison", "records.replay", "records.traces", "records.figures", "records.html_report"),
+    "bag": ("records.bag", "records.bag_reader", "records.bag_writer"),
+    "tuning": ("studies.tuning", "studies.machine", "studies.gains", "studies.outcomes", "studies.loops",
+               "studies.space", "studies.objective", "studies.tuner", "studies.summaries"),
+    "benchmark": ("studies.benchmark", "studies.benchmark_parts", "studies.benchmark_report",
+                  "studies.benchmark_figures"),
+    "claims": ("studies.claims_file", "studies.claims", "studies.claims_maps", "studies.claims_report"),
 }
 PACKAGE = __name__.rpartition(".")[0]
 
