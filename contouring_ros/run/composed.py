@@ -139,7 +139,8 @@ def _run_to_end(nodes, spin_once, lean: bool, label: str, stall_timeout: float):
         if lean:
             for node in nodes:
                 node.serve_requests()
-        progress = sum(node.next_step for node in nodes) + sum(getattr(node, "counts", {}).values())
+        # the steps of every node, and the messages the last node (the recorder, where one of them) has taken
+        progress = sum(node.next_step for node in nodes) + sum(getattr(nodes[-1], "counts", {}).values())
         if progress != last:
             last, last_progress = progress, time.monotonic()
         elif time.monotonic() - last_progress > stall_timeout:
