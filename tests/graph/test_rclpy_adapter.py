@@ -68,7 +68,7 @@ def test_no_private_attribute_is_read_across_objects():
 
 def _import_adapter_afresh():
     """Execute the adapter's module anew (as its import would), outside sys.modules."""
-    spec = importlib.util.spec_from_file_location("contouring_ros.rclpy_adapter_probe", ADAPTER)
+    spec = importlib.util.spec_from_file_location("contouring_ros.nodes.rclpy_adapter_probe", ADAPTER)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
