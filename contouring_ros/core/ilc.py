@@ -19,7 +19,6 @@ amplifying what the loop cannot follow.
 from __future__ import annotations
 
 import numpy as np
-from scipy import signal
 
 __all__ = ["LearnedCorrection", "learn"]
 
@@ -66,6 +65,7 @@ def learn(correction, reference_position, position, estimate_vector, sample_time
     out = previous + shifted
     nyquist = 0.5 / sample_time
     if 0.0 < q_cutoff < nyquist and steps > 15:
+        from scipy import signal     # here, not at the top: scipy.signal takes a node 1.7 s to import
         sections = signal.butter(2, q_cutoff / nyquist, output="sos")   # second-order sections: sound at any cutoff
         out = signal.sosfiltfilt(sections, out, axis=0)
     return out

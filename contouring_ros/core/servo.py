@@ -10,7 +10,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import expm
 
 from .geometry import sum_of_products
 from .pid import DiscretePID
@@ -176,6 +175,7 @@ class DirectServo:
 
 def _zero_order_hold(a: np.ndarray, b: np.ndarray, sample_time: float) -> tuple:
     """Exact discretisation x+ = Phi x + Gamma w of x' = A x + B w with w held over the sample."""
+    from scipy.linalg import expm     # here, not at the top: scipy.linalg takes a node 0.3 s to import
     n, m = a.shape[0], b.shape[1]
     block = np.zeros((n + m, n + m))
     block[:n, :n], block[:n, n:] = a, b

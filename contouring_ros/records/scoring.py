@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import bag
+from . import bag, bag_reader
 from .bag import RecordedRun
 from .blocks import breach_line, cutting_scores, motion_end
 from ..core.monitoring import first_breach
@@ -223,7 +223,7 @@ def recorded_lines(path, name: str, scores: Scores, run: RecordedRun, from_time:
     (:func:`format_realtime`) where the run was realtime."""
     yield from scores_lines(name, scores, run.axes, from_time)
     yield from cutting_lines(curve_of(run), run.result, run.require_experiment())
-    realtime = format_realtime(bag.node_reports(path))
+    realtime = format_realtime(bag_reader.node_reports(path))
     if realtime:
         yield realtime
 
