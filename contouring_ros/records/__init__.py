@@ -11,6 +11,7 @@
 - :mod:`.traces`: runs made ready to draw (one name and one colour each, exact contour error, reference path),
 - :mod:`.figures`: the figures of a run or a comparison (matplotlib), written as PNG files,
 - :mod:`.html_report`: a self-contained HTML report of a run or a comparison,
+- :mod:`.numbers`: numbers as text, for every table, report and CSV file,
 - :mod:`.outputs`: what a command may write (never an input, never a user's file without ``--force``).
 
 Nothing is imported here."""

@@ -18,6 +18,7 @@ from ..core.geometry import ExactContourError
 from ..core.gcode import INCH, MM
 from ..core.interpolation import SETTLE
 from ..core.metrics import Scores, score
+from .numbers import fixed
 from .outputs import write_atomically
 
 __all__ = ["BlockResult", "block_results", "cutting_steps", "cutting_scores", "format_blocks", "write_blocks_csv",
@@ -209,11 +210,6 @@ def _time_decimals(sample_time: float) -> int:
     return max(0, min(9, math.ceil(-math.log10(sample_time) - 1e-9))) if sample_time > 0.0 else 3
 
 
-def _fixed(value: float, decimals: int) -> str:
-    text = f"{value:.{decimals}f}"
-    return text[1:] if text.startswith("-") and float(text) == 0.0 else text     # no "-0.000"
-
-
 def block_cells(row: BlockResult, curve=None, sample_time: float = 1e-3) -> list:
     """One row of the table as text: feeds in the program's unit per minute (:func:`feed_unit`), times to
     the sample time, errors in um to 1 nm."""
@@ -221,11 +217,11 @@ def block_cells(row: BlockResult, curve=None, sample_time: float = 1e-3) -> list
     scale, decimals = 60.0 / per_minute, FEED_DECIMALS[name]
 
     def feed(value):
-        return "" if not np.isfinite(value) else _fixed(value * scale, decimals)
+        return "" if not np.isfinite(value) else fixed(value * scale, decimals)
     return [str(row.line), "" if row.number is None else str(row.number), row.code, feed(row.programmed_feed),
-            feed(row.mean_feed), feed(row.peak_feed), _fixed(row.time, _time_decimals(sample_time)),
-            _fixed(row.max_contour_error * 1e6, ERROR_DECIMALS),
-            *(_fixed(v * 1e6, ERROR_DECIMALS) for v in row.max_following_error), row.verdict]
+            feed(row.mean_feed), feed(row.peak_feed), fixed(row.time, _time_decimals(sample_time)),
+            fixed(row.max_contour_error * 1e6, ERROR_DECIMALS),
+            *(fixed(v * 1e6, ERROR_DECIMALS) for v in row.max_following_error), row.verdict]
 
 
 def block_columns(axes, curve=None) -> list:

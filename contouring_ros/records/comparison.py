@@ -9,6 +9,7 @@ from __future__ import annotations
 from collections import Counter
 
 from .bag import RecordedRun
+from .numbers import ratio
 from ..experiment.ros_yaml import read_yaml
 from ..errors import ContouringError
 from .scoring import SCORE_ROWS, format_scores
@@ -57,7 +58,7 @@ def compare_table(named: list, baseline: int = 0, axes=None) -> str:
     lines.append("  ".join([" " * width] + [name.rjust(w) for (name, _), w in zip(named, columns)]))
     for label, get in SCORE_ROWS:
         reference = get(base)
-        cells = [(f"{get(scores) / reference:.3g}" if reference else "-").rjust(w)
+        cells = [ratio(get(scores), reference).rjust(w)
                  for (_, scores), w in zip(named, columns)]
         lines.append("  ".join([label.split(" [")[0].ljust(width)] + cells))
     return "\n".join(lines)

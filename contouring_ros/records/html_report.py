@@ -8,13 +8,13 @@ import base64
 import html
 from pathlib import Path
 
-import numpy as np
 
 from .blocks import block_cells, block_headings, block_results, cutting_scores
 from .comparison import experiment_differences
 from ..experiment.build import build_schedule
 from ..errors import ContouringError
 from .figures import draw_all, png_bytes
+from .numbers import number, ratio
 from .outputs import write_atomically
 from .scoring import SCORE_ROWS, motion_steps
 from .traces import axis_union, traces_of
@@ -64,12 +64,6 @@ def _score_rows(axes: list) -> list:
     return rows + [("travel time [s]", lambda s, own: s.travel_time), ("steps", lambda s, own: s.steps)]
 
 
-def _number(value) -> str:
-    if value is None:
-        return "-"
-    return f"{value:d}" if isinstance(value, (int, np.integer)) else f"{value:.4g}"
-
-
 def _run_header(traces) -> str:
     return "<tr><th>metric</th>" + "".join(
         f'<th><span class="swatch" style="background:{t.colour}"></span>{html.escape(t.name)}</th>'
@@ -80,18 +74,19 @@ def _html_scores(traces, scores) -> str:
     """The scores of every run as an HTML table."""
     rows = []
     for label, value in _score_rows(axis_union(traces)):
-        cells = "".join(f'<td class="num">{_number(value(s, t.axes) if s is not None else None)}</td>'
+        cells = "".join(f'<td class="num">{number(value(s, t.axes) if s is not None else None, 4)}</td>'
                         for t, s in zip(traces, scores))
         rows.append(f"<tr><td>{html.escape(label)}</td>{cells}</tr>")
     return f'<h2>Scores</h2><div class="scroll"><table>{_run_header(traces)}{"".join(rows)}</table></div>'
 
 
 def _ratio_cell(value, reference, is_baseline: bool) -> str:
-    if value is None or reference is None or not reference or not np.isfinite(reference):
+    text = ratio(value, reference)
+    if text == "-":
         return '<td class="num">-</td>'
-    ratio = value / reference
-    kind = "base" if is_baseline else "better" if ratio < 0.95 else "worse" if ratio > 1.05 else ""
-    return f'<td class="num {kind}">{ratio:.3g}</td>'
+    relative = value / reference
+    kind = "base" if is_baseline else "better" if relative < 0.95 else "worse" if relative > 1.05 else ""
+    return f'<td class="num {kind}">{text}</td>'
 
 
 def _html_ratios(traces, scores, baseline: int) -> str:

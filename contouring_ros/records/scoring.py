@@ -11,6 +11,7 @@ import numpy as np
 from . import bag, bag_reader
 from .bag import RecordedRun
 from .blocks import breach_line, cutting_scores, motion_end
+from .numbers import number
 from ..core.monitoring import first_breach
 from ..experiment.build import build_curve, build_schedule, in_position_windows, monitoring_limits
 from ..experiment.validate import parse_experiment
@@ -204,7 +205,7 @@ def format_scores(named: list, axes=None) -> str:
         cells = []
         for (_, scores), w in zip(named, columns):
             value = get(scores)
-            cells.append((f"{value:d}" if isinstance(value, int) else f"{value:.4g}").rjust(w))
+            cells.append(number(value, 4).rjust(w))
         lines.append("  ".join([label.ljust(width)] + cells))
     return "\n".join(lines)
 

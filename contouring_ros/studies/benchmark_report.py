@@ -16,6 +16,7 @@ import numpy as np
 import yaml
 
 from ..experiment.scenarios import CONFIG_DIR
+from ..records.numbers import csv_cell, median_interval, number
 from ..records.outputs import write_atomically
 from .benchmark import NOT_CONVERGED, Combination, Family, Part, Row, run_benchmark, scenario_families, select_families
 from .benchmark_figures import draw_heatmap, draw_pareto
@@ -31,14 +32,6 @@ GOAL = 0.5              # a combination beats the proposed method 2x when both r
 
 
 # ---------------------------------------------------------------------------------------------- the table
-
-
-def _um(value) -> str:
-    return "" if value is None or not math.isfinite(value) else f"{value * 1e6:.6g}"
-
-
-def _num(value) -> str:
-    return "" if value is None or not math.isfinite(value) else f"{value:.6g}"
 
 
 def write_csv(rows: list, path) -> Path:
@@ -70,15 +63,16 @@ def write_csv(rows: list, path) -> Path:
                     json.dumps(t.gains) if row.ok else "", json.dumps(t.file_gains) if t else "",
                     json.dumps(t.point) if row.ok else "",
                     "; ".join(t.at_bound) if t else "", len(t.evaluations) if t else "",
-                    *((a.searches, a.agreed, _num(a.spread), "yes" if a.converged else "no")
+                    *((a.searches, a.agreed, csv_cell(a.spread), "yes" if a.converged else "no")
                       if (a := t and t.agreement) else ("",) * 4),
-                    t.robustness_runs if t else "", _num(t.robust_worst) if t else "",
-                    _um(n.tace if n else None), _um(n.mce if n else None), _num(n.noise if n else None),
-                    _num(row.noise_ratio), _num(n.saturated if n else None), _num(n.effort if n else None),
-                    *(_um(v) for v in tace), *(_um(v) for v in mce), *(_num(v) for v in tr), *(_num(v) for v in mr),
+                    t.robustness_runs if t else "", csv_cell(t.robust_worst) if t else "",
+                    csv_cell(n.tace if n else None, 1e6), csv_cell(n.mce if n else None, 1e6), csv_cell(n.noise if n else None),
+                    csv_cell(row.noise_ratio), csv_cell(n.saturated if n else None), csv_cell(n.effort if n else None),
+                    *(csv_cell(v, 1e6) for v in tace), *(csv_cell(v, 1e6) for v in mce),
+                    *(csv_cell(v) for v in tr), *(csv_cell(v) for v in mr),
                     "" if row.is_proposed else row.tace_verdict(),
-                    _um(t.ideal.tace if t and t.ideal else None), _um(t.ideal.mce if t and t.ideal else None),
-                    *((_num(m.ms), _num(m.gain_margin), _num(m.phase_margin_deg)) if (m := t and t.margins) else ("",) * 3)])
+                    csv_cell(t.ideal.tace if t and t.ideal else None, 1e6), csv_cell(t.ideal.mce if t and t.ideal else None, 1e6),
+                    *((csv_cell(m.ms), csv_cell(m.gain_margin), csv_cell(m.phase_margin_deg)) if (m := t and t.margins) else ("",) * 3)])
     write_atomically(path, write)
     return path
 
@@ -107,17 +101,6 @@ def paper_best(rows: list, family: Family) -> tuple:
     return proposed, best
 
 
-def _f(value, digits=3) -> str:
-    return "-" if value is None or value != value else f"{value:.{digits}g}"
-
-
-def _iv(triple, scale: float = 1.0, digits: int = 3) -> str:
-    median, low, high = (v * scale if v == v else v for v in triple)
-    if median != median:
-        return "-"
-    return f"{_f(median, digits)} [{_f(low, digits)}, {_f(high, digits)}]"
-
-
 def _goal(best: Row) -> str:
     tace, mce = best.ratio("tace"), best.ratio("mce")
     if tace[2] <= GOAL and mce[2] <= GOAL:
@@ -136,14 +119,14 @@ def _best_table(rows: list, families: list) -> list:
         if proposed is None:
             lines.append(f"| {family.name} | `{family.proposed}`: no admissible result | | | | | | | |")
             continue
-        here = (f"| {family.name} | {proposed.label} | {_f(proposed.figure('tace')[0] * 1e6)} / "
-                f"{_f(proposed.figure('mce')[0] * 1e6)} ")
+        here = (f"| {family.name} | {proposed.label} | {number(proposed.figure('tace')[0] * 1e6)} / "
+                f"{number(proposed.figure('mce')[0] * 1e6)} ")
         if best is None:
             lines.append(here + "| no other combination | | | | | |")
             continue
         tr = best.ratio("tace")
-        lines.append(here + f"| {best.label} | {_f(best.figure('tace')[0] * 1e6)} / {_f(best.figure('mce')[0] * 1e6)} "
-                     f"| {_iv(tr)} | {_iv(best.ratio('mce'))} | {best.tace_verdict()} | "
+        lines.append(here + f"| {best.label} | {number(best.figure('tace')[0] * 1e6)} / {number(best.figure('mce')[0] * 1e6)} "
+                     f"| {median_interval(*tr)} | {median_interval(*best.ratio('mce'))} | {best.tace_verdict()} | "
                      f"{_goal(best) if best.tace_verdict() != NOT_CONVERGED else NOT_CONVERGED} |")
     return lines
 
@@ -173,8 +156,9 @@ def _reference_table(rows: list, families: list) -> list:
         for r, rank, count in reference_ranks(rows, family):
             tr = r.ratio("tace")
             lines.append(f"| {family.name} | {r.label} | {f'{rank} of {count}' if rank else '-'} | "
-                         f"{_iv(r.figure('tace'), 1e6)} | {_iv(r.figure('mce'), 1e6)} | {_iv(tr)} | "
-                         f"{_iv(r.ratio('mce'))} | {r.tace_verdict() or '-'} | {r.status} |")
+                         f"{median_interval(*r.figure('tace'), scale=1e6)} | "
+                         f"{median_interval(*r.figure('mce'), scale=1e6)} | {median_interval(*tr)} | "
+                         f"{median_interval(*r.ratio('mce'))} | {r.tace_verdict() or '-'} | {r.status} |")
     return lines
 
 
@@ -182,8 +166,8 @@ def _gain_text(row: Row) -> str:
     if not row.ok or not row.gains:
         return "-"
     point = getattr(row.tuned, "point", {}) or {}
-    text = ", ".join(f"{k} {'off' if v == 0 else _f(v)}" for k, v in point.items())
-    raw = ", ".join(f"{k} {_f(v)}" for k, v in row.gains.items())
+    text = ", ".join(f"{k} {'off' if v == 0 else number(v)}" for k, v in point.items())
+    raw = ", ".join(f"{k} {number(v)}" for k, v in row.gains.items())
     text = f"{text} ({raw})" if text else raw
     return text + (f"; {'; '.join(row.tuned.at_bound)}" if row.tuned.at_bound else "")
 
@@ -199,7 +183,7 @@ def _margin_text(m) -> str:
     if m is None:
         return "-"
     unstable = "" if m.stable else ", unstable"
-    return f"{m.ms:.2f} ({_f(m.gain_margin, 2)}, {m.phase_margin_deg:.0f} deg{unstable})"
+    return f"{m.ms:.2f} ({number(m.gain_margin, 2)}, {m.phase_margin_deg:.0f} deg{unstable})"
 
 
 def _family_table(rows: list, family: Family) -> list:
@@ -209,8 +193,8 @@ def _family_table(rows: list, family: Family) -> list:
     published = ref.published if ref else None
     head = [f"Steady state from t = {family.from_time:g} s; proposed file `{family.proposed}`, {len(mine)} "
             "combinations. The proposed method with the paper's gains on this machine: "
-            + (f"TACE {_f(published.tace * 1e6)} um, MCE {_f(published.mce * 1e6)} um (ideal machine: "
-               f"{_f(ref.ideal_published.tace * 1e6)} / {_f(ref.ideal_published.mce * 1e6)} um)."
+            + (f"TACE {number(published.tace * 1e6)} um, MCE {number(published.mce * 1e6)} um (ideal machine: "
+               f"{number(ref.ideal_published.tace * 1e6)} / {number(ref.ideal_published.mce * 1e6)} um)."
                if published and published.ok else f"{published.failure if published else 'no run'}."), "",
             "| combination | tuned point (raw gains) | evals | searches agreed | TACE [um] median [95%] | MCE [um] "
             "median [95%] | TACE ratio [95%] | verdict | noise / paper's | saturated | worst at +-20% | Ms (GM, PM) | "
@@ -227,11 +211,12 @@ def _family_table(rows: list, family: Family) -> list:
         status = "" if r.status == "ok" else " (not robust)"
         ideal = t.ideal
         head.append(f"| {name} | {_gain_text(r)} | {len(t.evaluations)} | {_searches_cell(r)} | "
-                    f"{_iv(r.figure('tace'), 1e6)} | {_iv(r.figure('mce'), 1e6)} | {'1' if r.is_proposed else _iv(tr)} | "
-                    f"{'' if r.is_proposed else r.tace_verdict()}{status} | {_f(r.noise_ratio)} | "
-                    f"{_f(100 * t.nominal.saturated, 2)}% | {_f(t.robust_worst)}x | {_margin_text(t.margins)} | "
-                    f"{_f(ideal.tace * 1e6) if ideal and ideal.ok else 'diverged'} / "
-                    f"{_f(ideal.mce * 1e6) if ideal and ideal.ok else '-'} |")
+                    f"{median_interval(*r.figure('tace'), scale=1e6)} | {median_interval(*r.figure('mce'), scale=1e6)} | "
+                    f"{'1' if r.is_proposed else median_interval(*tr)} | "
+                    f"{'' if r.is_proposed else r.tace_verdict()}{status} | {number(r.noise_ratio)} | "
+                    f"{number(100 * t.nominal.saturated, 2)}% | {number(t.robust_worst)}x | {_margin_text(t.margins)} | "
+                    f"{number(ideal.tace * 1e6) if ideal and ideal.ok else 'diverged'} / "
+                    f"{number(ideal.mce * 1e6) if ideal and ideal.ok else '-'} |")
     return head
 
 
@@ -270,7 +255,7 @@ def convergence_text(tuned: list) -> str:
     if left:
         text += " Not converged (no verdict rests on them): " + "; ".join(
             f"{r.family.name} {r.label} ({r.tuned.agreement.agreed} of {r.tuned.agreement.searches} agree, "
-            f"spread {_f(r.tuned.agreement.spread)}x)" for r in left) + "."
+            f"spread {number(r.tuned.agreement.spread)}x)" for r in left) + "."
     return text
 
 

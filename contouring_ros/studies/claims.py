@@ -28,6 +28,7 @@ from ..experiment.ros_yaml import read_yaml
 from ..errors import ConfigError
 from .executors import pool as executor
 from ..experiment.scenarios import CONFIG_DIR
+from ..records.numbers import median_interval, number
 from .claims_file import (METRICS, CCCHelps, Claim, Pair, claim_files, claim_verdict, interval_verdict, load_claims,
                           robustness, scenario_experiment, scenario_value)
 from .claims_maps import draw_map, map_ratios
@@ -302,17 +303,17 @@ def ccc_helps_scores(entry: CCCHelps, scores: ScenarioScores | None = None) -> t
 
 def um_text(value) -> str:
     """A length [m] in micrometres to 3 digits; '-' for none."""
-    return "-" if value is None else f"{value * 1e6:.3g}"
+    return number(value, scale=1e6)
 
 
 def ratio_text(value) -> str:
     """A measured ratio to 3 digits; '-' for none or one that is not finite."""
-    return "-" if value is None or not math.isfinite(value) else f"{value:.3g}"
+    return number(value, finite=True)
 
 
 def paper_ratio_text(value) -> str:
     """The paper's ratio to 3 digits; '-' where the paper gives no figure."""
-    return "-" if value is None else f"{value:.3g}"
+    return number(value)
 
 
 def interval_text(result: ClaimResult, reading: str) -> str:
@@ -321,8 +322,8 @@ def interval_text(result: ClaimResult, reading: str) -> str:
     if median is None:
         return "-"
     failed = result.failures(reading)
-    digits = 3 if f"{low:.3g}" != f"{high:.3g}" else 6     # a narrow interval (an inert term) shown as it is
-    return f"{median:.{digits}g} [{low:.{digits}g}, {high:.{digits}g}]" + (f" ({failed} draws diverged)" if failed else "")
+    # a narrow interval (an inert term) shown as it is
+    return median_interval(median, low, high, narrow_digits=6) + (f" ({failed} draws diverged)" if failed else "")
 
 
 def sensitivity_text(result: ClaimResult, reading: str) -> str:

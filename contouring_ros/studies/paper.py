@@ -8,6 +8,7 @@ from ..experiment.build import build_loop
 from ..experiment.files import load_experiment
 from ..core.simulation import simulate
 from ..records.outputs import write_atomically
+from ..records.numbers import number, ratio
 from ..experiment.scenarios import CONFIG_DIR, available_papers, scenario_files
 from ..run.runner import run_graph
 from ..records.scoring import score_bag, score_run
@@ -33,10 +34,6 @@ def paper_rows(paper: str, graph: bool = False, progress=None) -> list:
     return rows
 
 
-def _ratio(ours: float, theirs) -> str:
-    return f"{ours / theirs:.2g}" if theirs else "-"
-
-
 METRICS = (("mce_um", "MCE", "mce"), ("tace_um", "TACE", "tace"), ("rms_um", "RMS", "rms"))
 
 
@@ -57,11 +54,11 @@ def paper_report(paper: str, graph: bool = False, progress=None) -> str:
         line = f"| {stem} |"
         for key, _, attribute in METRICS:
             theirs, value = reference.get(key), getattr(ours, attribute) * 1e6
-            line += (f" {theirs if theirs is not None else '-'} | {value:.3g} | {_ratio(value, theirs)} |"
-                     if key in given else f" {value:.3g} |")
-        line += f" {ours.estimation_max * 1e6:.3g} |"
+            line += (f" {theirs if theirs is not None else '-'} | {number(value)} | {ratio(value, theirs, 2)} |"
+                     if key in given else f" {number(value)} |")
+        line += f" {number(ours.estimation_max, scale=1e6)} |"
         if graph:
-            line += f" {through_graph.mce * 1e6:.3g} | {through_graph.tace * 1e6:.3g} |"
+            line += f" {number(through_graph.mce, scale=1e6)} | {number(through_graph.tace, scale=1e6)} |"
         lines.append(line)
     return "\n".join(lines)
 

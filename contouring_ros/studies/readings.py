@@ -57,6 +57,7 @@ from ..errors import ConfigError, Diverged
 from ..experiment.build import build_loop
 from ..experiment.files import load_experiment
 from ..experiment.scenarios import CONFIG_DIR
+from ..records.numbers import number, ratio
 from .sweep import experiments_for, score_experiments
 
 __all__ = ["READINGS_DIR", "METRICS", "Alternative", "Reading", "Gap", "PaperReadings", "readings_files",
@@ -358,7 +359,7 @@ def search(spec: PaperReadings, evaluator: Evaluator) -> tuple:
 
 
 def _ratio_text(value, theirs) -> str:
-    return "diverged" if value is None else f"{value:.3g} ({value / theirs:.2g}x)"
+    return "diverged" if value is None else f"{number(value)} ({ratio(value, theirs, 2)}x)"
 
 
 def _worst(d: float) -> str:
@@ -499,7 +500,6 @@ def readings_report(analysis: Analysis) -> str:
                   "| proposed | baseline | metric | paper | default | verdict | closest | verdict |",
                   "|---|---|---|---:|---:|---|---:|---|"]
         for r, theirs, default, closest in analysis.relations:
-            fmt = lambda v: "-" if v is None else f"{v:.3g}"  # noqa: E731
             lines.append(f"| {short[r['proposed']]} | {short[r['baseline']]} | {r['metric'].upper()} | {theirs:.3g} | "
-                         f"{fmt(default)} | {claim_verdict(default, theirs)} | {fmt(closest)} | {claim_verdict(closest, theirs)} |")
+                         f"{number(default)} | {claim_verdict(default, theirs)} | {number(closest)} | {claim_verdict(closest, theirs)} |")
     return "\n".join(lines)
