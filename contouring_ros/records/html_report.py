@@ -14,7 +14,7 @@ from .comparison import experiment_differences
 from ..experiment.build import build_schedule
 from ..errors import ContouringError
 from .figures import draw_all, png_bytes
-from .numbers import number, ratio
+from .numbers import number, relative
 from .outputs import write_atomically
 from .scoring import SCORE_ROWS, motion_steps
 from .traces import axis_union, traces_of
@@ -81,12 +81,11 @@ def _html_scores(traces, scores) -> str:
 
 
 def _ratio_cell(value, reference, is_baseline: bool) -> str:
-    text = ratio(value, reference)
-    if text == "-":
+    ratio = relative(value, reference)
+    if ratio is None:
         return '<td class="num">-</td>'
-    relative = value / reference
-    kind = "base" if is_baseline else "better" if relative < 0.95 else "worse" if relative > 1.05 else ""
-    return f'<td class="num {kind}">{text}</td>'
+    kind = "base" if is_baseline else "better" if ratio < 0.95 else "worse" if ratio > 1.05 else ""
+    return f'<td class="num {kind}">{number(ratio)}</td>'
 
 
 def _html_ratios(traces, scores, baseline: int) -> str:

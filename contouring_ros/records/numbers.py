@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 from numbers import Integral
 
-__all__ = ["number", "csv_cell", "median_interval", "ratio", "fixed"]
+__all__ = ["number", "csv_cell", "median_interval", "relative", "ratio", "fixed"]
 
 
 def number(value, digits: int = 3, *, scale: float = 1.0, missing: str = "-", finite: bool = False) -> str:
@@ -41,12 +41,16 @@ def median_interval(median, low, high, digits: int = 3, *, scale: float = 1.0, n
             f"[{number(low, digits, scale=scale)}, {number(high, digits, scale=scale)}]")
 
 
-def ratio(value, reference, digits: int = 3) -> str:
-    """``value / reference`` to ``digits`` significant digits; "-" where either is missing or the reference is
-    zero or not finite."""
+def relative(value, reference) -> float | None:
+    """``value / reference``; None where either is missing or the reference is zero or not finite."""
     if value is None or reference is None or not reference or not math.isfinite(reference):
-        return "-"
-    return number(value / reference, digits)
+        return None
+    return value / reference
+
+
+def ratio(value, reference, digits: int = 3) -> str:
+    """:func:`relative` to ``digits`` significant digits, "-" where it is None."""
+    return number(relative(value, reference), digits)
 
 
 def fixed(value: float, decimals: int) -> str:

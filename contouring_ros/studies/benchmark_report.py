@@ -119,13 +119,13 @@ def _best_table(rows: list, families: list) -> list:
         if proposed is None:
             lines.append(f"| {family.name} | `{family.proposed}`: no admissible result | | | | | | | |")
             continue
-        here = (f"| {family.name} | {proposed.label} | {number(proposed.figure('tace')[0] * 1e6)} / "
-                f"{number(proposed.figure('mce')[0] * 1e6)} ")
+        here = (f"| {family.name} | {proposed.label} | {number(proposed.figure('tace')[0], scale=1e6)} / "
+                f"{number(proposed.figure('mce')[0], scale=1e6)} ")
         if best is None:
             lines.append(here + "| no other combination | | | | | |")
             continue
         tr = best.ratio("tace")
-        lines.append(here + f"| {best.label} | {number(best.figure('tace')[0] * 1e6)} / {number(best.figure('mce')[0] * 1e6)} "
+        lines.append(here + f"| {best.label} | {number(best.figure('tace')[0], scale=1e6)} / {number(best.figure('mce')[0], scale=1e6)} "
                      f"| {median_interval(*tr)} | {median_interval(*best.ratio('mce'))} | {best.tace_verdict()} | "
                      f"{_goal(best) if best.tace_verdict() != NOT_CONVERGED else NOT_CONVERGED} |")
     return lines
@@ -193,8 +193,8 @@ def _family_table(rows: list, family: Family) -> list:
     published = ref.published if ref else None
     head = [f"Steady state from t = {family.from_time:g} s; proposed file `{family.proposed}`, {len(mine)} "
             "combinations. The proposed method with the paper's gains on this machine: "
-            + (f"TACE {number(published.tace * 1e6)} um, MCE {number(published.mce * 1e6)} um (ideal machine: "
-               f"{number(ref.ideal_published.tace * 1e6)} / {number(ref.ideal_published.mce * 1e6)} um)."
+            + (f"TACE {number(published.tace, scale=1e6)} um, MCE {number(published.mce, scale=1e6)} um (ideal machine: "
+               f"{number(ref.ideal_published.tace, scale=1e6)} / {number(ref.ideal_published.mce, scale=1e6)} um)."
                if published and published.ok else f"{published.failure if published else 'no run'}."), "",
             "| combination | tuned point (raw gains) | evals | searches agreed | TACE [um] median [95%] | MCE [um] "
             "median [95%] | TACE ratio [95%] | verdict | noise / paper's | saturated | worst at +-20% | Ms (GM, PM) | "
@@ -215,8 +215,8 @@ def _family_table(rows: list, family: Family) -> list:
                     f"{'1' if r.is_proposed else median_interval(*tr)} | "
                     f"{'' if r.is_proposed else r.tace_verdict()}{status} | {number(r.noise_ratio)} | "
                     f"{number(100 * t.nominal.saturated, 2)}% | {number(t.robust_worst)}x | {_margin_text(t.margins)} | "
-                    f"{number(ideal.tace * 1e6) if ideal and ideal.ok else 'diverged'} / "
-                    f"{number(ideal.mce * 1e6) if ideal and ideal.ok else '-'} |")
+                    f"{number(ideal.tace, scale=1e6) if ideal and ideal.ok else 'diverged'} / "
+                    f"{number(ideal.mce, scale=1e6) if ideal and ideal.ok else '-'} |")
     return head
 
 

@@ -500,6 +500,6 @@ def readings_report(analysis: Analysis) -> str:
                   "| proposed | baseline | metric | paper | default | verdict | closest | verdict |",
                   "|---|---|---|---:|---:|---|---:|---|"]
         for r, theirs, default, closest in analysis.relations:
-            lines.append(f"| {short[r['proposed']]} | {short[r['baseline']]} | {r['metric'].upper()} | {theirs:.3g} | "
+            lines.append(f"| {short[r['proposed']]} | {short[r['baseline']]} | {r['metric'].upper()} | {number(theirs)} | "
                          f"{number(default)} | {claim_verdict(default, theirs)} | {number(closest)} | {claim_verdict(closest, theirs)} |")
     return "\n".join(lines)

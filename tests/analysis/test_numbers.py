@@ -4,7 +4,7 @@ import math
 
 import numpy as np
 
-from contouring_ros.records.numbers import csv_cell, fixed, median_interval, number, ratio
+from contouring_ros.records.numbers import csv_cell, fixed, median_interval, number, ratio, relative
 
 
 def test_a_number_keeps_its_significant_digits_and_counts_print_whole():
@@ -36,6 +36,7 @@ def test_an_interval_prints_its_median_and_bounds_and_widens_only_where_they_pri
 def test_a_ratio_is_not_given_against_a_missing_or_zero_reference():
     assert ratio(3.0, 2.0) == "1.5" and ratio(1.0, 3.0, 2) == "0.33"
     assert ratio(1.0, 0.0) == ratio(None, 1.0) == ratio(1.0, None) == ratio(1.0, math.inf) == "-"
+    assert relative(3.0, 2.0) == 1.5 and relative(1.0, 0.0) is None and relative(None, 1.0) is None
 
 
 def test_fixed_decimals_never_print_a_negative_zero():

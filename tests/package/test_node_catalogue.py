@@ -2,6 +2,7 @@
 the graph's nodes and topics, the composed loop, the experiment file's sections, the
 launch file and the node and topic tables of the docs all agree with it."""
 import importlib
+import json
 import re
 import subprocess
 import sys
@@ -180,11 +181,11 @@ def test_a_node_s_module_imports_nothing_heavy():
     imported where used): a graph of eight node processes on a 2-core machine is up in about 5 s, not 12."""
     heavy = {}
     for node in catalogue.NODES:
-        script = (f"import sys, {node.module}\n"
-                  f"print([m for m in {HEAVY!r} if m in sys.modules])\n")
+        script = (f"import json, sys, {node.module}\n"
+                  f"print(json.dumps([m for m in {HEAVY!r} if m in sys.modules]))\n")
         result = subprocess.run([sys.executable, "-c", script], cwd=ROOT, capture_output=True, text=True,
                                 timeout=120)
         assert result.returncode == 0, result.stderr
-        if eval(result.stdout):
-            heavy[node.name] = eval(result.stdout)
+        if imported := json.loads(result.stdout):
+            heavy[node.name] = imported
     assert not heavy, heavy
