@@ -5,6 +5,7 @@
     python bench/feed_plan_speed.py --window       # the look-ahead window against the whole program's plan
     python bench/feed_plan_speed.py --merge        # G64 Q: blocks and G1 time of a 720-chord circle
     python bench/feed_plan_speed.py --stages [N]   # where a streamed block's time goes (default 20000)
+    python bench/feed_plan_speed.py --rounded [N]  # a CAM program's rounded chords, with and without G64 Q
 
 Each N runs in a fresh process on a program of N chords of 5 um (round and round a circle of radius 10 mm at
 F1200, G64 P0.001, in mm as CAM systems write them), with the bounds of config/gcode_example_part.yaml.
@@ -125,6 +126,37 @@ def circle(chords: int, radius_mm: float = 10.0, q: str = "") -> str:
     return "\n".join(rows) + "\n"
 
 
+def spiral(chords: int, q: str = "") -> str:
+    """A spiral of ``chords`` G1 chords of 5 um from R10 at F1200 under G64 P0.001 (and Q ``q``), its
+    coordinates rounded to 0.1 um as a CAM system writes them (4 decimals in mm): the rounding turns each
+    chord by up to tens of milliradians, so every chord meets the next at a corner of its own."""
+    rows, radius, angle = ["G21 G90 G17 G64 P0.001" + (f" Q{q}" if q else ""), "G1 X10 Y0 F1200"], 10.0, 0.0
+    for _ in range(chords):
+        angle, radius = angle + 0.005 / radius, radius + 1e-6
+        rows.append(f"X{radius * math.cos(angle):.4f} Y{radius * math.sin(angle):.4f}")
+    return "\n".join(rows) + "\n"
+
+
+def rounded(chords: int) -> None:
+    """The streaming plan of :func:`spiral` under G64 P0.001 alone and with Q0.001 (LinuxCNC's merge of
+    nearly collinear short G1 blocks), at the default look-ahead and at 200: blocks per second, spans and the
+    planned duration."""
+    from contouring_ros.core.feed_planning import LOOKAHEAD_BLOCKS
+    from contouring_ros.core.feed_stream import stream_program
+    for q in ("", "0.001"):
+        for window in (LOOKAHEAD_BLOCKS, 200):
+            start = time.perf_counter()
+            plan = stream_program(iter(spiral(chords, q).splitlines()), 2, acceleration=1.0, jerk=10.0,
+                                  lookahead_blocks=window)
+            count = 0
+            for span in plan.spans():
+                count += 1
+            total = time.perf_counter() - start
+            print(f"{chords} rounded chords, G64 P0.001{' Q' + q if q else ''}, look-ahead {window}: "
+                  f"{chords / total:,.0f} blocks/s ({total:.1f} s), {count} spans, planned duration "
+                  f"{span.end_time + plan.end_hold:.3f} s", flush=True)
+
+
 def windows() -> None:
     """The planned duration of the streaming plan with a look-ahead of W tool-path stretches (schedule key
     lookahead_blocks) against the whole program's plan, on the example part (config/gcode_example_part.yaml's
@@ -173,6 +205,9 @@ if __name__ == "__main__":
         raise SystemExit(0)
     if sys.argv[1:] == ["--merge"]:
         merges()
+        raise SystemExit(0)
+    if sys.argv[1:2] == ["--rounded"]:
+        rounded(int(float(sys.argv[2])) if len(sys.argv) > 2 else 10000)
         raise SystemExit(0)
     if sys.argv[1:2] == ["--stages"]:
         stages(int(float(sys.argv[2])) if len(sys.argv) > 2 else 20000)

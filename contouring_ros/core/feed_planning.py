@@ -40,53 +40,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from .curves import ToolPath
+from .lookahead import WindowChain
+from .scurve import SPARE, reach, scurve_distance, scurve_time
 
 __all__ = ["FeedPlan", "BlockLimit", "LimitBounds", "block_limits", "span_profile", "profile_time", "scurve_time",
            "scurve_distance", "reach", "tolerance_feed", "junction_speed", "TANGENT_COSINE", "LOOKAHEAD_BLOCKS"]
 
 TANGENT_COSINE = math.cos(1e-6)      # two blocks meet tangentially when their tangents differ by under 1 urad
-
-
-def scurve_time(dv: float, acceleration: float, jerk: float) -> float:
-    """Shortest time of a jerk-limited change of speed by ``dv`` starting and ending at zero acceleration.
-
-    The classic seven-phase S-curve (e.g. Biagiotti and Melchiorri, "Trajectory Planning for Automatic
-    Machines and Robots", Springer 2008, section 3.4): with A^2 / J <= dv the acceleration ramps up in A / J,
-    holds at A, ramps down: T = dv / A + A / J; otherwise it never reaches A: T = 2 sqrt(dv / J).
-    """
-    dv = abs(dv)
-    if dv * jerk >= acceleration * acceleration:
-        return dv / acceleration + acceleration / jerk
-    return 2.0 * math.sqrt(dv / jerk)
-
-
-def scurve_distance(v0: float, v1: float, acceleration: float, jerk: float) -> float:
-    """Distance covered by that change of speed from v0 to v1: the acceleration profile is symmetric in
-    time, so the mean speed is (v0 + v1) / 2."""
-    return 0.5 * (v0 + v1) * scurve_time(v1 - v0, acceleration, jerk)
-
-
-def reach(v0: float, length: float, cap: float, acceleration: float, jerk: float) -> float:
-    """The highest speed (at most ``cap``) a jerk-limited profile can reach from ``v0`` within ``length``.
-
-    Closed form: the speed change dv covers D = (2 v0 + dv) / 2 T(dv) (:func:`scurve_distance`). Without
-    reaching the acceleration bound (dv <= A^2 / J) T = 2 sqrt(dv / J), so x = sqrt(dv) solves the depressed
-    cubic x^3 + 2 v0 x - D sqrt(J) = 0, whose one real root is 2 sqrt(p / 3) sinh(asinh(3 q / (2 p)
-    sqrt(3 / p)) / 3) with p = 2 v0, q = D sqrt(J) (the hyperbolic form of Cardano's formula); beyond it
-    T = dv / A + A / J and dv solves the quadratic dv^2 / A + dv (2 v0 / A + A / J) + 2 v0 A / J - 2 D = 0.
-    """
-    if cap <= v0 or scurve_distance(v0, cap, acceleration, jerk) <= length:
-        return cap
-    p, q = 2.0 * v0, length * math.sqrt(jerk)
-    if p > 0.0:
-        x = 2.0 * math.sqrt(p / 3.0) * math.sinh(math.asinh(1.5 * q / p * math.sqrt(3.0 / p)) / 3.0)
-    else:
-        x = q ** (1.0 / 3.0)
-    dv = x * x
-    if dv * jerk > acceleration * acceleration:
-        a, b, c = 1.0 / acceleration, p / acceleration + acceleration / jerk, p * acceleration / jerk - 2.0 * length
-        dv = (-b + math.sqrt(b * b - 4.0 * a * c)) / (2.0 * a)
-    return min(v0 + dv, cap)
 
 
 def junction_speed(tangent_in, tangent_out, deviation: float, acceleration: float, jerk: float,
@@ -323,9 +283,6 @@ def profile_time(trajectory, distance: float) -> float:
 #: within the range controls keep (LinuxCNC 2000 segments, TwinCAT 120-500 blocks, Heidenhain up to 5000)
 LOOKAHEAD_BLOCKS = 1000
 
-#: a span's profile is planned over this fraction of its length less, so that none overshoots its end
-SPARE = 1e-9
-
 #: the trajectories of this many spans are kept once planned (the latest ones asked for)
 CACHED_SPANS = 8
 
@@ -436,7 +393,7 @@ class FeedPlan:
         k = len(first)
         room = span_length * (1.0 - SPARE)
         if window:
-            self._windowed(v, first, starts, span_start, room, span_acc, span_jerk, window)
+            self._windowed(v, first, starts, span_start, span_acc, span_jerk, window)
         else:
             for i in range(k):                   # forward: what span i can reach from its entry speed
                 v[i + 1] = min(v[i + 1], reach(v[i], room[i], max(v[i + 1], v[i]), span_acc[i], span_jerk[i]))
@@ -459,40 +416,26 @@ class FeedPlan:
         self._times = None
 
     @staticmethod
-    def _windowed(v, first, starts, span_start, room, acc, jerk, window: int) -> None:
+    def _windowed(v, first, starts, span_start, acc, jerk, window: int) -> None:
         """Step 3's passes as a control with a look-ahead of ``window`` blocks makes them (in place on the
         boundary speeds ``v``): span i's exit speed is fixed when its entry is, seeing only the blocks
         first[i] .. first[i] + window - 1, the last of them taken to end in a stop (what is beyond is not
-        known yet). So the feed can only be lower than the whole program's plan, and each span can still
-        brake to a stop within what was seen (the next window sees more, so its limits are as high or
-        higher)."""
+        known yet), by :class:`~contouring_ros.core.lookahead.WindowChain`. So the feed can only be lower
+        than the whole program's plan, and each span can still brake to a stop within what was seen."""
         k, m = len(first), len(starts) - 1
-        safe = np.full(k + 1, np.nan)      # boundary i + 1's speed as the window of span i - 1 saw it
+        speed, span_start, acc, jerk = v.tolist(), span_start.tolist(), acc.tolist(), jerk.tolist()
+        ends = np.minimum(first + window, m)                  # the first block beyond each span's window
+        lasts = np.searchsorted(first, ends, side="left").tolist()
+        horizons = starts[ends].tolist()
+        chain, added = WindowChain(), 0
         for i in range(k):
-            v[i + 1] = min(v[i + 1], reach(v[i], room[i], max(v[i + 1], v[i]), acc[i], jerk[i]))
-            end = int(first[i]) + window                      # the first block beyond the window
-            if end >= m:                                       # the program's end is in sight
-                last, back = k, v[k]
-            else:
-                last, back = int(np.searchsorted(first, end, side="left")), 0.0
-            if last == i + 2:
-                safe[last] = back
-            for j in range(last - 1, i, -1):                   # spans i + 1 .. last - 1, from the window's end
-                seen = room[j] if j + 1 < k and first[j + 1] <= end else (starts[min(end, m)] - span_start[j]) * \
-                    (1.0 - SPARE)
-                back = min(v[j], reach(back, seen, max(v[j], back), acc[j], jerk[j]))
-                if j == i + 2:
-                    safe[j] = back
-            v[i + 1] = min(v[i + 1], back)
-            # A jerk-limited slow-down that starts and ends at zero acceleration needs more room from v to
-            # v / 3 than from v to rest: where the window now allows a speed at boundary i + 1 that span i
-            # cannot brake to from v[i], the speed the window before allowed there (from which it fixed
-            # v[i]) is kept. Only a plan entered while moving (an override) has none: it cannot be made.
-            if v[i] > reach(v[i + 1], room[i], max(v[i], v[i + 1]), acc[i], jerk[i]) * (1.0 + 1e-12):
-                if np.isnan(safe[i + 1]):
-                    raise ValueError("the entry feed cannot be brought down to the look-ahead's speed within "
-                                     "the first span")
-                v[i + 1] = min(v[i + 1], safe[i + 1])
+            last = lasts[i] if ends[i] < m else k
+            for j in range(added, last):
+                chain.add(j, speed[j], span_start[j], acc[j], jerk[j])
+            added = max(added, last)
+            stop = speed[k] if last == k else 0.0             # the program's end in sight, or the window's
+            speed[i + 1] = chain.exit_speed(i, speed[i], speed[i + 1], last, stop, horizons[i])
+        v[:] = speed
 
     def _profile(self, i: int):
         """Span i's Ruckig trajectory (the last few asked for are kept: the reference walks the spans in order,

@@ -18,13 +18,13 @@ W / 2): never faster than the whole program's plan, and within every bound.
 from __future__ import annotations
 
 import bisect
-import math
 from collections import deque
 from dataclasses import dataclass
 
 from .curves import ToolPath, segment_columns
-from .feed_planning import LOOKAHEAD_BLOCKS, SPARE, LimitBounds, profile_time, reach, span_profile
+from .feed_planning import LOOKAHEAD_BLOCKS, LimitBounds, profile_time, span_profile
 from .gcode import ProgramError, ProgramReader, merge_collinear
+from .lookahead import WindowChain
 
 __all__ = ["PlannedSpan", "StreamingPlan", "stream_program"]
 
@@ -136,65 +136,55 @@ class StreamingPlan:
 
         Span i (its first stretch ``base``) sees stretches base .. base + W - 1 (``FeedPlan._windowed``):
         forward, the exit speed span i reaches from its entry; backward, from a stop at the window's end (at
-        the path's end where that is in sight) over the spans beginning in the window, each brought to what
-        it can brake to; the exit speed the lower, kept to the previous window's where span i could not brake
-        to the new one."""
+        the path's end where that is in sight) over the spans beginning in the window
+        (:class:`~contouring_ros.core.lookahead.WindowChain`)."""
         window = self.window
         buffer, previous = deque(), None          # the stretches from the current span's first on
+        firsts = deque()                          # the stretch numbers where the spans read so far begin
+        chain, sighted = WindowChain(), 0         # spans handed to the chain (those beginning in a window)
         ended, base = False, 0                    # base: the number of buffer[0]
-        v_entry, safe, t, index = 0.0, math.nan, 0.0, 0
+        v_entry, t, index = 0.0, 0.0, 0
         while True:
             while not ended and self.blocks_read <= base + window:         # stretches base .. base + W
                 if self._read(buffer, previous):
                     previous = buffer[-1]
+                    if previous[5]:
+                        firsts.append(self.blocks_read - 1)
                 else:
                     ended = True                  # the path's end is in the window
                     self.end_hold = buffer[-1][1].dwell if buffer else 0.0
             if not buffer:
                 return
-            view = len(buffer) if ended else window          # stretches in the window
-            firsts = [0] + [n for n in range(1, view) if buffer[n][5]]     # spans beginning in it
-            count = len(firsts)
+            end = base + (len(buffer) if ended else window)            # the first stretch beyond the window
+            while sighted - index < len(firsts) and firsts[sighted - index] < end:
+                record = buffer[firsts[sighted - index] - base]
+                chain.add(sighted, record[3], record[1].start, record[2].acceleration, record[2].jerk)
+                sighted += 1
             if ended:
                 tail = buffer[-1][1]
                 horizon = tail.start + tail.length           # where the window's stop is: the path's end
             else:
                 horizon = buffer[window][1].start            # the start of the first stretch beyond it
-            starts = [buffer[n][1].start for n in firsts] + [horizon]
-            head = buffer[0]
-            acc, jerk, cap = head[2].acceleration, head[2].jerk, head[2].feed
-            length = starts[1] - starts[0]
-            room = length * (1.0 - SPARE)
-            if count > 1:
-                v_next, stop = buffer[firsts[1]][3], firsts[1]
+            stop = firsts[1] - base if len(firsts) > 1 else len(buffer)      # the stretches of span i
+            if sighted > index + 1:
+                corner = buffer[stop][3]
             else:
-                v_next, stop = (0.0, len(buffer)) if ended else (buffer[window][3], window)
-            v_next = min(v_next, reach(v_entry, room, max(v_next, v_entry), acc, jerk))
-            back = 0.0
-            safe_next = back if count == 2 else math.nan
-            for j in range(count - 1, 0, -1):
-                record = buffer[firsts[j]]
-                seen = (starts[j + 1] - starts[j]) * (1.0 - SPARE)
-                v_j = v_next if j == 1 else record[3]
-                back = min(v_j, reach(back, seen, max(v_j, back), record[2].acceleration, record[2].jerk))
-                if j == 2:
-                    safe_next = back
-            v_next = min(v_next, back)
-            if v_entry > reach(v_next, room, max(v_entry, v_next), acc, jerk) * (1.0 + 1e-12):
-                if math.isnan(safe):
-                    raise ValueError("the entry feed cannot be brought down to the look-ahead's speed within the "
-                                     "first span")
-                v_next = min(v_next, safe)
+                corner = 0.0 if ended else buffer[window][3]
+            head = buffer[0]
+            v_next = chain.exit_speed(index, v_entry, corner, sighted, 0.0, horizon)
+            length = (buffer[stop][1].start if stop < len(buffer) else horizon) - head[1].start
             stretches = tuple((buffer[n][0], buffer[n][1]) for n in range(stop))
-            trajectory = span_profile(v_entry, v_next, length, cap, acc, jerk, head[1].line)
-            yield PlannedSpan(index, base, starts[0], length, t, head[4], v_entry, v_next, cap, acc, jerk,
-                              trajectory, stretches)
+            trajectory = span_profile(v_entry, v_next, length, head[2].feed, head[2].acceleration,
+                                      head[2].jerk, head[1].line)
+            yield PlannedSpan(index, base, head[1].start, length, t, head[4], v_entry, v_next, head[2].feed,
+                              head[2].acceleration, head[2].jerk, trajectory, stretches)
             t = t + (head[4] + trajectory.duration)
             for _ in range(stop):
                 buffer.popleft()
+            firsts.popleft()
             base += stop
             index += 1
-            v_entry, safe = v_next, safe_next
+            v_entry = v_next
 
     def samples(self, sample_time: float):
         """The reference every ``sample_time`` s from t = 0 (a generator of (t, theta, theta_dot, theta_ddot,

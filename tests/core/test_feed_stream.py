@@ -26,6 +26,17 @@ def chord_circle(chords: int, radius_mm: float = 10.0) -> str:
     return "\n".join(rows) + "\n"
 
 
+def cam_spiral(chords: int, decimals: int = 4) -> str:
+    """A spiral of 5 um G1 chords at F1200 under G64 P0.001, its coordinates rounded as a CAM system writes
+    them: the rounding turns each chord by up to tens of milliradians, so every chord is a span of its own,
+    at a junction speed of its own."""
+    rows, radius, angle = ["G21 G90 G17 G64 P0.001", "G1 X10 Y0 F1200"], 10.0, 0.0
+    for _ in range(chords):
+        angle, radius = angle + 0.005 / radius, radius + 1e-6
+        rows.append(f"X{radius * math.cos(angle):.{decimals}f} Y{radius * math.sin(angle):.{decimals}f}")
+    return "\n".join(rows) + "\n"
+
+
 #: path control of every kind: G64 P with Q merging, a dwell, G9, an arc, a rapid, exact stop, feed changes
 MIXED = """%
 G21 G90 G64 P0.01 Q0.005
@@ -53,7 +64,8 @@ def stream(text, dimension, window, **bounds):
 
 
 @pytest.mark.parametrize("text, dimension, window", [(chord_circle(720), 2, 50), (chord_circle(720), 2, 7),
-                                                     (PART, 3, 2), (PART, 3, 4), (MIXED, 2, 3), (MIXED, 2, 6)])
+                                                     (PART, 3, 2), (PART, 3, 4), (MIXED, 2, 3), (MIXED, 2, 6),
+                                                     (cam_spiral(600), 2, 50), (cam_spiral(600), 2, 20)])
 def test_the_stream_is_the_windowed_plan_span_for_span_and_sample_for_sample(text, dimension, window):
     path = ToolPath.from_program(parse_program(text))
     assert window < len(path.blocks)              # FeedPlan windows only a shorter look-ahead than the path
@@ -76,11 +88,14 @@ def test_the_stream_is_the_windowed_plan_span_for_span_and_sample_for_sample(tex
 
 @pytest.mark.parametrize("text, dimension, windows, slower", [(chord_circle(720), 2, (4, 20, 100, 400, 2000), True),
                                                               (PART, 3, (2, 4, 8), False),
-                                                              (MIXED, 2, (2, 5, 40), None)])
+                                                              (MIXED, 2, (2, 5, 40), None),
+                                                              (cam_spiral(600), 2, (20, 50, 200), True)])
 def test_the_window_is_never_faster_than_the_whole_plan_block_by_block_and_holds_every_bound(text, dimension,
                                                                                             windows, slower):
     """The chord circle's short windows are slower (they brake for a stop they cannot see past); the example
-    part stops at every corner (G61), so no window changes its plan."""
+    part stops at every corner (G61), so no window changes its plan. On the rounded spiral a window that sees
+    further can allow a lower speed at a boundary than the one before (a jerk-limited slow-down is not
+    monotone in its distance): the feed keeps to the plan it was fixed from, never reversing."""
     path = ToolPath.from_program(parse_program(text))
     whole = FeedPlan(path, **BOUNDS)
     whole_times = np.diff(whole.block_times)
