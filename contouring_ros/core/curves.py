@@ -513,6 +513,7 @@ class ToolPath(Curve):
     #: (:mod:`contouring_ros.core.batch`)
     batchable = True
     batch_shared = ("segments", "blocks", "program")
+    batch_kept = ("_table",)          # the segments as arrays, made from them alone (_tables)
 
     dimension = 2
     dwell = 0.0            # [s] G4 before the first motion
@@ -637,12 +638,72 @@ class ToolPath(Curve):
         if (index == first).all():       # all on one segment (a batch's members mostly are): no masks
             out = self._segment_array(first, flat - self._starts[first])
         else:
-            out = [np.empty((flat.size, self.dimension)) for _ in range(4)]
-            for i in np.unique(index):       # each segment's points at once
-                inside = index == i
-                for j, rows in enumerate(self._segment_array(int(i), flat[inside] - self._starts[i])):
-                    out[j][inside] = rows
+            out = self._segments_array(index, flat - self._starts[index])
         return [tuple(out[j][:, c].reshape(shape) for c in range(self.dimension)) for j in range(4)]
+
+    def _segments_array(self, index: np.ndarray, u: np.ndarray) -> list:
+        """:meth:`_segment_array` of each distance ``u`` into its own segment ``index``, the segments of a
+        kind at once (elementwise the same arithmetic): 4 arrays of shape (len(u), dim)."""
+        table = vars(self).get("_table") or self._tables()
+        out = [np.zeros((u.size, self.dimension)) for _ in range(4)]
+        kinds = table["kind"][index]
+        for kind, rows in table.items():
+            if kind == "kind":
+                continue
+            inside = np.flatnonzero(kinds == rows["code"])
+            if not inside.size:
+                continue
+            slot, x = rows["slot"][index[inside]], u[inside]
+            if kind == "line":
+                out[0][inside] = rows["origin"][slot] + x[:, None] * rows["direction"][slot]
+                out[1][inside] = rows["direction"][slot]
+            elif kind == "helix":
+                e1, e2, w = rows["e1"][slot], rows["e2"][slot], rows["w"][slot]
+                radius, rho, turn = rows["radius"][slot, None], rows["rho"][slot, None], rows["turn"][slot, None]
+                a = rows["a0"][slot, None] + turn * x[:, None] / rho
+                c, si = _cos(a), _sin(a)
+                k1, k2, k3 = radius * turn / rho, radius / rho**2, radius * turn / rho**3
+                out[0][inside] = rows["origin"][slot] + radius * (c * e1 + si * e2) + w * x[:, None]
+                out[1][inside] = k1 * (c * e2 - si * e1) + w
+                out[2][inside] = -k2 * (c * e1 + si * e2)
+                out[3][inside] = k3 * (si * e1 - c * e2)
+            else:
+                radius, turn, centre = rows["radius"][slot], rows["turn"][slot], rows["origin"][slot]
+                a = rows["a0"][slot] + turn * x / radius
+                c, si = _cos(a), _sin(a)
+                out[0][inside] = np.column_stack([centre[:, 0] + radius * c, centre[:, 1] + radius * si])
+                out[1][inside] = np.column_stack([-turn * si, turn * c])
+                out[2][inside] = np.column_stack([-c / radius, -si / radius])
+                out[3][inside] = np.column_stack([turn * si / radius**2, -turn * c / radius**2])
+        return out
+
+    def _tables(self) -> dict:
+        """The segments' numbers by kind as arrays (made once, for :meth:`_segments_array`): per kind its
+        code, each segment's slot in the kind's rows, and the rows."""
+        kinds = ("line", "helix", "arc")
+        codes = np.array([kinds.index(segment[0]) for segment in self.segments], dtype=np.int8)
+        table = {"kind": codes}
+        for code, kind in enumerate(kinds):
+            members = np.flatnonzero(codes == code)
+            if not members.size:
+                continue
+            slot = np.zeros(len(self.segments), dtype=np.intp)
+            slot[members] = np.arange(members.size)
+            chosen = [self.segments[i] for i in members]
+            rows = {"code": code, "slot": slot, "origin": np.array([seg[1] for seg in chosen], dtype=float)}
+            if kind == "line":
+                rows["direction"] = np.array([seg[2] for seg in chosen], dtype=float)
+            else:
+                rows.update(radius=np.array([seg[3] for seg in chosen], dtype=float),
+                            a0=np.array([seg[4] for seg in chosen], dtype=float),
+                            turn=np.array([seg[5] for seg in chosen], dtype=float))
+            if kind == "helix":
+                for k, name in enumerate(("e1", "e2", "w")):
+                    rows[name] = np.array([seg[2][k] for seg in chosen], dtype=float)
+                rows["rho"] = np.array([seg[2][3] for seg in chosen], dtype=float)
+            table[kind] = rows
+        self._table = table
+        return table
 
     def _segment_array(self, i: int, u: np.ndarray) -> list:
         """:meth:`_segment` for an array of distances ``u`` into segment i: 4 arrays of shape (len(u), dim)."""

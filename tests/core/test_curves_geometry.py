@@ -5,6 +5,7 @@ from numpy.testing import assert_allclose
 
 from contouring_ros.core.curves import (Butterfly, Circle, Ellipse, FigureEight, Helix, Line, Parabola, Saddle,
                                        SplineCurve, ToolPath)
+from contouring_ros.core.gcode import parse_program
 from contouring_ros.core.geometry import ExactContourError, curvature, frenet_frame
 
 
@@ -115,6 +116,20 @@ def test_spline_passes_through_its_points_at_their_chord_lengths():
     closed = SplineCurve(points, closed=True)
     assert closed.closed and closed.domain[1] > spline.domain[1]
     assert_allclose(closed.derivatives(closed.domain[1], 2), closed.derivatives(0.0, 2), atol=1e-9)
+
+
+@pytest.mark.parametrize("path", [
+    ToolPath([0.0, 0.0], ["G1 X0.05 Y0", "G3 X0.08 Y0.03 I0 J0.03", "G1 X0.08 Y0.06", "G2 X0.1 Y0.06 I0.01 J0"]),
+    ToolPath.from_program(parse_program("G21 G64 P0.01 G1 X10 Y0 F600\nX12 Y3\nG3 X14 Y5 Z2 I2 J0\nG1 X9 Y9 Z0\n"
+                                        "X0 Y4\n"), blend_tolerance=0.01)], ids=["inline", "program"])
+def test_a_tool_path_s_columns_over_many_segments_are_each_point_s_own(path):
+    """An array of parameters across every segment (lines, arcs, a helix, blends; the exact contour error's
+    Newton steps ask for all samples at once) gives each point's own numbers bit for bit."""
+    theta = np.random.default_rng(3).uniform(*path.domain, 500)
+    columns = path.derivatives(theta, order=3)
+    assert len({segment[0] for segment in path.segments}) == 2 and len(path.segments) >= 4
+    for k, value in enumerate(theta):
+        np.testing.assert_array_equal(columns[:, k, :], path.derivatives(float(value), order=3))
 
 
 def test_tool_path_of_lines_and_arcs():
