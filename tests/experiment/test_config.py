@@ -1,6 +1,7 @@
 """Malformed experiment files fail at once with one line naming the key."""
 import re
 
+import numpy as np
 import pytest
 
 from contouring_ros.config import load_experiment, parse_experiment
@@ -190,3 +191,31 @@ def test_a_controller_entry_must_say_needs_state_as_its_object_does(monkeypatch)
     monkeypatch.setitem(CONTROLLERS._entries, "needs_state_plugin",
                         Entry("needs_state_plugin", {}, lambda s, c: NeedsState(), origin="a_plugin", needs_state=True))
     assert build_controller(experiment, build_curve(experiment)).needs_state
+
+
+def test_a_part_program_is_made_a_tool_path_once_per_load_and_again_once_changed(tmp_path, monkeypatch):
+    """Loading an experiment checks its curve and then builds it: a part program is read and made a tool path
+    once (a program of many blocks takes seconds to read), each caller gets its own copy, and an edited file
+    is read again."""
+    import os
+
+    from contouring_ros.core import curves
+    from contouring_ros.experiment.build import build_loop
+    made = []
+    original = curves.ToolPath.from_program.__func__
+    monkeypatch.setattr(curves.ToolPath, "from_program",
+                        classmethod(lambda cls, *a, **k: made.append(1) or original(cls, *a, **k)))
+    program = tmp_path / "part.ngc"
+    program.write_text("G21 G90 G61\nG1 X5 Y0 F600\nX5 Y5\n")
+    config = tmp_path / "part.yaml"
+    config.write_text((CONFIG / "gcode_example_part.yaml").read_text().replace("parts/example_part.ngc", "part.ngc")
+                      .replace('axes: ["x", "y", "z"]', 'axes: ["x", "y"]'))
+    config.write_text(re.sub(r"/z/\w+:\n  ros__parameters: \{[^}]*\}\n", "", config.read_text()))
+    first = build_loop(load_experiment(str(config)))
+    assert len(made) == 1
+    second = build_loop(load_experiment(str(config)))
+    assert len(made) == 1 and second.curve is not first.curve and second.curve.segments is first.curve.segments
+    program.write_text("G21 G90 G61\nG1 X6 Y0 F600\nX6 Y6\n")
+    os.utime(program, ns=(program.stat().st_atime_ns, program.stat().st_mtime_ns + 10**9))
+    third = build_loop(load_experiment(str(config)))
+    assert len(made) == 2 and np.allclose(third.curve.point(third.curve.domain[1]), [0.006, 0.006])

@@ -2,6 +2,9 @@
 ``contour_error_window``, the half-width of the exact contour error's search."""
 from __future__ import annotations
 
+import copy
+import threading
+from collections import OrderedDict
 from pathlib import Path
 
 import numpy as np
@@ -43,6 +46,14 @@ def _spline(s, context):
     return curves.SplineCurve(np.column_stack(coordinates), s["closed"])
 
 
+#: the tool paths of the last few part programs read (by file, its size and time, and the options), so an
+#: experiment's program is read and made a tool path once though its loading checks the curve and then
+#: builds it; each caller gets its own shallow copy (attributes of its own, the segments and blocks shared)
+KEPT_TOOL_PATHS = 2
+_tool_paths = OrderedDict()
+_tool_paths_lock = threading.Lock()
+
+
 def _gcode(s, context):
     """A part program's tool path; ``file`` is read relative to the experiment file (then the scenario
     directory, then the working directory)."""
@@ -52,6 +63,27 @@ def _gcode(s, context):
     if path is None:
         raise ValueError(f"file: cannot find the part program {s['file']!r} (relative paths are read from the "
                          "experiment file's directory)")
+    try:
+        stat = path.stat()
+        key = (str(path.resolve()), stat.st_size, stat.st_mtime_ns, tuple(s["start"]), s["strict"],
+               s["blend_tolerance"])
+    except OSError:
+        key = None
+    with _tool_paths_lock:
+        kept = _tool_paths.get(key) if key else None
+    if kept is not None:
+        return copy.copy(kept)
+    tool_path = _read_tool_path(s, path)
+    if key is not None:
+        with _tool_paths_lock:
+            _tool_paths[key] = tool_path
+            while len(_tool_paths) > KEPT_TOOL_PATHS:
+                _tool_paths.popitem(last=False)
+    return copy.copy(tool_path)
+
+
+def _read_tool_path(s, path: Path):
+    """The tool path of the part program at ``path`` (ValueError naming the file where it cannot be made)."""
     raw = _read_file(path, _printable(path), MAX_PROGRAM_BYTES, "a part program is a text file")
     try:
         text = raw.decode("utf-8")
