@@ -17,7 +17,9 @@ parameter is s itself: theta = s, theta_dot = v (the feed), theta_ddot = dv/dt.
    arc tangent to both blocks that passes within P of the corner.
 3. Spans: consecutive blocks with the same limits, meeting at junctions that allow their whole feed, are
    one span (a polygon of short chords at one F is one span), so the feed is not brought to zero
-   acceleration at every short block; the look-ahead runs on spans: a forward and a backward pass lower
+   acceleration at every short block; so is a block whose own feed is higher than the span's but too short
+   to use it (:func:`joins_span`: the blend arcs and chords of a CAM program's rounded coordinates, each at a
+   feed of its own); the look-ahead runs on spans: a forward and a backward pass lower
    each span boundary's speed to what a jerk-limited profile can reach from its neighbour within the span
    (:func:`reach`, in closed form). Both passes are linear in the number of blocks. With a look-ahead of W
    blocks (``lookahead_blocks``, a control's block queue) spans are at most W / 2 blocks and each span's
@@ -43,7 +45,7 @@ from .curves import ToolPath
 from .lookahead import WindowChain
 from .scurve import SPARE, reach, scurve_distance, scurve_time
 
-__all__ = ["FeedPlan", "BlockLimit", "LimitBounds", "block_limits", "span_profile", "profile_time", "scurve_time",
+__all__ = ["FeedPlan", "BlockLimit", "LimitBounds", "block_limits", "joins_span", "span_profile", "profile_time", "scurve_time",
            "scurve_distance", "reach", "tolerance_feed", "junction_speed", "TANGENT_COSINE", "LOOKAHEAD_BLOCKS"]
 
 TANGENT_COSINE = math.cos(1e-6)      # two blocks meet tangentially when their tangents differ by under 1 urad
@@ -212,6 +214,25 @@ class LimitBounds:
             self.axis_acceleration, self.axis_jerk))
 
 
+#: a block that could not rise more than this fraction above a span's feed within its own length runs on in
+#: that span though its own feed is higher (:func:`joins_span`)
+SHORT_BLOCK_GAIN = 0.01
+
+
+def joins_span(limit: BlockLimit, head: BlockLimit, corner: float, hold: float, length: float) -> bool:
+    """Whether a block runs on in the span before it (step 3), one profile bounded by the span's first
+    block's feed ``head.feed``: where nothing holds between them, the bounds along the path are the same, the
+    junction allows the span's feed (``corner``), and the block's own feed is the span's or higher but the
+    block too short to use it: a jerk-limited rise from the span's feed within its ``length`` gains at most
+    :data:`SHORT_BLOCK_GAIN` (a CAM program's short chords and the blend arcs between them, each at a feed of
+    its own; as spans of their own each profile would start and end at zero acceleration, and the feed could
+    barely change over them)."""
+    if hold != 0.0 or limit.acceleration != head.acceleration or limit.jerk != head.jerk or corner < head.feed:
+        return False
+    return limit.feed == head.feed or (limit.feed > head.feed and reach(
+        head.feed, length, limit.feed, head.acceleration, head.jerk) <= (1.0 + SHORT_BLOCK_GAIN) * head.feed)
+
+
 class _PathFrom:
     """The blocks of a tool path from arc length ``theta`` on (the block holding it cut there, its tangent
     taken at theta), in the path's own arc length: what :meth:`FeedPlan.rest_of_path` plans."""
@@ -370,12 +391,9 @@ class FeedPlan:
             corner[i] = bounds.corner(before, after, self.limits[i - 1], self.limits[i])
             if corner[i] == 0.0:
                 hold[i] += float(dwell)
-        # spans: blocks of equal limits joined where the junction allows their whole feed and nothing holds
-        joined = (feed[1:] == feed[:-1]) & (acc[1:] == acc[:-1]) & (jer[1:] == jer[:-1]) & \
-            (corner[1:m] >= feed[1:]) & (hold[1:m] == 0.0)
-        first = np.concatenate([[0], np.flatnonzero(~joined) + 1])           # each span's first block
         window = int(lookahead_blocks) if 0 < lookahead_blocks < m else 0
         starts = np.array([block.start for block in blocks] + [self.theta_end])
+        split_at = set()
         if window:            # spans of at most half the window: at least half a window is seen beyond each
             splits = np.arange(0, m, max(1, window // 2))
             if self.entry[0] > feed[0]:
@@ -385,10 +403,21 @@ class FeedPlan:
                 v_peak = self.entry[0] + max(self.entry[1], 0.0) ** 2 / (2.0 * jer[0])
                 down = v_peak * max(self.entry[1], 0.0) / jer[0] + scurve_distance(feed[0], v_peak, acc[0], jer[0])
                 splits = splits[(splits == 0) | (starts[splits] - starts[0] > 2.0 * down)]
-            first = np.union1d(first, splits)
+            split_at = set(splits.tolist())
+        # spans (step 3): each block runs on in the span before it where joins_span says so
+        first, head, caps = [0], self.limits[0], [feed[0]]
+        for b in range(1, m):
+            joins = joins_span(self.limits[b], head, float(corner[b]), float(hold[b]), blocks[b].length)
+            if b in split_at or not joins:
+                corner[b] = min(corner[b], head.feed)     # no span leaves above its own feed
+                first.append(b)
+                if not joins:                             # (split by the window, it keeps the span's feed)
+                    head = self.limits[b]
+                caps.append(head.feed)
+        first = np.array(first)
         span_start = starts[first]
         span_length = np.append(span_start[1:], self.theta_end) - span_start
-        cap, span_acc, span_jerk = feed[first], acc[first], jer[first]
+        cap, span_acc, span_jerk = np.array(caps), acc[first], jer[first]
         v = corner[np.append(first, m)]
         k = len(first)
         room = span_length * (1.0 - SPARE)

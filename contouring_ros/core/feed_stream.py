@@ -22,7 +22,7 @@ from collections import deque
 from dataclasses import dataclass
 
 from .curves import ToolPath, segment_columns
-from .feed_planning import LOOKAHEAD_BLOCKS, LimitBounds, profile_time, span_profile
+from .feed_planning import LOOKAHEAD_BLOCKS, LimitBounds, joins_span, profile_time, span_profile
 from .gcode import ProgramError, ProgramReader, merge_collinear
 from .lookahead import WindowChain
 
@@ -109,8 +109,8 @@ class StreamingPlan:
         self.end_hold = 0.0           # [s] the last stretch's dwell (known once the stream has ended)
 
     def _read(self, buffer: deque, previous):
-        """Read one stretch into ``buffer`` as [pair, block, limit, corner, hold, starts_span]; False at the
-        stream's end."""
+        """Read one stretch into ``buffer`` as [pair, block, limit, corner, hold, starts_span, span's feed]; False
+        at the stream's end."""
         try:
             pair, block = next(self._source)
         except StopIteration:
@@ -124,10 +124,15 @@ class StreamingPlan:
             _, before, before_limit, *_ = previous
             corner = self.bounds.corner(before, block, before_limit, limit)
             hold = before.dwell + (self.dwell if corner == 0.0 else 0.0)
-            joined = (limit.feed == before_limit.feed and limit.acceleration == before_limit.acceleration
-                      and limit.jerk == before_limit.jerk and corner >= limit.feed and hold == 0.0)
-            starts = not joined or b % max(1, self.window // 2) == 0
-        buffer.append([pair, block, limit, corner, hold, starts])
+            joins = joins_span(limit, self._head, corner, hold, block.length)
+            starts = not joins or b % max(1, self.window // 2) == 0
+            if starts:
+                corner = min(corner, self._head.feed)        # no span leaves above its own feed
+            if not joins:                 # a new span's feed (split by the window, it keeps the span's)
+                self._head = limit
+        if previous is None:
+            self._head = limit
+        buffer.append([pair, block, limit, corner, hold, starts, self._head.feed])
         self.blocks_read = b + 1
         return True
 
@@ -174,9 +179,9 @@ class StreamingPlan:
             v_next = chain.exit_speed(index, v_entry, corner, sighted, 0.0, horizon)
             length = (buffer[stop][1].start if stop < len(buffer) else horizon) - head[1].start
             stretches = tuple((buffer[n][0], buffer[n][1]) for n in range(stop))
-            trajectory = span_profile(v_entry, v_next, length, head[2].feed, head[2].acceleration,
-                                      head[2].jerk, head[1].line)
-            yield PlannedSpan(index, base, head[1].start, length, t, head[4], v_entry, v_next, head[2].feed,
+            trajectory = span_profile(v_entry, v_next, length, head[6], head[2].acceleration, head[2].jerk,
+                                      head[1].line)
+            yield PlannedSpan(index, base, head[1].start, length, t, head[4], v_entry, v_next, head[6],
                               head[2].acceleration, head[2].jerk, trajectory, stretches)
             t = t + (head[4] + trajectory.duration)
             for _ in range(stop):

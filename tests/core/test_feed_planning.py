@@ -9,8 +9,8 @@ import pytest
 from contouring_ros import notices
 from contouring_ros.config import build_loop, load_experiment
 from contouring_ros.core.curves import ToolPath
-from contouring_ros.core.feed_planning import (FeedPlan, junction_speed, reach, scurve_distance, scurve_time,
-                                                  tolerance_feed)
+from contouring_ros.core.feed_planning import (BlockLimit, FeedPlan, joins_span, junction_speed, reach,
+                                                  scurve_distance, scurve_time, tolerance_feed)
 from contouring_ros.core.gcode import parse_program
 from contouring_ros.core.geometry import ExactContourError
 from contouring_ros.core.simulation import simulate
@@ -622,3 +622,37 @@ def test_a_plan_entered_while_moving_comes_down_to_the_new_feed_within_the_bound
         assert np.abs(np.diff(acc) / DT).max() <= 10.0 * (1 + 1e-6)
         down = t > 0.2                                  # 0.1 s to end the acceleration, < 0.1 s to come down
         assert v[down].max() <= 0.02 * override * (1 + 1e-9)
+
+
+def test_a_block_too_short_to_use_its_higher_feed_runs_on_in_the_span_before_it():
+    """joins_span: the same feed joins; a higher feed joins only where the block is too short to rise 1 %
+    above the span's within its length (5 um at 7.9 mm/s: by about 1e-4); a lower feed, a junction below the
+    span's feed, a hold or other bounds start a new span."""
+    head = BlockLimit(0.0079, 1.0, 10.0, "centripetal")
+    line = BlockLimit(0.02, 1.0, 10.0, "F")
+    assert joins_span(BlockLimit(0.0079, 1.0, 10.0, "F"), head, 0.0079, 0.0, 1e-3)
+    assert joins_span(line, head, 0.0079, 0.0, 5e-6)
+    assert reach(0.0079, 5e-6, 0.02, 1.0, 10.0) < 0.0079 * 1.001
+    assert not joins_span(line, head, 0.0079, 0.0, 1e-3)          # 1 mm: room to speed up
+    assert not joins_span(BlockLimit(0.007, 1.0, 10.0, "F"), head, 0.007, 0.0, 5e-6)
+    assert not joins_span(line, head, 0.0078, 0.0, 5e-6)
+    assert not joins_span(line, head, 0.0079, 0.1, 5e-6)
+    assert not joins_span(BlockLimit(0.02, 2.0, 10.0, "F"), head, 0.0079, 0.0, 5e-6)
+
+
+def test_rounded_chords_are_planned_in_long_spans_near_their_blend_arcs_feed():
+    """A CAM program's rounded chords, each meeting the next at a corner whose micron-long blend arc holds the
+    feed to its own limit: long spans (not one per block), bounded by the lowest limit within them, so the
+    mean feed is at least 60 % of the blend arcs' median limit (71 %; as one span per block, whose profiles
+    start and end at zero acceleration, it was 43 %), within every bound."""
+    from test_feed_stream import cam_spiral
+    path, whole = plan(cam_spiral(600), acceleration=1.0, jerk=10.0)
+    blends = [limit.feed for block, limit in zip(path.blocks, whole.limits) if block.kind == "blend"]
+    first = whole._span[0]
+    assert len(blends) > 300 and len(first) < len(path.blocks) / 20
+    cutting = whole.duration - whole.block_times[1]
+    assert (path.domain[1] - path.blocks[1].start) / cutting >= 0.6 * float(np.median(blends))
+    theta, feed, rate = whole(np.arange(0.0, whole.duration, DT))
+    block = np.clip(np.searchsorted([b.start for b in path.blocks], theta, side="right") - 1, 0, None)
+    assert (feed <= np.array([limit.feed for limit in whole.limits])[block] * (1 + 1e-9) + 1e-12).all()
+    assert np.abs(rate).max() <= 1.0 * (1 + 1e-9) and np.all(np.diff(theta) >= 0.0)
