@@ -215,22 +215,31 @@ class LimitBounds:
 
 
 #: a block that could not rise more than this fraction above a span's feed within its own length runs on in
-#: that span though its own feed is higher (:func:`joins_span`)
+#: that span though its own feed is higher (:func:`joins_span`) ...
 SHORT_BLOCK_GAIN = 0.01
 
+#: ... while the span is shorter than a jerk-limited rise of this fraction above its feed would take
+SHORT_RUN_GAIN = 0.1
 
-def joins_span(limit: BlockLimit, head: BlockLimit, corner: float, hold: float, length: float) -> bool:
+
+def joins_span(limit: BlockLimit, head: BlockLimit, corner: float, hold: float, length: float,
+               into: float) -> bool:
     """Whether a block runs on in the span before it (step 3), one profile bounded by the span's first
-    block's feed ``head.feed``: where nothing holds between them, the bounds along the path are the same, the
-    junction allows the span's feed (``corner``), and the block's own feed is the span's or higher but the
-    block too short to use it: a jerk-limited rise from the span's feed within its ``length`` gains at most
-    :data:`SHORT_BLOCK_GAIN` (a CAM program's short chords and the blend arcs between them, each at a feed of
-    its own; as spans of their own each profile would start and end at zero acceleration, and the feed could
-    barely change over them)."""
+    block's feed ``head.feed``: where nothing holds between them, the bounds along the path are the same and
+    the junction allows the span's feed (``corner``), a block of the span's feed; and a block whose own feed
+    is higher but which is too short to use it (a jerk-limited rise from the span's feed within its
+    ``length`` gains at most :data:`SHORT_BLOCK_GAIN`: the chords and micron-long blend arcs of a CAM
+    program's rounded coordinates, each at a feed of its own), while the span, ``into`` its start at the
+    block's, stays shorter than a rise by :data:`SHORT_RUN_GAIN` takes. As spans of their own, such blocks'
+    profiles would each start and end at zero acceleration and the feed could barely change over them; as
+    one span without end, a span's feed would hold the lowest block's all the way."""
     if hold != 0.0 or limit.acceleration != head.acceleration or limit.jerk != head.jerk or corner < head.feed:
         return False
-    return limit.feed == head.feed or (limit.feed > head.feed and reach(
-        head.feed, length, limit.feed, head.acceleration, head.jerk) <= (1.0 + SHORT_BLOCK_GAIN) * head.feed)
+    if limit.feed == head.feed:
+        return True
+    v, a, j = head.feed, head.acceleration, head.jerk
+    return (limit.feed > v and reach(v, length, limit.feed, a, j) <= (1.0 + SHORT_BLOCK_GAIN) * v and
+            into + length <= scurve_distance(v, (1.0 + SHORT_RUN_GAIN) * v, a, j))
 
 
 class _PathFrom:
@@ -405,14 +414,15 @@ class FeedPlan:
                 splits = splits[(splits == 0) | (starts[splits] - starts[0] > 2.0 * down)]
             split_at = set(splits.tolist())
         # spans (step 3): each block runs on in the span before it where joins_span says so
-        first, head, caps = [0], self.limits[0], [feed[0]]
+        first, head, head_start, caps = [0], self.limits[0], blocks[0].start, [feed[0]]
         for b in range(1, m):
-            joins = joins_span(self.limits[b], head, float(corner[b]), float(hold[b]), blocks[b].length)
+            joins = joins_span(self.limits[b], head, float(corner[b]), float(hold[b]), blocks[b].length,
+                               blocks[b].start - head_start)
             if b in split_at or not joins:
                 corner[b] = min(corner[b], head.feed)     # no span leaves above its own feed
                 first.append(b)
                 if not joins:                             # (split by the window, it keeps the span's feed)
-                    head = self.limits[b]
+                    head, head_start = self.limits[b], blocks[b].start
                 caps.append(head.feed)
         first = np.array(first)
         span_start = starts[first]

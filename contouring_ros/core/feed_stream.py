@@ -124,14 +124,12 @@ class StreamingPlan:
             _, before, before_limit, *_ = previous
             corner = self.bounds.corner(before, block, before_limit, limit)
             hold = before.dwell + (self.dwell if corner == 0.0 else 0.0)
-            joins = joins_span(limit, self._head, corner, hold, block.length)
+            joins = joins_span(limit, self._head, corner, hold, block.length, block.start - self._head_start)
             starts = not joins or b % max(1, self.window // 2) == 0
             if starts:
                 corner = min(corner, self._head.feed)        # no span leaves above its own feed
-            if not joins:                 # a new span's feed (split by the window, it keeps the span's)
-                self._head = limit
-        if previous is None:
-            self._head = limit
+        if previous is None or not joins:    # a new span's feed (split by the window, it keeps the span's)
+            self._head, self._head_start = limit, block.start
         buffer.append([pair, block, limit, corner, hold, starts, self._head.feed])
         self.blocks_read = b + 1
         return True

@@ -626,30 +626,33 @@ def test_a_plan_entered_while_moving_comes_down_to_the_new_feed_within_the_bound
 
 def test_a_block_too_short_to_use_its_higher_feed_runs_on_in_the_span_before_it():
     """joins_span: the same feed joins; a higher feed joins only where the block is too short to rise 1 %
-    above the span's within its length (5 um at 7.9 mm/s: by about 1e-4); a lower feed, a junction below the
-    span's feed, a hold or other bounds start a new span."""
+    above the span's within its length (5 um at 7.9 mm/s: by about 1e-4), and only while the span is shorter
+    than a rise by 10 % takes (147 um at 7.9 mm/s); a lower feed, a junction below the span's feed, a hold or
+    other bounds start a new span."""
     head = BlockLimit(0.0079, 1.0, 10.0, "centripetal")
     line = BlockLimit(0.02, 1.0, 10.0, "F")
-    assert joins_span(BlockLimit(0.0079, 1.0, 10.0, "F"), head, 0.0079, 0.0, 1e-3)
-    assert joins_span(line, head, 0.0079, 0.0, 5e-6)
+    assert joins_span(BlockLimit(0.0079, 1.0, 10.0, "F"), head, 0.0079, 0.0, 1e-3, 1.0)
+    assert joins_span(line, head, 0.0079, 0.0, 5e-6, 0.0)
     assert reach(0.0079, 5e-6, 0.02, 1.0, 10.0) < 0.0079 * 1.001
-    assert not joins_span(line, head, 0.0079, 0.0, 1e-3)          # 1 mm: room to speed up
-    assert not joins_span(BlockLimit(0.007, 1.0, 10.0, "F"), head, 0.007, 0.0, 5e-6)
-    assert not joins_span(line, head, 0.0078, 0.0, 5e-6)
-    assert not joins_span(line, head, 0.0079, 0.1, 5e-6)
-    assert not joins_span(BlockLimit(0.02, 2.0, 10.0, "F"), head, 0.0079, 0.0, 5e-6)
+    assert not joins_span(line, head, 0.0079, 0.0, 1e-3, 0.0)          # 1 mm: room to speed up
+    assert joins_span(line, head, 0.0079, 0.0, 5e-6, 1.4e-4) and not joins_span(line, head, 0.0079, 0.0, 5e-6, 1.5e-4)
+    assert scurve_distance(0.0079, 0.0079 * 1.1, 1.0, 10.0) == pytest.approx(1.47e-4, rel=0.01)
+    assert not joins_span(BlockLimit(0.007, 1.0, 10.0, "F"), head, 0.007, 0.0, 5e-6, 0.0)
+    assert not joins_span(line, head, 0.0078, 0.0, 5e-6, 0.0)
+    assert not joins_span(line, head, 0.0079, 0.1, 5e-6, 0.0)
+    assert not joins_span(BlockLimit(0.02, 2.0, 10.0, "F"), head, 0.0079, 0.0, 5e-6, 0.0)
 
 
 def test_rounded_chords_are_planned_in_long_spans_near_their_blend_arcs_feed():
     """A CAM program's rounded chords, each meeting the next at a corner whose micron-long blend arc holds the
     feed to its own limit: long spans (not one per block), bounded by the lowest limit within them, so the
-    mean feed is at least 60 % of the blend arcs' median limit (71 %; as one span per block, whose profiles
-    start and end at zero acceleration, it was 43 %), within every bound."""
+    mean feed is at least 60 % of the blend arcs' median limit (69 %; as one span per block, whose profiles
+    start and end at zero acceleration, it was 43 %, in 635 spans), within every bound."""
     from test_feed_stream import cam_spiral
     path, whole = plan(cam_spiral(600), acceleration=1.0, jerk=10.0)
     blends = [limit.feed for block, limit in zip(path.blocks, whole.limits) if block.kind == "blend"]
     first = whole._span[0]
-    assert len(blends) > 300 and len(first) < len(path.blocks) / 20
+    assert len(blends) > 300 and len(first) < len(path.blocks) / 10
     cutting = whole.duration - whole.block_times[1]
     assert (path.domain[1] - path.blocks[1].start) / cutting >= 0.6 * float(np.median(blends))
     theta, feed, rate = whole(np.arange(0.0, whole.duration, DT))
