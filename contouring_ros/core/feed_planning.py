@@ -24,7 +24,8 @@ parameter is s itself: theta = s, theta_dot = v (the feed), theta_ddot = dv/dt.
    (:func:`reach`, in closed form). Both passes are linear in the number of blocks. With a look-ahead of W
    blocks (``lookahead_blocks``, a control's block queue) spans are at most W / 2 blocks and each span's
    exit speed is fixed from the W blocks ahead of its start alone, the last taken to end in a stop
-   (:meth:`FeedPlan._windowed`): never faster than the whole program's plan. :mod:`.feed_stream` makes the
+   (:meth:`FeedPlan._windowed`): its duration is never shorter than the whole program's plan's (block by
+   block it can be faster, where the whole plan brakes early for a slow corner: see the README). :mod:`.feed_stream` makes the
    same plan while it reads the program, holding only the window.
 4. One time-optimal jerk-limited profile per span between its boundary speeds (zero acceleration at both
    ends, so acceleration is continuous across spans), computed by Ruckig (Berscheid and Kroeger,
@@ -286,8 +287,8 @@ def span_profile(v0: float, v1: float, length: float, cap: float, acceleration: 
     try:
         result = Ruckig(1).calculate(inp, trajectory)
     except RuckigError as error:          # no profile from this entry state (a feed override)
-        raise ValueError(f"line {line}: no jerk-limited profile for this block ({error})".splitlines()[0]) \
-            from None
+        reason = next((text.strip() for text in str(error).splitlines() if text.strip()), "no reason given")
+        raise ValueError(f"line {line}: no jerk-limited profile for this block ({reason})") from None
     if result not in (Result.Working, Result.Finished):
         raise ValueError(f"line {line}: no jerk-limited profile for this block ({result})")
     extrema = trajectory.position_extrema[0]
@@ -432,7 +433,7 @@ class FeedPlan:
         k = len(first)
         room = span_length * (1.0 - SPARE)
         if window:
-            self._windowed(v, first, starts, span_start, span_acc, span_jerk, window)
+            self._windowed(v, first, starts, span_start, room, span_acc, span_jerk, window)
         else:
             for i in range(k):                   # forward: what span i can reach from its entry speed
                 v[i + 1] = min(v[i + 1], reach(v[i], room[i], max(v[i + 1], v[i]), span_acc[i], span_jerk[i]))
@@ -455,14 +456,15 @@ class FeedPlan:
         self._times = None
 
     @staticmethod
-    def _windowed(v, first, starts, span_start, acc, jerk, window: int) -> None:
+    def _windowed(v, first, starts, span_start, room, acc, jerk, window: int) -> None:
         """Step 3's passes as a control with a look-ahead of ``window`` blocks makes them (in place on the
         boundary speeds ``v``): span i's exit speed is fixed when its entry is, seeing only the blocks
         first[i] .. first[i] + window - 1, the last of them taken to end in a stop (what is beyond is not
         known yet), by :class:`~contouring_ros.core.lookahead.WindowChain`. So the feed can only be lower
         than the whole program's plan, and each span can still brake to a stop within what was seen."""
         k, m = len(first), len(starts) - 1
-        speed, span_start, acc, jerk = v.tolist(), span_start.tolist(), acc.tolist(), jerk.tolist()
+        speed, span_start, room = v.tolist(), span_start.tolist(), room.tolist()
+        acc, jerk = acc.tolist(), jerk.tolist()
         ends = np.minimum(first + window, m)                  # the first block beyond each span's window
         lasts = np.searchsorted(first, ends, side="left").tolist()
         horizons = starts[ends].tolist()
@@ -473,7 +475,7 @@ class FeedPlan:
                 chain.add(j, speed[j], span_start[j], acc[j], jerk[j])
             added = max(added, last)
             stop = speed[k] if last == k else 0.0             # the program's end in sight, or the window's
-            speed[i + 1] = chain.exit_speed(i, speed[i], speed[i + 1], last, stop, horizons[i])
+            speed[i + 1] = chain.exit_speed(i, speed[i], speed[i + 1], room[i], last, stop, horizons[i])
         v[:] = speed
 
     def _profile(self, i: int):

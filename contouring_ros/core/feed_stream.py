@@ -13,7 +13,7 @@ ahead, so the plan holds at most those, whatever the program's length; the first
 first reference sample leaves, once the first W + 1 stretches are read. On a program of more than W
 stretches the plan it makes is ``FeedPlan(path, lookahead_blocks=W)``'s span for span and sample for sample
 (tested; on a shorter one FeedPlan plans the whole program at once, the stream still in spans of at most
-W / 2): never faster than the whole program's plan, and within every bound.
+W / 2): never shorter than the whole program's plan, and within every bound.
 """
 from __future__ import annotations
 
@@ -25,6 +25,7 @@ from .curves import ToolPath, segment_columns
 from .feed_planning import LOOKAHEAD_BLOCKS, LimitBounds, joins_span, profile_time, span_profile
 from .gcode import ProgramError, ProgramReader, merge_collinear
 from .lookahead import WindowChain
+from .scurve import SPARE
 
 __all__ = ["PlannedSpan", "StreamingPlan", "stream_program"]
 
@@ -174,8 +175,8 @@ class StreamingPlan:
             else:
                 corner = 0.0 if ended else buffer[window][3]
             head = buffer[0]
-            v_next = chain.exit_speed(index, v_entry, corner, sighted, 0.0, horizon)
             length = (buffer[stop][1].start if stop < len(buffer) else horizon) - head[1].start
+            v_next = chain.exit_speed(index, v_entry, corner, length * (1.0 - SPARE), sighted, 0.0, horizon)
             stretches = tuple((buffer[n][0], buffer[n][1]) for n in range(stop))
             trajectory = span_profile(v_entry, v_next, length, head[6], head[2].acceleration, head[2].jerk,
                                       head[1].line)

@@ -48,14 +48,15 @@ class WindowChain:
         the next span's start is) and its bounds."""
         self._span[j] = (corner, start, acceleration, jerk)
 
-    def exit_speed(self, i: int, entry: float, corner: float, last: int, stop: float, horizon: float) -> float:
+    def exit_speed(self, i: int, entry: float, corner: float, room: float, last: int, stop: float,
+                   horizon: float) -> float:
         """Span i's exit speed, entered at ``entry``: at most ``corner`` (the speed allowed at boundary
-        i + 1) and what span i reaches from its entry, and one from which the spans up to boundary ``last``
-        can come to ``stop`` there (0: the window's end or the program's), span ``last`` - 1 seen up to arc
-        length ``horizon``. ValueError where span i cannot slow down to it and no earlier window's plan
-        exists (a plan entered above its first span's feed)."""
+        i + 1) and what span i reaches from its entry within its ``room`` (its whole length less the spare,
+        though a span longer than the window is seen only in part), and one from which the spans up to
+        boundary ``last`` can come to ``stop`` there (0: the window's end or the program's), span ``last`` - 1
+        seen up to arc length ``horizon``. ValueError where span i cannot slow down to it and no earlier
+        window's plan exists (a plan entered above its first span's feed)."""
         _, start, acc, jerk = self._span[i]
-        room = self._room(i, last, horizon)
         forward = min(corner, reach(entry, room, max(corner, entry), acc, jerk))
         changed = self._backward(i, last, stop, horizon)
         v_next = min(forward, self._chain[i + 1])

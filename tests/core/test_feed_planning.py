@@ -659,3 +659,18 @@ def test_rounded_chords_are_planned_in_long_spans_near_their_blend_arcs_feed():
     block = np.clip(np.searchsorted([b.start for b in path.blocks], theta, side="right") - 1, 0, None)
     assert (feed <= np.array([limit.feed for limit in whole.limits])[block] * (1 + 1e-9) + 1e-12).all()
     assert np.abs(rate).max() <= 1.0 * (1 + 1e-9) and np.all(np.diff(theta) >= 0.0)
+
+
+def test_a_plan_entered_above_its_feed_plans_with_a_look_ahead_shorter_than_its_first_span():
+    """An override's re-plan entered above the first block's feed keeps the window's splits off the way down,
+    so its first span can be longer than the look-ahead: the span is still judged over its whole length (it
+    brakes from 5.5 to 5 mm/s within it), never slower to plan than to refuse, and never faster than the
+    whole plan entered alike."""
+    text = "G21 G90 G64 P0.01\nG1 X0.05 Y0 F300\nG1 X2.916 Y0.887\n"
+    path = ToolPath.from_program(parse_program(text))
+    whole = FeedPlan(path, 1.0, 10.0, entry=(0.0055, -0.1))
+    windowed = FeedPlan(path, 1.0, 10.0, lookahead_blocks=2, entry=(0.0055, -0.1))
+    assert windowed.duration >= whole.duration * (1 - 1e-12)
+    theta, feed, _ = windowed(np.arange(0.0, windowed.duration, DT))
+    assert np.all(np.diff(theta) >= 0.0) and feed[-1] <= 1e-6
+    assert feed[int(0.5 / DT)] <= 0.005 * (1 + 1e-9)
