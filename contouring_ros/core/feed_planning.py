@@ -25,8 +25,8 @@ parameter is s itself: theta = s, theta_dot = v (the feed), theta_ddot = dv/dt.
    blocks (``lookahead_blocks``, a control's block queue) spans are at most W / 2 blocks and each span's
    exit speed is fixed from the W blocks ahead of its start alone, the last taken to end in a stop
    (:meth:`FeedPlan._windowed`): its duration is never shorter than the whole program's plan's (block by
-   block it can be faster, where the whole plan brakes early for a slow corner: see the README). :mod:`.feed_stream` makes the
-   same plan while it reads the program, holding only the window.
+   block it can be faster, where the whole plan brakes early for a slow corner: see the README).
+   :mod:`.feed_stream` makes the same plan while it reads the program, holding only the window.
 4. One time-optimal jerk-limited profile per span between its boundary speeds (zero acceleration at both
    ends, so acceleration is continuous across spans), computed by Ruckig (Berscheid and Kroeger,
    "Jerk-limited Real-time Trajectory Generation with Arbitrary Target States", RSS 2021), bounded by the
@@ -46,8 +46,8 @@ from .curves import ToolPath
 from .lookahead import WindowChain
 from .scurve import SPARE, reach, scurve_distance, scurve_time
 
-__all__ = ["FeedPlan", "BlockLimit", "LimitBounds", "block_limits", "joins_span", "span_profile", "profile_time", "scurve_time",
-           "scurve_distance", "reach", "tolerance_feed", "junction_speed", "TANGENT_COSINE", "LOOKAHEAD_BLOCKS"]
+__all__ = ["FeedPlan", "BlockLimit", "LimitBounds", "block_limits", "joins_span", "SpanHeads", "span_profile", "profile_time",
+           "scurve_time", "scurve_distance", "reach", "tolerance_feed", "junction_speed", "TANGENT_COSINE", "LOOKAHEAD_BLOCKS"]
 
 TANGENT_COSINE = math.cos(1e-6)      # two blocks meet tangentially when their tangents differ by under 1 urad
 
@@ -243,6 +243,31 @@ def joins_span(limit: BlockLimit, head: BlockLimit, corner: float, hold: float, 
             into + length <= scurve_distance(v, (1.0 + SHORT_RUN_GAIN) * v, a, j))
 
 
+class SpanHeads:
+    """Step 3's spans as the blocks come, for the whole program's plan and the stream alike: the feed of the
+    span under way (its first block's, kept across a split the look-ahead makes) and where that span began.
+    """
+
+    def __init__(self, limit: BlockLimit, start: float):
+        self.head, self.start = limit, start
+
+    @property
+    def feed(self) -> float:
+        return self.head.feed
+
+    def next(self, limit: BlockLimit, block, corner: float, hold: float, split: bool) -> tuple:
+        """Whether ``block`` (its ``limit``, the ``corner`` speed and ``hold`` where it begins) starts a span
+        (:func:`joins_span`, or ``split``: the window's), and the corner speed, lowered where a span ends to
+        that span's feed (no span leaves above its own feed)."""
+        joins = joins_span(limit, self.head, corner, hold, block.length, block.start - self.start)
+        if joins and not split:
+            return False, corner
+        corner = min(corner, self.head.feed)
+        if not joins:
+            self.head, self.start = limit, block.start
+        return True, corner
+
+
 class _PathFrom:
     """The blocks of a tool path from arc length ``theta`` on (the block holding it cut there, its tangent
     taken at theta), in the path's own arc length: what :meth:`FeedPlan.rest_of_path` plans."""
@@ -414,17 +439,12 @@ class FeedPlan:
                 down = v_peak * max(self.entry[1], 0.0) / jer[0] + scurve_distance(feed[0], v_peak, acc[0], jer[0])
                 splits = splits[(splits == 0) | (starts[splits] - starts[0] > 2.0 * down)]
             split_at = set(splits.tolist())
-        # spans (step 3): each block runs on in the span before it where joins_span says so
-        first, head, head_start, caps = [0], self.limits[0], blocks[0].start, [feed[0]]
+        spans, first, caps = SpanHeads(self.limits[0], blocks[0].start), [0], [feed[0]]
         for b in range(1, m):
-            joins = joins_span(self.limits[b], head, float(corner[b]), float(hold[b]), blocks[b].length,
-                               blocks[b].start - head_start)
-            if b in split_at or not joins:
-                corner[b] = min(corner[b], head.feed)     # no span leaves above its own feed
+            begins, corner[b] = spans.next(self.limits[b], blocks[b], float(corner[b]), float(hold[b]), b in split_at)
+            if begins:
                 first.append(b)
-                if not joins:                             # (split by the window, it keeps the span's feed)
-                    head, head_start = self.limits[b], blocks[b].start
-                caps.append(head.feed)
+                caps.append(spans.feed)
         first = np.array(first)
         span_start = starts[first]
         span_length = np.append(span_start[1:], self.theta_end) - span_start
@@ -460,8 +480,8 @@ class FeedPlan:
         """Step 3's passes as a control with a look-ahead of ``window`` blocks makes them (in place on the
         boundary speeds ``v``): span i's exit speed is fixed when its entry is, seeing only the blocks
         first[i] .. first[i] + window - 1, the last of them taken to end in a stop (what is beyond is not
-        known yet), by :class:`~contouring_ros.core.lookahead.WindowChain`. So the feed can only be lower
-        than the whole program's plan, and each span can still brake to a stop within what was seen."""
+        known yet), by :class:`~contouring_ros.core.lookahead.WindowChain`. So each span can still brake to a
+        stop within what was seen, and the plan is never shorter than the whole program's."""
         k, m = len(first), len(starts) - 1
         speed, span_start, room = v.tolist(), span_start.tolist(), room.tolist()
         acc, jerk = acc.tolist(), jerk.tolist()

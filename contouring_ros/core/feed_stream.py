@@ -22,7 +22,7 @@ from collections import deque
 from dataclasses import dataclass
 
 from .curves import ToolPath, segment_columns
-from .feed_planning import LOOKAHEAD_BLOCKS, LimitBounds, joins_span, profile_time, span_profile
+from .feed_planning import LOOKAHEAD_BLOCKS, LimitBounds, SpanHeads, profile_time, span_profile
 from .gcode import ProgramError, ProgramReader, merge_collinear
 from .lookahead import WindowChain
 from .scurve import SPARE
@@ -121,17 +121,13 @@ class StreamingPlan:
         if previous is None:
             dwell = self._first_dwell
             corner, hold, starts = 0.0, float(dwell() if callable(dwell) else dwell), True
+            self._spans = SpanHeads(limit, block.start)
         else:
             _, before, before_limit, *_ = previous
             corner = self.bounds.corner(before, block, before_limit, limit)
             hold = before.dwell + (self.dwell if corner == 0.0 else 0.0)
-            joins = joins_span(limit, self._head, corner, hold, block.length, block.start - self._head_start)
-            starts = not joins or b % max(1, self.window // 2) == 0
-            if starts:
-                corner = min(corner, self._head.feed)        # no span leaves above its own feed
-        if previous is None or not joins:    # a new span's feed (split by the window, it keeps the span's)
-            self._head, self._head_start = limit, block.start
-        buffer.append([pair, block, limit, corner, hold, starts, self._head.feed])
+            starts, corner = self._spans.next(limit, block, corner, hold, b % max(1, self.window // 2) == 0)
+        buffer.append([pair, block, limit, corner, hold, starts, self._spans.feed])
         self.blocks_read = b + 1
         return True
 
