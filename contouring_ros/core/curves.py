@@ -733,20 +733,29 @@ def segment_columns(segment, plain, n: int, u: float) -> list:
     if kind == "line":
         o, d = plain
         zero = (0.0,) * n
-        return [tuple(o[k] + u * d[k] for k in range(n)), d, zero, zero]
+        return [tuple([ok + u * dk for ok, dk in zip(o, d)]), d, zero, zero]
     if kind == "helix":
         o, e1, e2, w, rho = plain
         a = a0 + turn * u / rho
         c, si = math.cos(a), math.sin(a)
         k1, k2, k3 = radius * turn / rho, radius / rho**2, radius * turn / rho**3
-        return [tuple(o[k] + radius * (c * e1[k] + si * e2[k]) + w[k] * u for k in range(n)),
-                tuple(k1 * (c * e2[k] - si * e1[k]) + w[k] for k in range(n)),
-                tuple(-k2 * (c * e1[k] + si * e2[k]) for k in range(n)),
-                tuple(k3 * (si * e1[k] - c * e2[k]) for k in range(n))]
+        return [tuple([ok + radius * (c * x + si * y) + wk * u for ok, x, y, wk in zip(o, e1, e2, w)]),
+                _helix_tangent(plain, radius, a0, turn, u),
+                tuple([-k2 * (c * x + si * y) for x, y in zip(e1, e2)]),
+                tuple([k3 * (si * x - c * y) for x, y in zip(e1, e2)])]
     a = a0 + turn * u / radius
     c, si = _cos(a), _sin(a)
     return [(origin[0] + radius * c, origin[1] + radius * si), (-turn * si, turn * c),
             (-c / radius, -si / radius), (turn * si / radius**2, -turn * c / radius**2)]
+
+
+def _helix_tangent(plain, radius: float, a0: float, turn: float, u: float) -> tuple:
+    """dR at distance u into a helix segment (:func:`segment_columns`' second column, the same operations)."""
+    _, e1, e2, w, rho = plain
+    a = a0 + turn * u / rho
+    c, si = math.cos(a), math.sin(a)
+    k1 = radius * turn / rho
+    return tuple([k1 * (c * y - si * x) + wk for x, y, wk in zip(e1, e2, w)])
 
 
 def _plain(segment):
@@ -771,8 +780,18 @@ def _arrays(segment) -> tuple:
 def _path_block(segment, plain, n, start, length, kind, feed, line, deviation, dwell) -> PathBlock:
     """The :class:`PathBlock` of one segment beginning at arc length ``start``."""
     if segment[0] == "line":                 # one direction: its tangent at both ends
-        tangent = _unit(plain[1])
-        return PathBlock(kind, float(start), float(length), feed, line, np.array(tangent), np.array(tangent), 0.0,
+        tangent = np.array(_unit(plain[1]))
+        return PathBlock(kind, float(start), float(length), feed, line, tangent, tangent.copy(), 0.0,
+                         float(deviation), float(dwell))
+    if segment[0] == "helix":               # the two tangents and |d2R| (a helix's is the same everywhere)
+        _, _, _, radius, a0, turn = segment
+        rho = plain[4]
+        c, si, k2 = math.cos(a0), math.sin(a0), radius / rho**2
+        curvature = _norm([k2 * (c * x + si * y) for x, y in zip(plain[1], plain[2])]) \
+            if kind != "line" and kind != "rapid" else 0.0
+        return PathBlock(kind, float(start), float(length), feed, line,
+                         np.array(_unit(_helix_tangent(plain, radius, a0, turn, 0.0))),
+                         np.array(_unit(_helix_tangent(plain, radius, a0, turn, float(length)))), curvature,
                          float(deviation), float(dwell))
     begin, end = segment_columns(segment, plain, n, 0.0), segment_columns(segment, plain, n, float(length))
     curvature = _norm(begin[2]) if kind != "line" and kind != "rapid" else 0.0
@@ -791,7 +810,7 @@ def _norm(vector) -> float:
 
 def _unit(vector) -> tuple:
     length = _norm(vector)
-    return tuple(x / length for x in vector)
+    return tuple([x / length for x in vector])
 
 
 def _program_items(blocks, d: int, blend_tolerance: float):
@@ -803,7 +822,7 @@ def _program_items(blocks, d: int, blend_tolerance: float):
             start, end = block.start[:d].tolist(), block.end[:d].tolist()
             chord = [e - s for s, e in zip(start, end)]
             length = _norm(chord)
-            item = [("line", tuple(start), tuple(x / length for x in chord), 0.0, 0.0, 0.0), length, block.kind,
+            item = [("line", tuple(start), tuple([x / length for x in chord]), 0.0, 0.0, 0.0), length, block.kind,
                     block.feed, block.line, tolerance, block.dwell]
         else:
             first, second, normal = block.plane
@@ -853,7 +872,7 @@ def _blend(items):
         (_, p1, u2, *_), length1 = item[0], item[1]
         tolerance = previous[5]
         if previous[2] == "line" and item[2] == "line" and tolerance > 0.0 and not previous[6]:
-            difference = tuple(b - a for a, b in zip(u1, u2))
+            difference = tuple([b - a for a, b in zip(u1, u2)])
             chord = _norm(difference)
             phi = 2.0 * math.atan2(chord, _norm([a + b for a, b in zip(u1, u2)]))     # the turn, at any angle
             if 1e-9 < phi < math.pi - 1e-6:
@@ -865,13 +884,13 @@ def _blend(items):
                     cut, radius = limit, limit / math.tan(half)
                 corner = p1
                 cosine = math.cos(half)
-                centre = tuple(c + x / chord * radius / cosine for c, x in zip(corner, difference))
-                e1 = tuple((c - u * cut - m) / radius for c, u, m in zip(corner, u1, centre))
+                centre = tuple([c + x / chord * radius / cosine for c, x in zip(corner, difference)])
+                e1 = tuple([(c - u * cut - m) / radius for c, u, m in zip(corner, u1, centre)])
                 previous[1] = length0 - cut
                 feeds = [f for f in (previous[3], item[3]) if f is not None]
                 arc = [("helix", centre, (e1, u1, (0.0,) * len(u1), radius), radius, 0.0, 1.0), radius * phi,
                        "blend", min(feeds) if feeds else None, item[4], tolerance, 0.0, radius * phi]
-                item[0] = ("line", tuple(c + u * cut for c, u in zip(corner, u2)), u2, 0.0, 0.0, 0.0)
+                item[0] = ("line", tuple([c + u * cut for c, u in zip(corner, u2)]), u2, 0.0, 0.0, 0.0)
                 item[1] = length1 - cut
         yield previous
         if arc is not None:

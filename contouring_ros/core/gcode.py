@@ -66,6 +66,7 @@ _REFUSED = {**{f"G{c}": "cutter radius compensation" for c in ("41", "41.1", "42
             **{f"G{c}": "canned cycles" for c in ("73", "76", "81", "82", "83", "84", "85", "86", "87", "88",
                                                      "89")}}
 _WORD = re.compile(r"([A-Za-z])\s*([+-]?(?:\d+\.?\d*|\.\d+))")
+_WORDS = re.compile(r"(?:\s*[A-Za-z]\s*[+-]?(?:\d+(?:\.\d*)?|\.\d+))*\s*")      # a line of words alone
 
 
 MAX_NUMBER = 1e9          # a word's value at most this in size (a coordinate of 1e9 mm is already 1000 km)
@@ -165,8 +166,22 @@ def _strip_comments(text: str, number: int) -> str:
 
 def _words(text: str, number: int) -> list:
     """(letter, value) pairs of one line; anything that is not a word is refused."""
-    words, at = [], 0
+    words = []
     body = text.strip()
+    for match in _WORD.finditer(body) if _WORDS.fullmatch(body) else _word_by_word(body, number):
+        value, word = float(match.group(2)), match.group(0).replace(" ", "")
+        if not math.isfinite(value) or (abs(value) > MAX_NUMBER and match.group(1).upper() != "N"):
+            shown = word if len(word) <= 24 else f"{word[:20]}... ({len(match.group(2))} characters)"
+            raise ProgramError(f"line {number}: {shown}: the number is out of range (at most {MAX_NUMBER:g} "
+                               "in size)")
+        words.append((match.group(1).upper(), value, word))
+    return words
+
+
+def _word_by_word(body: str, number: int):
+    """The words of a line that is not words alone, one at a time up to the first thing that is not a word,
+    which is refused there (a number out of range before it is refused first)."""
+    at = 0
     while at < len(body):
         if body[at].isspace():
             at += 1
@@ -174,14 +189,8 @@ def _words(text: str, number: int) -> list:
         match = _WORD.match(body, at)
         if not match:
             raise ProgramError(f"line {number}: cannot read {body[at:].split()[0]!r} (expected words like X10.5)")
-        value, word = float(match.group(2)), match.group(0).replace(" ", "")
-        if not math.isfinite(value) or (abs(value) > MAX_NUMBER and match.group(1).upper() != "N"):
-            shown = word if len(word) <= 24 else f"{word[:20]}... ({len(match.group(2))} characters)"
-            raise ProgramError(f"line {number}: {shown}: the number is out of range (at most {MAX_NUMBER:g} "
-                               "in size)")
-        words.append((match.group(1).upper(), value, word))
+        yield match
         at = match.end()
-    return words
 
 
 def _code(value: float) -> int | None:
@@ -392,7 +401,7 @@ class ProgramReader:
         if motion in (0, 1):
             if centre or radius is not None:
                 raise ProgramError(f"line {number}: {'I, J, K' if centre else 'R'} on a G{motion} line")
-            if (end == position).all():
+            if end.tolist() == position.tolist():
                 return None                                 # a move to where the tool is: no motion
             block = Block("rapid" if motion == 0 else "line", position, end, block_feed, number,
                           tolerance=block_tolerance, number=label,
