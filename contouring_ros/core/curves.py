@@ -740,7 +740,7 @@ def segment_columns(segment, plain, n: int, u: float) -> list:
         c, si = math.cos(a), math.sin(a)
         k1, k2, k3 = radius * turn / rho, radius / rho**2, radius * turn / rho**3
         return [tuple([ok + radius * (c * x + si * y) + wk * u for ok, x, y, wk in zip(o, e1, e2, w)]),
-                _helix_tangent(plain, radius, a0, turn, u),
+                tuple([k1 * (c * y - si * x) + wk for x, y, wk in zip(e1, e2, w)]),
                 tuple([-k2 * (c * x + si * y) for x, y in zip(e1, e2)]),
                 tuple([k3 * (si * x - c * y) for x, y in zip(e1, e2)])]
     a = a0 + turn * u / radius
