@@ -1,5 +1,7 @@
 """What a benchmark run with ``--checkpoints DIR`` has tuned so far: per scenario, the rows kept, how many
-converged and their CPU time, and each row's searches (while the run goes on, or after it stopped).
+converged and their CPU time, and each row's searches by what they were compared by (the nominal TACE of
+their robust choices, or their choices' worst case where none found a robust point), while the run goes on or
+after it stopped.
 
     python tools/checkpoint_status.py DIR [--rows]
 """
@@ -17,6 +19,21 @@ from contouring_ros.studies import benchmark  # noqa: E402,F401  (registers the 
 from contouring_ros.studies.checkpoints import SUFFIX, KeptRow  # noqa: E402
 from contouring_ros.errors import ConfigError  # noqa: E402
 from contouring_ros.studies.parts import load  # noqa: E402
+
+
+def agreement_values(tuned) -> tuple:
+    """(what a row's searches were compared by, the value of each search): the nominal TACE of each search's
+    robust choice, or, where no search found a robust point, the worst case over the perturbations of each
+    search's choice (``searches_agreement``'s rule, from the evaluations the row kept)."""
+    searches = collections.defaultdict(list)
+    for evaluation in tuned.evaluations:
+        searches[evaluation.search].append(evaluation)
+    robust = {i: min((e.outcome.tace for e in mine if e.admissible), default=math.inf) for i, mine in searches.items()}
+    if any(math.isfinite(v) for v in robust.values()):
+        return "nominal TACE", [robust[i] for i in sorted(robust)]
+    worst = {i: min((e.worst for e in mine if e.outcome.failure.startswith("not robust") and math.isfinite(e.worst)),
+                    default=math.inf) for i, mine in searches.items()}
+    return "worst TACE over the perturbations (no search found a robust point)", [worst[i] for i in sorted(worst)]
 
 
 def main(argv=None) -> int:
@@ -51,9 +68,10 @@ def main(argv=None) -> int:
             for combination, t in sorted(rows, key=lambda r: r[0]):
                 a = t.agreement
                 agreed = f"{a.agreed} of {a.searches}" if a is not None else "-"
-                taces = ", ".join(f"{v * 1e6:.4g}" for v in t.search_tace)
+                what, values = agreement_values(t) if t.evaluations else ("nominal TACE", t.search_tace)
+                shown = ", ".join(f"{v * 1e6:.4g}" for v in values)
                 print(f"  {combination}: {t.cpu:.0f} s, {agreed} agree{'' if t.converged else ' (not converged)'}, "
-                      f"{t.status.split(':')[0]}; searches' TACE [um] {taces}")
+                      f"{t.status.split(':')[0]}; searches' {what} [um] {shown}")
     print(f"in all: {converged} of {total} tuned rows converged, {cpu / 60:.1f} min of CPU")
     return 0
 

@@ -121,3 +121,29 @@ def test_the_agreement_rule():
     partial = agreement([1.0, 1.0, 1.0, math.inf])
     assert partial.converged and partial.spread == math.inf
     assert "3 of 4 searches within 5% of the best" in partial.describe()
+
+
+def test_checkpoint_status_lists_the_values_a_rows_searches_were_compared_by():
+    """tools/checkpoint_status.py: a row whose searches found robust points lists their nominal TACE; a row
+    where none did lists the worst case of each search's choice, which the agreement judged (not the nominal
+    TACE, which can lie far apart while the worst cases agree)."""
+    import importlib.util
+    from pathlib import Path
+    from contouring_ros.studies.tuning import Evaluation, Outcome, Tuned
+    spec = importlib.util.spec_from_file_location(
+        "checkpoint_status", Path(__file__).resolve().parents[2] / "tools" / "checkpoint_status.py")
+    status = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(status)
+
+    def evaluation(search, tace, worst, admissible):
+        failure = "" if admissible else "not robust: worst case over the perturbations"
+        return Evaluation({}, Outcome(tace=tace, failure=failure), tace, admissible, worst=worst, search=search)
+
+    fragile = Tuned(evaluations=[evaluation(0, 1e-7, 2e-6, False), evaluation(0, 2e-7, 1.3e-6, False),
+                                 evaluation(1, 0.7e-7, 1.31e-6, False), evaluation(1, 3e-7, math.nan, False)])
+    what, values = status.agreement_values(fragile)
+    assert what.startswith("worst TACE") and values == [1.3e-6, 1.31e-6]
+    robust = Tuned(evaluations=[evaluation(0, 1e-7, 2e-7, True), evaluation(0, 0.5e-7, 5e-6, False),
+                                evaluation(1, 1.2e-7, 2e-7, True), evaluation(2, 0.9e-7, 1e-6, False)])
+    what, values = status.agreement_values(robust)
+    assert what == "nominal TACE" and values == [1e-7, 1.2e-7, math.inf]
