@@ -6,11 +6,12 @@ constraints: scipy's differential evolution (Storn & Price 1997; ``scipy.optimiz
 its population evaluated as one batch) over the *raw* gains the row's tuning space sets, each on a log scale
 ``--decades`` either side of its file value (the benchmark searches physical coordinates with IPOP-CMA-ES),
 with ``--factor`` times the benchmark's whole budget of a row (its searches x their evaluations). It reads the
-rows of a benchmark.csv, re-tunes the chosen combinations on the same machine and noise bound, and prints
-both nominal and median TACE with the ratio (re-tuned / reported: below 0.9 means the report is beaten by
-more than 10%).
+rows of a benchmark.csv (or the rows a run with ``--checkpoints DIR`` has kept so far: give the folder), re-tunes
+the chosen combinations on the same machine and noise bound, and prints both nominal and median TACE with the
+ratio (re-tuned / reported: below 0.9 means the report is beaten by more than 10%).
 
     python tools/check_tuning.py reports/benchmark.csv "paper000_h50:newton + unit_vector / ismc" ...
+    python tools/check_tuning.py CHECKPOINT_DIR "paper000_h50:newton + unit_vector / ismc" ...
 """
 from __future__ import annotations
 
@@ -87,9 +88,32 @@ def _retune(name: str, label: str, factor: float, decades: float):
                 robust_floor=reference.worst if math.isfinite(reference.worst) else 0.0, space=space)
 
 
+def reported_rows(source: str) -> dict:
+    """{(scenario, combination label): its row as benchmark.csv gives it (the columns this check reads)}, from a
+    benchmark.csv or from a ``--checkpoints`` folder's kept rows."""
+    if not Path(source).is_dir():
+        with open(source, newline="") as stream:
+            return {(r["scenario"], f"{r['estimator']} + {r['controller']} / {r['servo']}"): r
+                    for r in csv.DictReader(stream)}
+    from contouring_ros.studies.checkpoints import SUFFIX, KeptRow
+    from contouring_ros.studies.parts import load
+    table = {}
+    for path in sorted(Path(source).glob(f"*{SUFFIX}")):
+        kept = load(path)
+        if not isinstance(kept, KeptRow) or kept.tuned.nominal is None:
+            continue
+        scenario, _, label = kept.where.partition(" ")
+        tuned = kept.tuned
+        table[(scenario, label)] = {
+            "tace_um": f"{tuned.nominal.tace * 1e6:.4g}",
+            "tace_median_um": f"{interval([d.tace for d in tuned.draws if d.ok])[0] * 1e6:.4g}",
+            "converged": "yes" if tuned.converged else "no"}
+    return table
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("csv", help="a benchmark.csv")
+    parser.add_argument("csv", help="a benchmark.csv, or the folder of a run's --checkpoints")
     parser.add_argument("rows", nargs="+", help="'scenario:estimator + controller / servo'")
     parser.add_argument("--factor", type=float, default=3.0,
                         help="budget of the check / the benchmark's budget of a row, searches included (default 3)")
@@ -97,9 +121,7 @@ def main(argv=None) -> int:
                         help="each raw gain's span either side of its file value [decades] (default 4)")
     parser.add_argument("--workers", type=int, default=2)
     args = parser.parse_args(argv)
-    with open(args.csv, newline="") as stream:
-        table = {(r["scenario"], f"{r['estimator']} + {r['controller']} / {r['servo']}"): r
-                 for r in csv.DictReader(stream)}
+    table = reported_rows(args.csv)
     wanted = [tuple(spec.split(":", 1)) for spec in args.rows]
     for key in wanted:
         if key not in table:

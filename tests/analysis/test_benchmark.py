@@ -574,6 +574,17 @@ def test_a_stopped_benchmark_goes_on_from_its_checkpoints(tmp_path, capsys):
     assert status.main([str(tmp_path / "rows"), "--rows"]) == 0
     said = capsys.readouterr().out
     assert f"{SMALL}: {len(tuned)} rows kept" in said and all(r.combination.label in said for r in tuned)
+    # tools/check_tuning.py takes the rows to check from the same folder: each kept row's nominal TACE
+    spec = importlib.util.spec_from_file_location(
+        "check_tuning", Path(__file__).resolve().parents[2] / "tools" / "check_tuning.py")
+    check = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(check)
+    reported = check.reported_rows(str(tmp_path / "rows"))
+    assert {(SMALL, r.combination.label) for r in tuned if r.tuned.nominal is not None} == set(reported)
+    for r in tuned:
+        if r.tuned.nominal is not None:
+            assert float(reported[(SMALL, r.combination.label)]["tace_um"]) == pytest.approx(
+                r.tuned.nominal.tace * 1e6, rel=1e-3)
     assert [r.label for r in second] == [r.label for r in first]
     assert [r.figure("tace") for r in second] == [r.figure("tace") for r in first]
     # a row is taken only for the same inputs: another protocol, machine or experiment is another key
