@@ -14,6 +14,7 @@ to the loop's own simulation up to the rounding of vectorised sums.
 from __future__ import annotations
 
 import copy
+import dataclasses
 import inspect
 import numbers
 
@@ -58,6 +59,8 @@ def deep_equal(a, b) -> bool:
         return a.keys() == b.keys() and all(deep_equal(a[k], b[k]) for k in a)
     if hasattr(a, "__dict__") and not inspect.isroutine(a):
         return deep_equal(vars(a), vars(b))
+    if dataclasses.is_dataclass(a) and not isinstance(a, type):      # a dataclass with slots: field by field
+        return all(deep_equal(getattr(a, f.name), getattr(b, f.name)) for f in dataclasses.fields(a))
     return bool(a == b)
 
 

@@ -460,7 +460,7 @@ class SplineCurve(Curve):
 MAX_PATH_LENGTH = 10.0
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class PathBlock:
     """One stretch of a tool path between two block boundaries, as the feed planner sees it.
 
@@ -592,7 +592,9 @@ class ToolPath(Curve):
         if not math.isfinite(total) or total > MAX_PATH_LENGTH:
             raise ValueError(f"the path is {total:.4g} m long (at most {MAX_PATH_LENGTH:g} m): check the units "
                              "(G1 X50 is 50 mm under G21, the default, and 50 inch = 1.27 m under G20)")
-        self.segments = [_arrays(item[0]) for item in items]
+        # the segments as _program_items and _blend make them (vectors as tuples of floats), shared by the
+        # scalar path's view of them: no copy as numpy arrays (1.6 kB a chord of a long program)
+        self.segments = [item[0] for item in items]
         self._finish([item[1] for item in items], [(item[2], item[3], item[4], item[5], item[6]) for item in items])
         return self
 
@@ -759,7 +761,8 @@ def _helix_tangent(plain, radius: float, a0: float, turn: float, u: float) -> tu
 
 
 def _plain(segment):
-    """A segment's vectors as tuples of floats (the scalar path of :func:`segment_columns`)."""
+    """A segment's vectors as tuples of floats (the scalar path of :func:`segment_columns`): those of a
+    program's segment (tuples already) as they are."""
     kind, origin, direction, *_ = segment
     if kind == "line":
         return _floats(origin), _floats(direction)
@@ -768,13 +771,11 @@ def _plain(segment):
     return None
 
 
-def _arrays(segment) -> tuple:
-    """A program segment (its vectors tuples of floats, as :func:`_program_items` and :func:`_blend` make
-    them) with numpy vectors (what :meth:`ToolPath._segment_array` evaluates)."""
-    kind, origin, direction, *rest = segment
-    if kind == "line":
-        return (kind, np.array(origin), np.array(direction), *rest)
-    return (kind, np.array(origin), (*(np.array(v) for v in direction[:3]), direction[3]), *rest)
+def _floats(vector) -> tuple:
+    """A vector as a tuple of floats (a tuple of floats as it is)."""
+    if type(vector) is tuple and all(type(x) is float for x in vector):
+        return vector
+    return tuple(np.asarray(vector, dtype=float).tolist())
 
 
 def _path_block(segment, plain, n, start, length, kind, feed, line, deviation, dwell) -> PathBlock:
@@ -851,10 +852,6 @@ def _program_items(blocks, d: int, blend_tolerance: float):
             raise ValueError(f"line {item[4]}: the move's length or radius is not a finite number "
                              "(coordinates or offsets too large)")
         yield item
-
-
-def _floats(vector) -> tuple:
-    return tuple(np.asarray(vector, dtype=float).tolist())
 
 
 def _blend(items):

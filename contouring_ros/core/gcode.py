@@ -76,7 +76,7 @@ class ProgramError(ValueError):
     """A part program that cannot be read; the message names the line (and the word)."""
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class Block:
     """One motion of a part program.
 
