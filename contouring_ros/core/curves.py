@@ -738,11 +738,10 @@ def segment_columns(segment, plain, n: int, u: float) -> list:
         return [tuple([ok + u * dk for ok, dk in zip(o, d)]), d, zero, zero]
     if kind == "helix":
         o, e1, e2, w, rho = plain
-        a = a0 + turn * u / rho
-        c, si = math.cos(a), math.sin(a)
-        k1, k2, k3 = radius * turn / rho, radius / rho**2, radius * turn / rho**3
+        c, si = _helix_angle(plain, a0, turn, u)
+        k2, k3 = radius / rho**2, radius * turn / rho**3
         return [tuple([ok + radius * (c * x + si * y) + wk * u for ok, x, y, wk in zip(o, e1, e2, w)]),
-                tuple([k1 * (c * y - si * x) + wk for x, y, wk in zip(e1, e2, w)]),
+                _helix_tangent(plain, radius, turn, c, si),
                 tuple([-k2 * (c * x + si * y) for x, y in zip(e1, e2)]),
                 tuple([k3 * (si * x - c * y) for x, y in zip(e1, e2)])]
     a = a0 + turn * u / radius
@@ -751,11 +750,15 @@ def segment_columns(segment, plain, n: int, u: float) -> list:
             (-c / radius, -si / radius), (turn * si / radius**2, -turn * c / radius**2)]
 
 
-def _helix_tangent(plain, radius: float, a0: float, turn: float, u: float) -> tuple:
-    """dR at distance u into a helix segment (:func:`segment_columns`' second column, the same operations)."""
+def _helix_angle(plain, a0: float, turn: float, u: float) -> tuple:
+    """(cos, sin) of a helix segment's angle at distance u into it."""
+    a = a0 + turn * u / plain[4]
+    return math.cos(a), math.sin(a)
+
+
+def _helix_tangent(plain, radius: float, turn: float, c: float, si: float) -> tuple:
+    """dR of a helix segment where its angle's cosine and sine are ``c`` and ``si`` (:func:`_helix_angle`)."""
     _, e1, e2, w, rho = plain
-    a = a0 + turn * u / rho
-    c, si = math.cos(a), math.sin(a)
     k1 = radius * turn / rho
     return tuple([k1 * (c * y - si * x) + wk for x, y, wk in zip(e1, e2, w)])
 
@@ -786,13 +789,14 @@ def _path_block(segment, plain, n, start, length, kind, feed, line, deviation, d
                          float(deviation), float(dwell))
     if segment[0] == "helix":               # the two tangents and |d2R| (a helix's is the same everywhere)
         _, _, _, radius, a0, turn = segment
-        rho = plain[4]
-        c, si, k2 = math.cos(a0), math.sin(a0), radius / rho**2
+        c, si = _helix_angle(plain, a0, turn, 0.0)
+        k2 = radius / plain[4]**2
         curvature = _norm([k2 * (c * x + si * y) for x, y in zip(plain[1], plain[2])]) \
             if kind != "line" and kind != "rapid" else 0.0
         return PathBlock(kind, float(start), float(length), feed, line,
-                         np.array(_unit(_helix_tangent(plain, radius, a0, turn, 0.0))),
-                         np.array(_unit(_helix_tangent(plain, radius, a0, turn, float(length)))), curvature,
+                         np.array(_unit(_helix_tangent(plain, radius, turn, c, si))),
+                         np.array(_unit(_helix_tangent(plain, radius, turn,
+                                                       *_helix_angle(plain, a0, turn, float(length))))), curvature,
                          float(deviation), float(dwell))
     begin, end = segment_columns(segment, plain, n, 0.0), segment_columns(segment, plain, n, float(length))
     curvature = _norm(begin[2]) if kind != "line" and kind != "rapid" else 0.0
