@@ -165,9 +165,21 @@ class LimitBounds:
         self.axis_acceleration, self.axis_jerk = axis_acceleration, axis_jerk
         self.contour_tolerance = contour_tolerance
         self.lags = np.broadcast_to(np.asarray(tracking_lag, dtype=float), (n,)) if contour_tolerance > 0.0 else None
+        # a straight block's limit where no bound depends on its direction: its kind and feed alone set it,
+        # so the blocks that share them share one BlockLimit (a long program's lines: one)
+        self._straight = {} if self.unbounded and contour_tolerance <= 0.0 else None
 
     def limit(self, block) -> BlockLimit:
         """Step 1 of the module docstring for one block (a :class:`~contouring_ros.core.curves.PathBlock`)."""
+        if self._straight is not None and block.curvature == 0.0:
+            key = (block.kind, block.feed)
+            known = self._straight.get(key)
+            if known is None:
+                known = self._straight[key] = self._limit(block)
+            return known
+        return self._limit(block)
+
+    def _limit(self, block) -> BlockLimit:
         feed_override = self.feed_override
         if block.kind == "rapid":
             if not self.rapid_feedrate:
