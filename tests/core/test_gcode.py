@@ -1,5 +1,6 @@
 """The part program reader (core/gcode.py) and the tool path it builds (ToolPath.from_program)."""
 import math
+import re
 
 import numpy as np
 import pytest
@@ -325,3 +326,15 @@ def test_a_chord_circle_merges_only_where_its_chords_stay_within_q():
     path = ToolPath.from_program(parse_program(_chords(circle, header.format(q=0.01))))
     radius = np.linalg.norm(path.point(np.linspace(path.blocks[1].start, path.domain[1], 5000))[:, :2], axis=1)
     assert radius.min() > 5e-3 - 1e-5 - 1e-9            # within Q (10 um) of the circle
+
+
+@pytest.mark.parametrize("line, message", [
+    ("X1 " * 5000 + "!", "line 1: cannot read '!'"),                         # many words, then one that is not
+    ("X1 Y" + "9" * 400 + " $", "line 1: Y" + "9" * 19 + "... (400 characters): the number is out of range"),
+    ("G1 X1.5Y2 Z.5 # F60", "line 1: cannot read '#'"),
+])
+def test_a_line_is_refused_at_its_first_problem_in_the_order_it_is_written(line, message):
+    """A line that is words alone is read at once; any other is read word by word up to its first problem, so
+    the message names what comes first on the line, however long the line."""
+    with pytest.raises(ProgramError, match="^" + re.escape(message)):
+        parse_program(line + "\n")
