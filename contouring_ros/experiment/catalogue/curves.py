@@ -90,7 +90,7 @@ def _read_tool_path(s, path: Path):
     except UnicodeDecodeError as error:
         raise ValueError(f"{path}: not a text file (not UTF-8 at byte {error.start})") from None
     lines = max(text.count("\n"), text.count("\r")) + (not text.endswith(("\n", "\r")))
-    if lines > MAX_PROGRAM_LINES:          # before a block is read: each holds about 3.3 kB as a tool path
+    if lines > MAX_PROGRAM_LINES:          # before a block is read: a chord holds about 2.2 kB as a tool path
         raise ValueError(f"{path.name}: {lines} lines, over the {MAX_PROGRAM_LINES} a part program may have (split "
                          "it into several programs)")
     try:
