@@ -19,21 +19,21 @@ from contouring_ros.studies import benchmark  # noqa: E402,F401  (registers the 
 from contouring_ros.studies.checkpoints import SUFFIX, KeptRow  # noqa: E402
 from contouring_ros.errors import ConfigError  # noqa: E402
 from contouring_ros.studies.parts import load  # noqa: E402
+from contouring_ros.studies.tuner import chosen_point, compared_values  # noqa: E402
+from contouring_ros.studies.tuning import Search  # noqa: E402
 
 
 def agreement_values(tuned) -> tuple:
-    """(what a row's searches were compared by, the value of each search): the nominal TACE of each search's
-    robust choice, or, where no search found a robust point, the worst case over the perturbations of each
-    search's choice (``searches_agreement``'s rule, from the evaluations the row kept)."""
+    """(what a row's searches were compared by, the value of each search), from the evaluations the row kept:
+    each search's choice (``chosen_point``) compared as ``searches_agreement`` compares them."""
     searches = collections.defaultdict(list)
     for evaluation in tuned.evaluations:
         searches[evaluation.search].append(evaluation)
-    robust = {i: min((e.outcome.tace for e in mine if e.admissible), default=math.inf) for i, mine in searches.items()}
-    if any(math.isfinite(v) for v in robust.values()):
-        return "nominal TACE", [robust[i] for i in sorted(robust)]
-    worst = {i: min((e.worst for e in mine if e.outcome.failure.startswith("not robust") and math.isfinite(e.worst)),
-                    default=math.inf) for i, mine in searches.items()}
-    return "worst TACE over the perturbations (no search found a robust point)", [worst[i] for i in sorted(worst)]
+    kept = []
+    for i in sorted(searches):
+        chosen, robust = chosen_point(searches[i])
+        kept.append(Search(chosen, "ok" if robust else "not robust"))
+    return compared_values(kept)
 
 
 def main(argv=None) -> int:

@@ -22,7 +22,7 @@ from .search import IPOPCMAES, Agreement, agreement, run_side_by_side
 from .space import tuned_servo, tuning_space
 from .tuning import Evaluation, Outcome, Protocol, Search, Tuned
 
-__all__ = ["best_search", "searches_agreement", "Tuning", "tune"]
+__all__ = ["best_search", "chosen_point", "compared_values", "searches_agreement", "Tuning", "tune"]
 
 
 def best_search(searches: list) -> Search:
@@ -39,15 +39,34 @@ def best_search(searches: list) -> Search:
     return searches[0]
 
 
+def compared_values(searches: list) -> tuple:
+    """(what a row's searches are compared by, each search's value): the nominal TACE of the robust choices
+    (inf for a search without one); where no search found a robust point, the worst TACE over the
+    perturbations of each one's not-robust choice."""
+    values = [s.value for s in searches]
+    if any(math.isfinite(v) for v in values):
+        return "nominal TACE", values
+    return "worst TACE over the perturbations (no search found a robust point)", [
+        s.chosen.worst if s.chosen is not None and math.isfinite(s.chosen.worst) else math.inf for s in searches]
+
+
 def searches_agreement(searches: list, protocol: Protocol) -> Agreement:
     """How far a row's searches agree (:func:`contouring_ros.studies.search.agreement` with the protocol's
-    tolerance): on the robust choices' nominal TACE; where no search found a robust point, on the worst cases
-    of their not-robust choices."""
-    values = [s.value for s in searches]
-    if not any(math.isfinite(v) for v in values):
-        values = [s.chosen.worst if s.chosen is not None and math.isfinite(s.chosen.worst) else math.inf
-                  for s in searches]
-    return agreement(values, protocol.agreement, protocol.agree)
+    tolerance) on their :func:`compared_values`."""
+    return agreement(compared_values(searches)[1], protocol.agreement, protocol.agree)
+
+
+def chosen_point(mine: list) -> tuple:
+    """(the point a search with evaluations ``mine`` ends with, whether it is robust): its admissible point
+    (robust, quiet, unsaturated) of lowest nominal TACE; where it has none, its point of lowest worst case
+    among those that met every other constraint (not robust); else (None, False)."""
+    admissible = [e for e in mine if e.admissible]
+    if admissible:
+        return min(admissible, key=lambda e: e.outcome.tace), True
+    fragile = [e for e in mine if e.outcome.failure.startswith("not robust")]
+    if fragile:
+        return min(fragile, key=lambda e: e.worst), False
+    return None, False
 
 
 @dataclass
@@ -241,13 +260,10 @@ class Tuning:
         where it has none, its point of lowest worst case among those that met every other constraint,
         marked not robust; else no admissible gain."""
         p = self.protocol
-        admissible = [e for e in mine if e.admissible]
-        if admissible:
-            chosen = min(admissible, key=lambda e: e.outcome.tace)
+        chosen, robust = chosen_point(mine)
+        if robust:
             return Search(chosen, "ok", chosen.worst / chosen.outcome.tace, len(mine))
-        fragile = [e for e in mine if e.outcome.failure.startswith("not robust")]
-        if fragile:
-            chosen = min(fragile, key=lambda e: e.worst)
+        if chosen is not None:
             status = (f"not robust: no point of the search stays within {p.robust_factor:g}x at "
                       f"+-{100 * p.perturbation:g}% of a plant parameter while meeting the other constraints "
                       f"(given: the point with the lowest worst case)")
