@@ -791,15 +791,14 @@ def _path_block(segment, plain, n, start, length, kind, feed, line, deviation, d
         _, _, _, radius, a0, turn = segment
         c, si = _helix_angle(plain, a0, turn, 0.0)
         k2 = radius / plain[4]**2
-        curvature = _norm([k2 * (c * x + si * y) for x, y in zip(plain[1], plain[2])]) \
-            if kind != "line" and kind != "rapid" else 0.0
+        curvature = _norm([k2 * (c * x + si * y) for x, y in zip(plain[1], plain[2])])
         return PathBlock(kind, float(start), float(length), feed, line,
                          np.array(_unit(_helix_tangent(plain, radius, turn, c, si))),
                          np.array(_unit(_helix_tangent(plain, radius, turn,
                                                        *_helix_angle(plain, a0, turn, float(length))))), curvature,
                          float(deviation), float(dwell))
     begin, end = segment_columns(segment, plain, n, 0.0), segment_columns(segment, plain, n, float(length))
-    curvature = _norm(begin[2]) if kind != "line" and kind != "rapid" else 0.0
+    curvature = _norm(begin[2])             # a planar arc of an inline path
     return PathBlock(kind, float(start), float(length), feed, line, np.array(_unit(begin[1])),
                      np.array(_unit(end[1])), curvature, float(deviation), float(dwell))
 
