@@ -9,8 +9,8 @@ spiral), on the x and y axes of config/gcode_example_part.yaml (PID + feedforwar
 and a unit-vector CCC), with the schedule's default look-ahead. The line printed gives the seconds to load the
 experiment (read the program, check it, plan the feed), to build the loop, to run it (and its steps per second)
 and to score it, the process's peak resident memory and its memory per chord beyond the short program's.
-The programs are capped at 100,000 lines (experiment/schema.py's MAX_PROGRAM_LINES): the whole tool path
-and its plan are held.
+The whole tool path and its plan are held, as rows of arrays (core/path_tables.py); a program may have up to
+experiment/schema.py's MAX_PROGRAM_LINES lines.
 """
 from __future__ import annotations
 

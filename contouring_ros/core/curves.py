@@ -5,12 +5,12 @@ derivatives with respect to ``theta`` analytically (papers 000 eq. 3, 003 eq. 1-
 """
 from __future__ import annotations
 
-import bisect
 import math
 from abc import ABC, abstractmethod
-from dataclasses import dataclass
 
 import numpy as np
+
+from .path_tables import SEGMENT_KINDS, PathBlock, SegmentTable, StretchTable
 
 __all__ = ["Curve", "Parabola", "Line", "Circle", "Ellipse", "FigureEight", "Saddle", "Helix", "Butterfly", "SplineCurve", "ToolPath",
            "PathBlock", "MAX_PATH_LENGTH", "segment_columns"]
@@ -460,42 +460,6 @@ class SplineCurve(Curve):
 MAX_PATH_LENGTH = 10.0
 
 
-@dataclass(frozen=True, slots=True)
-class PathBlock:
-    """One stretch of a tool path between two block boundaries, as the feed planner sees it.
-
-    Attributes
-    ----------
-    kind : str
-        ``line``, ``rapid``, ``arc`` (G2 / G3, helical or not) or ``blend`` (an arc inserted at a corner).
-    start : float
-        Arc length [m] where it begins; ``length`` its length [m].
-    feed : float or None
-        Its programmed feed limit [m/s] (None: the schedule's feedrate; rapids: the schedule's rapid rate).
-    line : int
-        Source line (part program) or move number (inline moves).
-    tangent_in, tangent_out : ndarray
-        Unit tangents at its two ends.
-    curvature : float
-        Curvature [1/m] (0 on lines; r / (r^2 + p^2) on a helix of radius r and pitch p per radian).
-    deviation : float
-        How far [m] the path may leave the corner at its end (G64 P): 0 is an exact stop there (G61, G9).
-    dwell : float
-        [s] G4 dwell after it (the motion stops there first).
-    """
-
-    kind: str
-    start: float
-    length: float
-    feed: float | None
-    line: int
-    tangent_in: np.ndarray
-    tangent_out: np.ndarray
-    curvature: float
-    deviation: float = 0.0
-    dwell: float = 0.0
-
-
 class ToolPath(Curve):
     """A CNC tool path of straight lines and circular or helical arcs (G01 / G02 / G03), parametrised by arc
     length [m] from ``start``.
@@ -513,7 +477,7 @@ class ToolPath(Curve):
     #: (:mod:`contouring_ros.core.batch`)
     batchable = True
     batch_shared = ("segments", "blocks", "program")
-    batch_kept = ("_table",)          # the segments as arrays, made from them alone (_tables)
+    batch_kept = ("_last",)           # the scalar path's last segment, a cache
 
     dimension = 2
     dwell = 0.0            # [s] G4 before the first motion
@@ -568,8 +532,8 @@ class ToolPath(Curve):
                                  "G21 for millimetres)")
         if not self.segments:
             raise ValueError("a tool path needs at least one move")
-        self._finish(lengths, [("arc" if seg[0] == "arc" else "line", None, n, 0.0, 0.0)
-                               for n, seg in enumerate(self.segments, start=1)])
+        self._finish((segment, length, "arc" if segment[0] == "arc" else "line", None, n, 0.0, 0.0)
+                     for n, (segment, length) in enumerate(zip(self.segments, lengths), start=1))
 
     @classmethod
     def from_program(cls, program, blend_tolerance: float = 0.0) -> "ToolPath":
@@ -587,15 +551,11 @@ class ToolPath(Curve):
         self = cls.__new__(cls)
         self.dimension = program.dimension
         self.dwell = program.dwell
-        items = list(_blend(_program_items(program.blocks, program.dimension, blend_tolerance)))
-        total = sum(item[1] for item in items)
+        self._finish(item[:7] for item in _blend(_program_items(program.blocks, program.dimension, blend_tolerance)))
+        total = self.domain[1]
         if not math.isfinite(total) or total > MAX_PATH_LENGTH:
             raise ValueError(f"the path is {total:.4g} m long (at most {MAX_PATH_LENGTH:g} m): check the units "
                              "(G1 X50 is 50 mm under G21, the default, and 50 inch = 1.27 m under G20)")
-        # the segments as _program_items and _blend make them (vectors as tuples of floats), shared by the
-        # scalar path's view of them: no copy as numpy arrays (1.6 kB a chord of a long program)
-        self.segments = [item[0] for item in items]
-        self._finish([item[1] for item in items], [(item[2], item[3], item[4], item[5], item[6]) for item in items])
         return self
 
     @staticmethod
@@ -613,23 +573,32 @@ class ToolPath(Curve):
                                                 deviation, dwell)
             start += length
 
-    def _finish(self, lengths, kinds):
-        self._starts = np.concatenate([[0.0], np.cumsum(lengths)])
-        self._start_list = [float(v) for v in self._starts]
-        self._plain = [_plain(segment) for segment in self.segments]   # each segment's vectors as float tuples
+    def _finish(self, stretches) -> None:
+        """Hold the path's (segment, length, kind, feed, line, deviation, dwell) stretches as rows of tables
+        (:mod:`contouring_ros.core.path_tables`), one at a time: no object per stretch is kept."""
+        n = self.dimension
+        segments, blocks = SegmentTable.build(n), StretchTable.build(n)
+        for segment, length, kind, feed, line, deviation, dwell in stretches:
+            segments.add(SegmentTable.row(segment, n))
+            blocks.add(StretchTable.row(kind, length, feed, *_stretch_shape(segment, _plain(segment), n, length),
+                                        deviation, dwell), line)
+        self.segments, self.blocks = segments.table(SegmentTable), blocks.table(StretchTable)
+        self._starts = self.blocks.starts
         self.domain = (0.0, float(self._starts[-1]))
         self.closed = False
-        self.blocks = [_path_block(self.segments[i], self._plain[i], self.dimension, float(self._starts[i]),
-                                   float(lengths[i]), kind, feed, line, deviation, dwell)
-                       for i, (kind, feed, line, deviation, dwell) in enumerate(kinds)]
+        self._last = (-1, None)             # the scalar path's last segment: (index, SegmentTable.plain's pair)
 
     def _segment(self, i: int, u: float) -> list:
         """[R, dR, d2R, d3R] at distance u into segment i, as tuples of floats (the estimators' scalar path)."""
-        return segment_columns(self.segments[i], self._plain[i], self.dimension, u)
+        last, pair = self._last
+        if last != i:
+            pair = self.segments.plain(i)
+            self._last = (i, pair)
+        return segment_columns(pair[0], pair[1], self.dimension, u)
 
     def _one(self, s: float) -> list:
-        i = min(max(bisect.bisect_right(self._start_list, s) - 1, 0), len(self.segments) - 1)
-        return self._segment(i, s - self._start_list[i])
+        i = min(max(int(np.searchsorted(self._starts, s, side="right")) - 1, 0), len(self.segments) - 1)
+        return self._segment(i, s - float(self._starts[i]))
 
     def columns(self, t) -> list:
         if np.ndim(t) == 0:
@@ -646,76 +615,52 @@ class ToolPath(Curve):
     def _segments_array(self, index: np.ndarray, u: np.ndarray) -> list:
         """:meth:`_segment_array` of each distance ``u`` into its own segment ``index``, the segments of a
         kind at once (elementwise the same arithmetic): 4 arrays of shape (len(u), dim)."""
-        table = vars(self).get("_table") or self._tables()
+        table = self.segments
         out = [np.zeros((u.size, self.dimension)) for _ in range(4)]
-        kinds = table["kind"][index]
-        for kind, rows in table.items():
-            if kind == "kind":
-                continue
-            inside = np.flatnonzero(kinds == rows["code"])
+        kinds = table.kind[index]
+        for code, kind in enumerate(SEGMENT_KINDS):
+            inside = np.flatnonzero(kinds == code)
             if not inside.size:
                 continue
-            slot, x = rows["slot"][index[inside]], u[inside]
+            rows, x = index[inside], u[inside]
+            origin = table.vector(0)[rows]
             if kind == "line":
-                out[0][inside] = rows["origin"][slot] + x[:, None] * rows["direction"][slot]
-                out[1][inside] = rows["direction"][slot]
+                direction = table.vector(1)[rows]
+                out[0][inside] = origin + x[:, None] * direction
+                out[1][inside] = direction
             elif kind == "helix":
-                e1, e2, w = rows["e1"][slot], rows["e2"][slot], rows["w"][slot]
-                radius, rho, turn = rows["radius"][slot, None], rows["rho"][slot, None], rows["turn"][slot, None]
-                a = rows["a0"][slot, None] + turn * x[:, None] / rho
+                e1, e2, w = table.vector(1)[rows], table.vector(2)[rows], table.vector(3)[rows]
+                radius, rho, turn = (table.number(name)[rows, None] for name in ("radius", "rho", "turn"))
+                a = table.number("a0")[rows, None] + turn * x[:, None] / rho
                 c, si = _cos(a), _sin(a)
                 k1, k2, k3 = radius * turn / rho, radius / rho**2, radius * turn / rho**3
-                out[0][inside] = rows["origin"][slot] + radius * (c * e1 + si * e2) + w * x[:, None]
+                out[0][inside] = origin + radius * (c * e1 + si * e2) + w * x[:, None]
                 out[1][inside] = k1 * (c * e2 - si * e1) + w
                 out[2][inside] = -k2 * (c * e1 + si * e2)
                 out[3][inside] = k3 * (si * e1 - c * e2)
             else:
-                radius, turn, centre = rows["radius"][slot], rows["turn"][slot], rows["origin"][slot]
-                a = rows["a0"][slot] + turn * x / radius
+                radius, turn = table.number("radius")[rows], table.number("turn")[rows]
+                a = table.number("a0")[rows] + turn * x / radius
                 c, si = _cos(a), _sin(a)
-                out[0][inside] = np.column_stack([centre[:, 0] + radius * c, centre[:, 1] + radius * si])
+                out[0][inside] = np.column_stack([origin[:, 0] + radius * c, origin[:, 1] + radius * si])
                 out[1][inside] = np.column_stack([-turn * si, turn * c])
                 out[2][inside] = np.column_stack([-c / radius, -si / radius])
                 out[3][inside] = np.column_stack([turn * si / radius**2, -turn * c / radius**2])
         return out
 
-    def _tables(self) -> dict:
-        """The segments' numbers by kind as arrays (made once, for :meth:`_segments_array`): per kind its
-        code, each segment's slot in the kind's rows, and the rows."""
-        kinds = ("line", "helix", "arc")
-        codes = np.array([kinds.index(segment[0]) for segment in self.segments], dtype=np.int8)
-        table = {"kind": codes}
-        for code, kind in enumerate(kinds):
-            members = np.flatnonzero(codes == code)
-            if not members.size:
-                continue
-            slot = np.zeros(len(self.segments), dtype=np.intp)
-            slot[members] = np.arange(members.size)
-            chosen = [self.segments[i] for i in members]
-            rows = {"code": code, "slot": slot, "origin": np.array([seg[1] for seg in chosen], dtype=float)}
-            if kind == "line":
-                rows["direction"] = np.array([seg[2] for seg in chosen], dtype=float)
-            else:
-                rows.update(radius=np.array([seg[3] for seg in chosen], dtype=float),
-                            a0=np.array([seg[4] for seg in chosen], dtype=float),
-                            turn=np.array([seg[5] for seg in chosen], dtype=float))
-            if kind == "helix":
-                for k, name in enumerate(("e1", "e2", "w")):
-                    rows[name] = np.array([seg[2][k] for seg in chosen], dtype=float)
-                rows["rho"] = np.array([seg[2][3] for seg in chosen], dtype=float)
-            table[kind] = rows
-        self._table = table
-        return table
-
     def _segment_array(self, i: int, u: np.ndarray) -> list:
         """:meth:`_segment` for an array of distances ``u`` into segment i: 4 arrays of shape (len(u), dim)."""
-        kind, origin, direction, radius, a0, turn = self.segments[i]
+        table = self.segments
+        kind = SEGMENT_KINDS[table.kind[i]]
+        origin = table.vector(0)[i]
+        radius, a0, turn, rho = (float(table.number(name)[i]) for name in ("radius", "a0", "turn", "rho"))
         u = u[:, None]
         if kind == "line":
+            direction = table.vector(1)[i]
             zero = np.zeros((u.shape[0], self.dimension))
             return [origin + u * direction, np.broadcast_to(direction, zero.shape), zero, zero]
         if kind == "helix":
-            e1, e2, w, rho = direction
+            e1, e2, w = table.vector(1)[i], table.vector(2)[i], table.vector(3)[i]
             a = a0 + turn * u / rho
             c, si = _cos(a), _sin(a)
             k1, k2, k3 = radius * turn / rho, radius / rho**2, radius * turn / rho**3
@@ -783,24 +728,25 @@ def _floats(vector) -> tuple:
 
 def _path_block(segment, plain, n, start, length, kind, feed, line, deviation, dwell) -> PathBlock:
     """The :class:`PathBlock` of one segment beginning at arc length ``start``."""
+    tangent_in, tangent_out, curvature = _stretch_shape(segment, plain, n, length)
+    return PathBlock(kind, float(start), float(length), feed, line, np.array(tangent_in), np.array(tangent_out),
+                     curvature, float(deviation), float(dwell))
+
+
+def _stretch_shape(segment, plain, n, length) -> tuple:
+    """(unit tangent at its start, at its end, curvature) of a segment of ``length``, as floats."""
     if segment[0] == "line":                 # one direction: its tangent at both ends
-        tangent = np.array(_unit(plain[1]))
-        return PathBlock(kind, float(start), float(length), feed, line, tangent, tangent.copy(), 0.0,
-                         float(deviation), float(dwell))
+        tangent = _unit(plain[1])
+        return tangent, tangent, 0.0
     if segment[0] == "helix":               # the two tangents and |d2R| (a helix's is the same everywhere)
         _, _, _, radius, a0, turn = segment
         c, si = _helix_angle(plain, a0, turn, 0.0)
         k2 = radius / plain[4]**2
         curvature = _norm([k2 * (c * x + si * y) for x, y in zip(plain[1], plain[2])])
-        return PathBlock(kind, float(start), float(length), feed, line,
-                         np.array(_unit(_helix_tangent(plain, radius, turn, c, si))),
-                         np.array(_unit(_helix_tangent(plain, radius, turn,
-                                                       *_helix_angle(plain, a0, turn, float(length))))), curvature,
-                         float(deviation), float(dwell))
+        return (_unit(_helix_tangent(plain, radius, turn, c, si)),
+                _unit(_helix_tangent(plain, radius, turn, *_helix_angle(plain, a0, turn, float(length)))), curvature)
     begin, end = segment_columns(segment, plain, n, 0.0), segment_columns(segment, plain, n, float(length))
-    curvature = _norm(begin[2])             # a planar arc of an inline path
-    return PathBlock(kind, float(start), float(length), feed, line, np.array(_unit(begin[1])),
-                     np.array(_unit(end[1])), curvature, float(deviation), float(dwell))
+    return _unit(begin[1]), _unit(end[1]), _norm(begin[2])          # a planar arc of an inline path
 
 
 def _norm(vector) -> float:

@@ -38,6 +38,7 @@ from __future__ import annotations
 import copy
 import dataclasses
 import math
+from array import array
 from dataclasses import dataclass
 
 import numpy as np
@@ -127,7 +128,32 @@ class BlockLimit:
     feed: float
     acceleration: float
     jerk: float
-    bound: str          # "F", "rapid", "feedrate", "axis", "centripetal", "tolerance"
+    bound: str          # one of BOUNDS
+
+
+#: what can set a block's feed (:attr:`BlockLimit.bound`)
+BOUNDS = ("F", "rapid", "feedrate", "axis", "centripetal", "tolerance")
+
+
+class LimitTable:
+    """A plan's :class:`BlockLimit` per block held as arrays (a long program's blocks cost 25 bytes each, not
+    an object): item i is block i's limit, made on access; ``feed``, ``acceleration``, ``jerk`` the arrays."""
+
+    def __init__(self, feed, acceleration, jerk, bound):
+        self.feed, self.acceleration, self.jerk = (np.asarray(column, dtype=float) for column in (feed, acceleration, jerk))
+        self._bound = np.asarray(bound, dtype=np.int8)         # index into BOUNDS
+
+    def __len__(self) -> int:
+        return len(self.feed)
+
+    def __getitem__(self, i):
+        if isinstance(i, slice):
+            return [self[j] for j in range(len(self))[i]]
+        return BlockLimit(float(self.feed[i]), float(self.acceleration[i]), float(self.jerk[i]), BOUNDS[self._bound[i]])
+
+    def __iter__(self):
+        for i in range(len(self)):
+            yield self[i]
 
 
 def block_limits(path: ToolPath, acceleration: float, jerk: float, feedrate: float | None = None,
@@ -267,16 +293,16 @@ class SpanHeads:
     def feed(self) -> float:
         return self.head.feed
 
-    def next(self, limit: BlockLimit, block, corner: float, hold: float, split: bool) -> tuple:
-        """Whether ``block`` (its ``limit``, the ``corner`` speed and ``hold`` where it begins) starts a span
-        (:func:`joins_span`, or ``split``: the window's), and the corner speed, lowered where a span ends to
-        that span's feed (no span leaves above its own feed)."""
-        joins = joins_span(limit, self.head, corner, hold, block.length, block.start - self.start)
+    def next(self, limit: BlockLimit, start: float, length: float, corner: float, hold: float, split: bool) -> tuple:
+        """Whether the block at arc length ``start`` of ``length`` (its ``limit``, the ``corner`` speed and
+        ``hold`` where it begins) starts a span (:func:`joins_span`, or ``split``: the window's), and the corner
+        speed, lowered where a span ends to that span's feed (no span leaves above its own feed)."""
+        joins = joins_span(limit, self.head, corner, hold, length, start - self.start)
         if joins and not split:
             return False, corner
         corner = min(corner, self.head.feed)
         if not joins:
-            self.head, self.start = limit, block.start
+            self.head, self.start = limit, start
         return True, corner
 
 
@@ -421,25 +447,31 @@ class FeedPlan:
         bounds = LimitBounds(path.dimension, acceleration, jerk, feedrate, rapid_feedrate, normal_acceleration,
                              axis_feedrate, axis_acceleration, axis_jerk, contour_tolerance, tracking_lag,
                              feed_override)
-        self.limits = [bounds.limit(block) for block in blocks]
         m = len(blocks)
-        feed = np.array([limit.feed for limit in self.limits])
-        acc = np.array([limit.acceleration for limit in self.limits])
-        jer = np.array([limit.jerk for limit in self.limits])
         self.entry = (float(entry[0]), float(entry[1]))
         corner = np.zeros(m + 1)                 # speed limit at each block boundary
-        corner[0] = min(self.entry[0], feed[0])
         hold = np.zeros(m + 1)                   # [s] held at each boundary before the next block
         hold[0] = getattr(path, "dwell", 0.0)
-        hold[m] = blocks[-1].dwell
-        for i in range(1, m):
-            before, after = blocks[i - 1], blocks[i]
-            hold[i] = before.dwell
-            corner[i] = bounds.corner(before, after, self.limits[i - 1], self.limits[i])
-            if corner[i] == 0.0:
-                hold[i] += float(dwell)
+        starts, lengths = np.empty(m + 1), np.empty(m)
+        starts[m] = self.theta_end
+        columns = (array("d"), array("d"), array("d"), array("b"))          # the limits' (LimitTable)
+        before, limit_before = None, None
+        for i, block in enumerate(blocks):       # each block made once (a long path holds them as rows)
+            limit = bounds.limit(block)
+            for column, value in zip(columns, (limit.feed, limit.acceleration, limit.jerk, BOUNDS.index(limit.bound))):
+                column.append(value)
+            starts[i], lengths[i] = block.start, block.length
+            if before is not None:
+                hold[i] = before.dwell
+                corner[i] = bounds.corner(before, block, limit_before, limit)
+                if corner[i] == 0.0:
+                    hold[i] += float(dwell)
+            before, limit_before = block, limit
+        hold[m] = before.dwell
+        self.limits = LimitTable(*columns)
+        feed, acc, jer = self.limits.feed, self.limits.acceleration, self.limits.jerk
+        corner[0] = min(self.entry[0], feed[0])
         window = int(lookahead_blocks) if 0 < lookahead_blocks < m else 0
-        starts = np.array([block.start for block in blocks] + [self.theta_end])
         split_at = set()
         if window:            # spans of at most half the window: at least half a window is seen beyond each
             splits = np.arange(0, m, max(1, window // 2))
@@ -451,9 +483,10 @@ class FeedPlan:
                 down = v_peak * max(self.entry[1], 0.0) / jer[0] + scurve_distance(feed[0], v_peak, acc[0], jer[0])
                 splits = splits[(splits == 0) | (starts[splits] - starts[0] > 2.0 * down)]
             split_at = set(splits.tolist())
-        spans, first, caps = SpanHeads(self.limits[0], blocks[0].start), [0], [feed[0]]
+        spans, first, caps = SpanHeads(self.limits[0], float(starts[0])), [0], [feed[0]]
         for b in range(1, m):
-            begins, corner[b] = spans.next(self.limits[b], blocks[b], float(corner[b]), float(hold[b]), b in split_at)
+            begins, corner[b] = spans.next(self.limits[b], float(starts[b]), float(lengths[b]), float(corner[b]),
+                                           float(hold[b]), b in split_at)
             if begins:
                 first.append(b)
                 caps.append(spans.feed)

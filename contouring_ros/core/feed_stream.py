@@ -126,7 +126,7 @@ class StreamingPlan:
             _, before, before_limit, *_ = previous
             corner = self.bounds.corner(before, block, before_limit, limit)
             hold = before.dwell + (self.dwell if corner == 0.0 else 0.0)
-            starts, corner = self._spans.next(limit, block, corner, hold, b % max(1, self.window // 2) == 0)
+            starts, corner = self._spans.next(limit, block.start, block.length, corner, hold, b % max(1, self.window // 2) == 0)
         buffer.append([pair, block, limit, corner, hold, starts, self._spans.feed])
         self.blocks_read = b + 1
         return True

@@ -32,12 +32,13 @@ from __future__ import annotations
 
 import math
 import re
+from array import array
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-__all__ = ["Block", "Program", "ProgramError", "ProgramReader", "parse_program", "merge_collinear", "MM", "INCH", "JUNCTION_DEVIATION",
-           "SETUP_WORDS", "MAX_MERGED"]
+__all__ = ["Block", "Program", "ProgramError", "ProgramReader", "SourceBlocks", "parse_program", "read_program",
+           "merge_collinear", "MM", "INCH", "JUNCTION_DEVIATION", "SETUP_WORDS", "SOURCE_CODES", "MAX_MERGED"]
 
 MM, INCH = 1e-3, 25.4e-3          # metres per unit
 ARC_TOLERANCE = 2e-6              # m: an arc's end may lie this far off its circle (LinuxCNC's 0.002 mm)
@@ -126,13 +127,49 @@ class Block:
     merged: int = 1
 
 
+#: the G word of a block of the source (:class:`SourceBlocks`)
+SOURCE_CODES = ("G0", "G1", "G2", "G3")
+
+
+class SourceBlocks:
+    """What the results per block say of each motion block of a program: its source line, N number and G
+    word, as arrays (a long program costs 17 bytes a block), in program order."""
+
+    def __init__(self, blocks=()):
+        lines, numbers, codes = array("q"), array("q"), array("b")
+        for block in blocks:
+            lines.append(block.line)
+            numbers.append(-1 if block.number is None else block.number)
+            codes.append(0 if block.kind == "rapid" else 1 if block.kind == "line" else 2 if block.clockwise else 3)
+        self.lines = np.array(lines, dtype=np.int64)
+        self._numbers, self._codes = np.array(numbers, dtype=np.int64), np.array(codes, dtype=np.int8)
+
+    def _index(self, line: int) -> int | None:
+        i = int(np.searchsorted(self.lines, line))
+        return i if i < len(self.lines) and self.lines[i] == line else None
+
+    def number(self, line: int) -> int | None:
+        """The N number of the block at source ``line`` (None without one, or without a block there)."""
+        i = self._index(line)
+        return None if i is None or self._numbers[i] < 0 else int(self._numbers[i])
+
+    def codes(self, lines) -> list:
+        """The G word of the block at each source line (None where none is)."""
+        lines = np.asarray(lines, dtype=np.int64)
+        i = np.clip(np.searchsorted(self.lines, lines), 0, max(len(self.lines) - 1, 0))
+        found = (self.lines[i] == lines) if len(self.lines) else np.zeros(len(lines), dtype=bool)
+        return [SOURCE_CODES[c] if f else None for c, f in zip(self._codes[i].tolist(), found.tolist())]
+
+
 @dataclass(frozen=True)
 class Program:
     """A parsed part program: its motion blocks and its dimension: 3 where it moves Z, arcs outside the XY
     plane or starts off z = 0, else 2; ``warnings``: one line naming the setup words read (none without);
     ``dwell``: [s] of
     G4 before the first motion; ``unit``: [m] per program unit (MM or INCH) of its first motion, in which
-    results per block are reported."""
+    results per block are reported; ``sources``: its blocks' lines, N numbers and G words
+    (:class:`SourceBlocks`). ``blocks`` is a list (:func:`parse_program`) or an iterable that reads the
+    program again each time (:func:`read_program`)."""
 
     blocks: list
     dimension: int
@@ -140,6 +177,7 @@ class Program:
     warnings: tuple = ()
     dwell: float = 0.0
     unit: float = MM
+    sources: SourceBlocks | None = None
 
 
 def _strip_comments(text: str, number: int) -> str:
@@ -250,12 +288,42 @@ def parse_program(text: str, start=(0.0, 0.0, 0.0), strict: bool = False) -> Pro
     """
     lines = text.splitlines()
     reader = ProgramReader(start, strict)
-    blocks = list(reader.blocks(lines, last=len(lines)))
-    for block in blocks:                # F words given: every feed move needs one (none: the schedule's feed)
-        if reader.has_feed and block.kind != "rapid" and block.feed is None:
-            raise ProgramError(f"line {block.line}: {_code_of(block)} before any feed rate (F)")
+    blocks = list(_check_feeds(reader.blocks(lines, last=len(lines)), reader))
     return Program(list(merge_collinear(blocks)), reader.dimension, reader.has_feed, reader.warnings,
-                   reader.first_dwell, reader.unit)
+                   reader.first_dwell, reader.unit, SourceBlocks(blocks))
+
+
+def read_program(lines: list, start=(0.0, 0.0, 0.0), strict: bool = False) -> Program:
+    """:func:`parse_program` of a program's ``lines`` that keeps no block: the program is read once to learn
+    what it states as a whole and to check it, and its ``blocks`` read it again each time they are iterated
+    (the same blocks, merged as :func:`merge_collinear` merges them). A program of a million blocks costs its
+    lines and :class:`SourceBlocks`, not a million :class:`Block` objects."""
+    reader = ProgramReader(start, strict)
+    sources = SourceBlocks(_check_feeds(reader.blocks(lines, last=len(lines)), reader))
+    return Program(_Reread(lines, start, strict), reader.dimension, reader.has_feed, reader.warnings,
+                   reader.first_dwell, reader.unit, sources)
+
+
+def _check_feeds(blocks, reader: ProgramReader):
+    """``blocks`` (a generator of ``reader``'s) passed on; where the program has F words, the first feed move
+    before any of them is refused once all are read (a program without F words takes the schedule's feed)."""
+    feedless = None
+    for block in blocks:
+        if feedless is None and block.kind != "rapid" and block.feed is None:
+            feedless = block
+        yield block
+    if reader.has_feed and feedless is not None:
+        raise ProgramError(f"line {feedless.line}: {_code_of(feedless)} before any feed rate (F)")
+
+
+class _Reread:
+    """A program's blocks as :func:`read_program` gives them: each iteration reads its lines again."""
+
+    def __init__(self, lines, start, strict: bool):
+        self.lines, self.start, self.strict = lines, start, strict
+
+    def __iter__(self):
+        return merge_collinear(ProgramReader(self.start, self.strict).blocks(self.lines, last=len(self.lines)))
 
 
 def _code_of(block: Block) -> str:

@@ -32,8 +32,8 @@ class Param:
 # --- bounds: every number a file gives lies in a stated range, so no run starts that cannot end or fit --------
 MAX_FILE_BYTES = 1 << 20        # an experiment file (UTF-8 text) is at most 1 MiB
 MAX_PROGRAM_BYTES = 256 << 20   # a part program at most 256 MiB (a million short blocks take tens of MB)
-MAX_PROGRAM_LINES = 100_000     # ... and at most this many lines: a chord held as a tool path takes about 2.2 kB (3.3 in a run)
-#                                 (measured on 20 000 G1 moves), so a program stays within about 0.33 GB
+MAX_PROGRAM_LINES = 2_000_000   # ... and at most this many lines: a chord held as a tool path and planned takes about 0.7 kB
+#                                 (bench/long_programs.py), so a program stays within about 1.4 GB
 MAX_DEPTH = 16                  # levels of YAML nesting (the shipped files use 6)
 MAX_STEPS = 10_000_000          # control steps of one run: duration / sample_time + 1
 MAX_DURATION = 3600.0           # s of simulated time

@@ -15,9 +15,10 @@ from pathlib import Path
 import numpy as np
 
 from ..core.geometry import ExactContourError
-from ..core.gcode import INCH, MM
+from ..core.gcode import INCH, MM, SourceBlocks
 from ..core.interpolation import SETTLE
 from ..core.metrics import Scores, score
+from ..core.path_tables import STRETCH_KINDS
 from .numbers import fixed
 from .outputs import write_atomically
 
@@ -100,8 +101,7 @@ def breach_line(breach, curve, axes, sample_time: float) -> str:
     its limit, the block (N number, source line, G word) the reference was in and the time."""
     i = int(_block_index(curve, [breach.theta])[0])
     block = curve.blocks[i]
-    source = {b.line: b for b in getattr(getattr(curve, "program", None), "blocks", [])}.get(block.line)
-    number = getattr(source, "number", None)
+    number = _sources(curve).number(block.line)
     what = "contour error" if breach.what == "contour" else f"following error of axis {axes[breach.what]}"
     name = f"block N{number} (line {block.line}, {block_codes(curve)[i]})" if number is not None else \
         f"block at line {block.line} ({block_codes(curve)[i]})"
@@ -109,27 +109,25 @@ def breach_line(breach, curve, axes, sample_time: float) -> str:
             f"{name} at t = {breach.step * sample_time:.{_time_decimals(sample_time)}f} s (step {breach.step})")
 
 
+def _sources(curve) -> SourceBlocks:
+    """The lines, N numbers and G words of ``curve``'s part program (none for inline moves)."""
+    program = getattr(curve, "program", None)
+    return getattr(program, "sources", None) or SourceBlocks(getattr(program, "blocks", ()))
+
+
 def _block_index(curve, theta) -> np.ndarray:
-    starts = np.array([b.start for b in curve.blocks])
+    starts = curve.blocks.column("start")
     return np.clip(np.searchsorted(starts, np.nan_to_num(np.asarray(theta, dtype=float)), side="right") - 1, 0,
                    len(starts) - 1)
 
 
 def block_codes(curve) -> list:
     """The G word of each block of ``curve``'s path (a blend arc takes its line's word)."""
-    program = {b.line: b for b in getattr(getattr(curve, "program", None), "blocks", [])}
-    out = []
-    for block in curve.blocks:
-        source = program.get(block.line)
-        if block.kind == "rapid":
-            out.append("G0")
-        elif source is not None and source.kind == "arc":
-            out.append("G2" if source.clockwise else "G3")
-        elif block.kind == "arc":
-            out.append("G2/G3")
-        else:
-            out.append("G1")
-    return out
+    blocks = curve.blocks
+    kinds = [STRETCH_KINDS[k] for k in blocks.column("kind").tolist()]
+    sources = _sources(curve).codes(blocks.column("line"))
+    return ["G0" if kind == "rapid" else source if source in ("G2", "G3") else "G2/G3" if kind == "arc" else "G1"
+            for kind, source in zip(kinds, sources)]
 
 
 def cutting_steps(curve, result, end: int | None = None) -> np.ndarray:
@@ -165,11 +163,12 @@ def block_results(curve, result, schedule=None, tolerance: float = 0.0, exact=No
     following = np.abs(np.asarray(result.reference_position)[:end] - np.asarray(result.position)[:end])
     speed = np.linalg.norm(np.asarray(result.velocity)[:end], axis=1)
     dt = float(result.time[1] - result.time[0]) if len(result.time) > 1 else 0.0
-    program = {b.line: b for b in getattr(getattr(curve, "program", None), "blocks", [])}
-    lines = list(dict.fromkeys(b.line for b in curve.blocks))
+    sources = _sources(curve)
+    block_lines = curve.blocks.column("line").tolist()
+    lines = list(dict.fromkeys(block_lines))
     members_of = {}
-    for i, b in enumerate(curve.blocks):
-        members_of.setdefault(b.line, []).append(i)
+    for i, line in enumerate(block_lines):
+        members_of.setdefault(line, []).append(i)
     counts = np.bincount(index, minlength=len(curve.blocks))
     rows = []
     for line in lines:
@@ -183,10 +182,9 @@ def block_results(curve, result, schedule=None, tolerance: float = 0.0, exact=No
             limits[main].feed if limits is not None and limits[main].bound in ("rapid", "feedrate") else np.nan
         worst = float(errors[steps].max())
         verdict = "-" if not tolerance else ("held" if worst <= tolerance else "exceeded")
-        source = program.get(line)
         time = float(steps.sum() * dt)
         length = float(sum(curve.blocks[i].length for i in members))
-        rows.append(BlockResult(line, getattr(source, "number", None), codes[main], float(feed),
+        rows.append(BlockResult(line, sources.number(line), codes[main], float(feed),
                                 length / time if time > 0.0 else np.nan, float(speed[steps].max()), time, worst,
                                 tuple(float(v) for v in following[steps].max(axis=0)), verdict))
     return rows

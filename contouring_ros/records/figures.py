@@ -343,11 +343,11 @@ def _block_limits(trace: Trace, override: float | None = None) -> np.ndarray:
     limits = getattr(schedule, "limits", None)
     if limits is not None:
         return np.array([limit.feed for limit in limits])
-    return np.array([np.nan if b.feed is None else b.feed for b in trace.curve.blocks])
+    return np.array(trace.curve.blocks.column("feed"))
 
 
 def _block_of(trace: Trace) -> np.ndarray:
-    starts = np.array([b.start for b in trace.curve.blocks])
+    starts = np.array(trace.curve.blocks.column("start"))
     theta = finite_or_nan(trace.run.result.theta)
     return np.clip(np.searchsorted(starts, np.nan_to_num(theta), side="right") - 1, 0, len(starts) - 1)
 

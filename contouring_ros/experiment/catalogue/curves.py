@@ -2,6 +2,8 @@
 ``contour_error_window``, the half-width of the exact contour error's search."""
 from __future__ import annotations
 
+import dataclasses
+
 import copy
 import threading
 from collections import OrderedDict
@@ -94,11 +96,12 @@ def _read_tool_path(s, path: Path):
         raise ValueError(f"{path.name}: {lines} lines, over the {MAX_PROGRAM_LINES} a part program may have (split "
                          "it into several programs)")
     try:
-        program = gcode.parse_program(text, s["start"], s["strict"])
+        program = gcode.read_program(text.splitlines(), s["start"], s["strict"])
+        del text, raw
         tool_path = curves.ToolPath.from_program(program, s["blend_tolerance"])
     except ValueError as error:
         raise ValueError(f"{path.name}: {error}") from None
-    tool_path.program = program
+    tool_path.program = dataclasses.replace(program, blocks=())     # its blocks are the path's; not its lines
     tool_path.source = str(path.resolve())
     return tool_path
 
