@@ -470,7 +470,8 @@ class ToolPath(Curve):
     :meth:`from_program` builds one from a part program (:mod:`contouring_ros.core.gcode`, 2 or 3 axes),
     optionally blending line-line corners within a tolerance. Derivatives are analytic within each move; the
     curvature jumps where moves meet, as on a machine. ``blocks`` lists the stretches between block
-    boundaries (:class:`PathBlock`) for feed planning.
+    boundaries (:class:`PathBlock`) for feed planning and ``segments`` what each evaluates, both held as rows
+    of arrays (:mod:`contouring_ros.core.path_tables`: a StretchTable and a SegmentTable).
     """
 
     #: columns() works on a batch of parameters when every experiment of the batch has the same path
