@@ -45,6 +45,7 @@ import numpy as np
 
 from .curves import ToolPath
 from .lookahead import WindowChain
+from .path_tables import RowSequence
 from .scurve import SPARE, reach, scurve_distance, scurve_time
 
 __all__ = ["FeedPlan", "BlockLimit", "LimitBounds", "block_limits", "joins_span", "SpanHeads", "span_profile", "profile_time",
@@ -135,7 +136,7 @@ class BlockLimit:
 BOUNDS = ("F", "rapid", "feedrate", "axis", "centripetal", "tolerance")
 
 
-class LimitTable:
+class LimitTable(RowSequence):
     """A plan's :class:`BlockLimit` per block held as arrays (a long program's blocks cost 25 bytes each, not
     an object): item i is block i's limit, made on access; ``feed``, ``acceleration``, ``jerk`` the arrays."""
 
@@ -146,14 +147,8 @@ class LimitTable:
     def __len__(self) -> int:
         return len(self.feed)
 
-    def __getitem__(self, i):
-        if isinstance(i, slice):
-            return [self[j] for j in range(len(self))[i]]
+    def row_item(self, i: int) -> BlockLimit:
         return BlockLimit(float(self.feed[i]), float(self.acceleration[i]), float(self.jerk[i]), BOUNDS[self._bound[i]])
-
-    def __iter__(self):
-        for i in range(len(self)):
-            yield self[i]
 
 
 def block_limits(path: ToolPath, acceleration: float, jerk: float, feedrate: float | None = None,

@@ -140,7 +140,7 @@ class SourceBlocks:
         for block in blocks:
             lines.append(block.line)
             numbers.append(-1 if block.number is None else block.number)
-            codes.append(0 if block.kind == "rapid" else 1 if block.kind == "line" else 2 if block.clockwise else 3)
+            codes.append(SOURCE_CODES.index("G0" if block.kind == "rapid" else _code_of(block)))
         self.lines = np.array(lines, dtype=np.int64)
         self._numbers, self._codes = np.array(numbers, dtype=np.int64), np.array(codes, dtype=np.int8)
 

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["PathBlock", "SegmentTable", "StretchTable", "SEGMENT_KINDS", "STRETCH_KINDS"]
+__all__ = ["PathBlock", "RowSequence", "SegmentTable", "StretchTable", "SEGMENT_KINDS", "STRETCH_KINDS"]
 
 #: what a segment is: a straight line, a helix (a program's arc, helical or not, or a corner's blend arc) or a
 #: planar arc of an inline path
@@ -60,7 +60,21 @@ class PathBlock:
     dwell: float = 0.0
 
 
-class SegmentTable:
+class RowSequence:
+    """A sequence whose item i is made from row i of a table on access (:meth:`row_item`): an index, a
+    negative one or a slice (a list), and iteration in order."""
+
+    def __getitem__(self, i):
+        if isinstance(i, slice):
+            return [self.row_item(j) for j in range(len(self))[i]]
+        return self.row_item(range(len(self))[i])
+
+    def __iter__(self):
+        for i in range(len(self)):
+            yield self.row_item(i)
+
+
+class SegmentTable(RowSequence):
     """The segments of a tool path, one row each: what :func:`contouring_ros.core.curves.segment_columns`
     evaluates.
 
@@ -101,14 +115,8 @@ class SegmentTable:
     def __len__(self) -> int:
         return len(self._kind)
 
-    def __getitem__(self, i):
-        if isinstance(i, slice):
-            return [self[j] for j in range(len(self))[i]]
+    def row_item(self, i: int) -> tuple:
         return self.plain(i)[0]
-
-    def __iter__(self):
-        for i in range(len(self)):
-            yield self[i]
 
     def plain(self, i: int) -> tuple:
         """(segment tuple, its vectors as tuples of floats) of segment i: (origin, direction) of a line,
@@ -142,7 +150,7 @@ class SegmentTable:
         return self._numbers[:, 4 * self.dimension + ("rho", "radius", "a0", "turn").index(name)]
 
 
-class StretchTable:
+class StretchTable(RowSequence):
     """The stretches of a tool path, one row each: item i is its :class:`PathBlock` (made on access), so a
     program of any length costs its rows, not its records; :meth:`column` gives one field of every row as an
     array."""
@@ -171,10 +179,7 @@ class StretchTable:
     def __bool__(self) -> bool:
         return len(self._kind) > 0
 
-    def __getitem__(self, i):
-        if isinstance(i, slice):
-            return [self[j] for j in range(len(self))[i]]
-        i = range(len(self._kind))[i]
+    def row_item(self, i: int) -> PathBlock:
         row = self._numbers[i]
         d = self.dimension
         length, feed, *rest = row.tolist()
@@ -182,10 +187,6 @@ class StretchTable:
         return PathBlock(STRETCH_KINDS[self._kind[i]], float(self.starts[i]), length,
                          None if math.isnan(feed) else feed, int(self._line[i]), row[2:2 + d].copy(),
                          row[2 + d:2 + 2 * d].copy(), curvature, deviation, dwell)
-
-    def __iter__(self):
-        for i in range(len(self)):
-            yield self[i]
 
     def column(self, name: str) -> np.ndarray:
         """One field of every stretch as an array: ``start``, ``length``, ``feed`` (NaN where None), ``line``,

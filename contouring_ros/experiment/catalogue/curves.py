@@ -2,9 +2,8 @@
 ``contour_error_window``, the half-width of the exact contour error's search."""
 from __future__ import annotations
 
-import dataclasses
-
 import copy
+import dataclasses
 import threading
 from collections import OrderedDict
 from pathlib import Path
