@@ -352,16 +352,34 @@ class ExactContourError:
     window : float, optional
         Restrict each point's search to parameters within +-window of the parameter given with it
         (``near``); default: the curve's ``contour_error_window`` (0: the whole curve).
+
+    Far points. A k-d tree's nearest-sample search costs about as many samples as lie within the point's
+    distance of it: a point millimetres off the path (a run that nearly diverged) costs 10-100x a point on it.
+    A point farther than :attr:`FAR` spacings of every :attr:`COARSE`-th sample from every sample (the first
+    search, bounded at that distance, finds none) is searched among those coarse samples instead, and its
+    Newton refinement bracketed by the coarse sample's neighbours. Its distance is then the distance to the
+    curve's nearest point in that bracket: the true one, unless another branch's minimum lies within
+    h^2 (1/D + kappa) / 8 of it (h the coarse spacing, D the distance, kappa the curvature; with D >= FAR h,
+    a share of at most 1 / (8 FAR^2) + h kappa / (8 FAR) of D, 1e-5 here). Every other point's result is the
+    dense search's.
     """
 
     CANDIDATES = 64   # nearest samples examined per point when a window restricts the search
+    COARSE = 8        # every COARSE-th sample makes the search of far points
+    FAR = 128         # ... for points farther than FAR of its spacings from every sample
 
     def __init__(self, curve: Curve, samples: int = 20001, tolerance: float = 1e-15, max_iterations: int = 50,
                  window: float | None = None):
         self.curve = curve
         lo, hi = curve.domain
         self._grid = np.linspace(lo, hi, int(samples))
-        self._tree = _search_tree(curve.point(self._grid))
+        samples = curve.point(self._grid)
+        self._tree = _search_tree(samples)
+        self._coarse = np.arange(0, len(self._grid), self.COARSE)
+        coarse = samples[self._coarse]
+        self._coarse_tree = _search_tree(coarse) if len(coarse) > 1 else None
+        self._far = self.FAR * float(np.max(np.linalg.norm(np.diff(coarse, axis=0), axis=-1))) if len(coarse) > 1 \
+            else math.inf
         self.tolerance = float(tolerance)
         self.max_iterations = int(max_iterations)
         self.window = float(curve.contour_error_window if window is None else window)
@@ -382,6 +400,20 @@ class ExactContourError:
             nearest[outside] = np.where(inside.any(axis=1), chosen, candidates[:, 0])
         return nearest
 
+    def _nearest(self, points) -> tuple:
+        """(each point's nearest sample, how many samples either side bracket its refinement): the dense
+        search's nearest sample and 1, or for a far point (see the class docstring) the nearest coarse sample
+        and :attr:`COARSE`."""
+        distance, nearest = self._tree.query(points, distance_upper_bound=self._far)
+        far = ~np.isfinite(distance)
+        if not far.any():
+            return nearest, 1
+        _, coarse = self._coarse_tree.query(points[far])
+        nearest[far] = self._coarse[coarse]
+        reach = np.ones(len(points), dtype=int)
+        reach[far] = self.COARSE
+        return nearest, reach
+
     def _inside(self, samples, near) -> np.ndarray:
         """Whether the grid ``samples`` (indices) lie within +-window of the parameters ``near``."""
         offset = self._grid[samples] - near
@@ -395,12 +427,13 @@ class ExactContourError:
         parameter, used when the search is restricted to a window."""
         points = np.atleast_2d(np.asarray(points, dtype=float))
         grid = self._grid
+        reach = 1
         if self.window > 0.0 and near is not None:
             nearest = self._nearest_in_window(points, near)
         else:
-            _, nearest = self._tree.query(points)
-        lower = grid[np.maximum(nearest - 1, 0)]
-        upper = grid[np.minimum(nearest + 1, grid.size - 1)]
+            nearest, reach = self._nearest(points)
+        lower = grid[np.maximum(nearest - reach, 0)]
+        upper = grid[np.minimum(nearest + reach, grid.size - 1)]
         theta = grid[nearest]
         active = np.arange(len(points))          # the points whose Newton step has not yet settled
         for _ in range(self.max_iterations):

@@ -72,6 +72,30 @@ def test_parabola_exact_error_agrees_with_brute_force_and_residual():
     assert_allclose(np.sum(foot.vector * tangent, axis=1), 0.0, atol=1e-17)
 
 
+def test_far_points_are_searched_among_coarse_samples_and_keep_their_exact_distance():
+    # a point many coarse spacings off the curve (a run that nearly diverged) is searched among every
+    # COARSE-th sample; its distance is still the exact one: | |P - c| - r | for a circle, the centre included
+    circle = Circle(0.1, (0.02, 0.03))
+    solver = ExactContourError(circle)
+    rng = np.random.default_rng(3)
+    angles = rng.uniform(0, 2 * np.pi, 400)
+    radii = np.concatenate([[0.0], rng.uniform(0.0, 0.08, 199), rng.uniform(0.12, 0.4, 200)])
+    points = np.array([0.02, 0.03]) + radii[:, None] * np.stack([np.cos(angles), np.sin(angles)], axis=1)
+    far = np.abs(radii - 0.1) > solver._far
+    assert far.sum() > 300 and (~far).sum() > 10          # most of them far, some not
+    assert_allclose(solver(points).distance, np.abs(radii - 0.1), rtol=1e-12, atol=1e-15)
+    # on a parabola, far on either side, against a brute-force search of a dense sampling
+    parabola = Parabola(0.02, 50.0)
+    theta = rng.uniform(-0.018, 0.018, 100)
+    d = parabola.derivatives(theta, 1)
+    normal = np.stack([-d[1][:, 1], d[1][:, 0]], axis=1) / np.linalg.norm(d[1], axis=1)[:, None]
+    points = d[0] + rng.uniform(-0.03, 0.03, 100)[:, None] * normal
+    foot = ExactContourError(parabola)(points)
+    dense = parabola.point(np.linspace(-0.02, 0.02, 400001))
+    brute = np.array([np.min(np.linalg.norm(dense - p, axis=1)) for p in points])
+    assert_allclose(foot.distance, brute, rtol=1e-5, atol=1e-9)
+
+
 def test_points_on_the_curve_have_zero_error():
     parabola = Parabola(0.02, 50.0)
     points = parabola.point(np.linspace(-0.02, 0.02, 101))
