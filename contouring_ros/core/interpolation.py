@@ -269,15 +269,30 @@ def at_reference(reference: Reference, function, *arguments):
     values of ``reference`` (the Frenet frame at the reference point, the curve's derivatives there):
     computed once per step along a path, for every run that reads the step from a :class:`ReferenceTable`
     (once per batch size for batches, whose arrays of the reference's values are the same at a step), and
-    kept read-only; computed each time for any other reference (a node's, one computed by its run)."""
+    kept read-only; computed each time for any other reference (a node's, one computed by its run). A step
+    keeps at most :data:`MEMO_ENTRIES` of them, the oldest given up first, and none for batches of more than
+    :data:`MEMO_BATCH` members: batches of many sizes (a mixed batch hands each class its share of the
+    members) would otherwise keep one entry of every size they met, each step, for as long as the path."""
     memo = reference.memo
     if memo is None:
         return function(*arguments)
     key = (function, *(a.shape if a.__class__ is np.ndarray else a for a in arguments))
     value = memo.get(key)
     if value is None:
-        value = memo[key] = _frozen_all(function(*arguments))
+        value = _frozen_all(function(*arguments))
+        if any(a.__class__ is np.ndarray and a.ndim and a.shape[0] > MEMO_BATCH for a in arguments):
+            return value
+        if len(memo) >= MEMO_ENTRIES:
+            try:
+                memo.pop(next(iter(memo)), None)
+            except (RuntimeError, StopIteration):     # another thread changed it meanwhile: keep it as it is
+                pass
+        memo[key] = value
     return value
+
+
+MEMO_ENTRIES = 8      # entries a step's memo keeps (at_reference): a few functions at a few batch sizes
+MEMO_BATCH = 64       # ... for batches of at most this many members (a larger batch's entry is its own work)
 
 
 def _frozen_all(value):

@@ -13,17 +13,23 @@ import numpy as np
 
 from .disturbances import NoDisturbance
 
-__all__ = ["Axis", "FirstOrderVelocityAxis", "MassDamperAxis", "NOISE_TABLE_LENGTH", "VELOCITY_MEASUREMENTS",
+__all__ = ["Axis", "FirstOrderVelocityAxis", "MassDamperAxis", "NOISE_TABLE_LENGTH", "noise_table", "VELOCITY_MEASUREMENTS",
            "MAX_COMMAND_DELAY", "coulomb_friction", "quantize", "has_limit", "symmetric_clip"]
 
 
 def quantize(value: float, resolution: float) -> float:
     """``value`` rounded to the nearest multiple of ``resolution`` (0: unchanged), as an encoder reads it."""
+    if isinstance(resolution, np.ndarray):             # a batch's resolutions, some of them 0 maybe
+        if not resolution.any():
+            return value
+        kept = resolution > 0.0
+        safe = np.where(kept, resolution, 1.0)
+        return np.where(kept, np.round(value / safe) * safe, value)
     if not resolution:
         return value
     if isinstance(value, float) and resolution.__class__ is float:     # one run's step (numpy's float64 is a
         return round(value / resolution) * resolution                  # float): the common case first
-    if np.ndim(value) or np.ndim(resolution):          # a batch (both round half to even)
+    if np.ndim(value):                                 # a batch (both round half to even)
         return np.round(value / resolution) * resolution
     return round(value / resolution) * resolution
 
@@ -34,6 +40,25 @@ NOISE_TABLE_LENGTH = 8192
 VELOCITY_MEASUREMENTS = ("model", "encoder")
 #: the longest computation delay a plant holds commands for [samples]
 MAX_COMMAND_DELAY = 10
+
+
+_NOISE_TABLES: dict = {}      # (RMS, seed) -> its noise table, read-only: every run of a tuning draws the same
+_NOISE_TABLES_KEPT = 64
+
+
+def noise_table(rms: float, seed: int) -> np.ndarray:
+    """The position noise a plant reads cyclically: ``rms`` times :data:`NOISE_TABLE_LENGTH` standard normal
+    samples of the generator seeded with ``seed``, read-only and shared by every plant of the same two numbers
+    (a tuning builds thousands of plants with the same noise)."""
+    key = (float(rms), int(seed))
+    table = _NOISE_TABLES.get(key)
+    if table is None:
+        table = key[0] * np.random.default_rng(key[1]).standard_normal(NOISE_TABLE_LENGTH)
+        table.flags.writeable = False
+        if len(_NOISE_TABLES) >= _NOISE_TABLES_KEPT:
+            _NOISE_TABLES.pop(next(iter(_NOISE_TABLES)), None)
+        _NOISE_TABLES[key] = table
+    return table
 
 
 class Axis:
@@ -95,8 +120,7 @@ class Axis:
         self.command_delay = int(command_delay)
         self.velocity_measurement = velocity_measurement
         # instance attributes, all of them, so that a batch (core/batch.py) stacks them or refuses to
-        self._noise = None if self.measurement_noise == 0.0 else \
-            self.measurement_noise * np.random.default_rng(self.noise_seed).standard_normal(NOISE_TABLE_LENGTH)
+        self._noise = None if self.measurement_noise == 0.0 else noise_table(self.measurement_noise, self.noise_seed)
         self._held = (0.0,) * self.command_delay
         self._steps = 0
         self._previous = None
@@ -190,6 +214,8 @@ class FirstOrderVelocityAxis(Axis):
 
     #: steps elementwise on arrays with a leading batch axis (:mod:`contouring_ros.core.batch`)
     batchable = True
+    #: every number of its own elementwise too: a batch steps the axes of a member as rows of one object
+    batch_axes = True
 
     def __init__(self, gain: float, time_constant: float, sample_time: float, disturbance=None,
                  position: float = 0.0, velocity: float = 0.0, saturation: float = 0.0,
@@ -289,6 +315,8 @@ class MassDamperAxis(Axis):
 
     #: steps elementwise on arrays with a leading batch axis (:mod:`contouring_ros.core.batch`)
     batchable = True
+    #: every number of its own elementwise too: a batch steps the axes of a member as rows of one object
+    batch_axes = True
 
     def __init__(self, mass: float, damping: float, gain: float, sample_time: float, disturbance=None,
                  position: float = 0.0, velocity: float = 0.0, saturation: float = 0.0,

@@ -46,6 +46,8 @@ class PIDFeedforwardServo:
     """
 
     batchable = True
+    #: every number of its own elementwise too: a batch steps the axes of a member as rows of one object
+    batch_axes = True
 
     def __init__(self, kp, ki, kd, gain, time_constant, sample_time, output_limit: float = 0.0):
         self.pid = DiscretePID(kp, ki, kd, sample_time)
@@ -124,6 +126,8 @@ class IntegralSlidingModeServo:
 
     #: steps elementwise on arrays with a leading batch axis (:mod:`contouring_ros.core.batch`)
     batchable = True
+    #: every number of its own elementwise too: a batch steps the axes of a member as rows of one object
+    batch_axes = True
 
     def __init__(self, a, b, mu, kappa, gain, time_constant, sample_time, observer=None, output_limit=0.0):
         self.a, self.b, self.mu, self.kappa = float(a), float(b), float(mu), float(kappa)
@@ -163,6 +167,8 @@ class DirectServo:
 
     #: steps elementwise on arrays with a leading batch axis (:mod:`contouring_ros.core.batch`)
     batchable = True
+    #: every number of its own elementwise too: a batch steps the axes of a member as rows of one object
+    batch_axes = True
 
     def __init__(self, output_limit: float = 0.0):
         self.output_limit = float(output_limit)
@@ -248,6 +254,8 @@ class ESOSlidingModeServo:
 
     #: steps elementwise on arrays with a leading batch axis (:mod:`contouring_ros.core.batch`)
     batchable = True
+    #: every number of its own elementwise too: a batch steps the axes of a member as rows of one object
+    batch_axes = True
 
     def __init__(self, mass, damping, gain, c, k, alphas, sigma, sample_time, position=0.0, velocity=0.0,
                  disturbance_compensation: bool = True, output_limit: float = 0.0):
@@ -277,6 +285,8 @@ class PIDServo:
 
     #: steps elementwise on arrays with a leading batch axis (:mod:`contouring_ros.core.batch`)
     batchable = True
+    #: every number of its own elementwise too: a batch steps the axes of a member as rows of one object
+    batch_axes = True
 
     def __init__(self, kp, ki, kd, sample_time, output_limit: float = 0.0):
         self.pid = DiscretePID(kp, ki, kd, sample_time)
@@ -299,6 +309,8 @@ class CascadeServo:
 
     #: steps elementwise on arrays with a leading batch axis (:mod:`contouring_ros.core.batch`)
     batchable = True
+    #: every number of its own elementwise too: a batch steps the axes of a member as rows of one object
+    batch_axes = True
 
     def __init__(self, kp_position, kp_velocity, ki_velocity, sample_time, coulomb_positive=0.0,
                  coulomb_negative=0.0, output_limit: float = 0.0):

@@ -3,10 +3,9 @@ bounds, meaning), the limits on what a file may hold, the ranges the catalogue's
 of one value or one mapping against its specs, with the one-line messages that name the file and the key."""
 from __future__ import annotations
 
+import math
 import sys
 from dataclasses import dataclass
-
-import numpy as np
 
 from ..errors import ConfigError
 
@@ -167,7 +166,7 @@ def _value(where, key, spec: Param, value):
         _fail(where, key, f"expected a positive value, got {_show(value)}")
     if spec.check == "nonnegative" and not value >= 0:
         _fail(where, key, f"expected a value >= 0, got {_show(value)}")
-    if kind in ("float", "floats") and not np.all(np.isfinite(value)):
+    if kind in ("float", "floats") and not all(math.isfinite(v) for v in (value if kind == "floats" else [value])):
         _fail(where, key, f"expected finite numbers, got {_show(value)}")
     if kind in NUMERIC_KINDS:
         _check_bounds(where, key, spec, value)

@@ -389,3 +389,57 @@ def test_sweep_batches_each_structure_apart_when_numbers_change_it(newton_batche
     text = shortened(DEFAULT, 0.2)
     rows = run_sweep(text, parse_grid(["ccc.kp=0.5,1,2,4", "contour_estimator.branch_check_samples=0,256"]), workers=1)
     assert len(rows) == 8 and all(row.vectorised for row in rows)
+
+
+# ------------------------------------------------------------------------------------------ mixed batches
+
+
+def _scenario_loops(duration=0.3, *, y_servo_pid=False):
+    """Loops of four structures along paper 000's h = 50 path (ISMC or PID + feedforward servos, the Newton or
+    the tangent-line estimate, the unit-vector or the variable-gain CCC), two members each, interleaved."""
+    names = ["paper000_b_ismc_h50_newton.yaml", "paper000_b_ismc_h50_vgccc.yaml", "paper000_a_pidff_h50_newton.yaml",
+             "paper000_a_pidff_h50_vgccc.yaml"]
+    texts = []
+    for name in names:
+        data = yaml.safe_load(shortened(CONFIG / name, duration))
+        if name.endswith("vgccc.yaml"):
+            data["/contour_estimator"]["ros__parameters"] = {"type": "tangent_line"}
+        if y_servo_pid and "ismc" in name:     # one axis of another class than the other
+            data["/y/servo"]["ros__parameters"] = {"law": "pid_feedforward", "kp": 8.0, "ki": 0.0, "kd": 0.0,
+                                                   "gain": 10.0, "time_constant": 0.045}
+        texts.append(yaml.safe_dump(data))
+    grid = ["ccc.kp=1,2"]
+    groups = [_loops(text, grid) for text in texts]
+    return [group[j] for j in range(2) for group in groups]      # A B C D A B C D: no class on contiguous rows
+
+
+@pytest.mark.parametrize("y_servo_pid", [False, True], ids=["same-axes", "axes-of-two-classes"])
+def test_a_mixed_batch_gives_each_member_what_a_batch_of_its_own_structure_gives(y_servo_pid):
+    from contouring_ros.core.batch import MixedControllers, MixedEstimators, structure
+    loops = _scenario_loops(y_servo_pid=y_servo_pid)
+    assert len({structure(loop) for loop in loops}) == 4 and batch_problem(loops) is not None
+    _, _, plants, servos, estimator, controller = _stacked(loops, mixed=True)
+    assert isinstance(estimator, MixedEstimators) and isinstance(controller, MixedControllers)
+    mixed = simulate_batch(loops, mixed=True)
+    by_structure = {}
+    for j, loop in enumerate(_scenario_loops(y_servo_pid=y_servo_pid)):
+        by_structure.setdefault(structure(loop), []).append((j, loop))
+    for members in by_structure.values():
+        own = simulate_batch([loop for _, loop in members])
+        for (j, _), run in zip(members, own):
+            for name, value in vars(run).items():
+                np.testing.assert_array_equal(getattr(mixed[j], name), value, err_msg=name)
+    # and the members differ where their classes do: the variable-gain rows are not the unit-vector rows
+    assert not np.array_equal(mixed[0].correction, mixed[1].correction)
+
+
+def test_a_mixed_sweep_gives_each_run_what_the_sweep_by_structure_gives():
+    from contouring_ros.studies.sweep import simulate_loops
+    loops = _scenario_loops()
+    other = _loops(shortened(CONFIG / "paper000_b_ismc_h100_newton.yaml", 0.3), ["ccc.kp=1,2"])  # another curve
+    mixed, alone, failures = simulate_loops(loops + other, mixed=True)
+    plain, _, _ = simulate_loops(_scenario_loops() + _loops(shortened(CONFIG / "paper000_b_ismc_h100_newton.yaml",
+                                                                       0.3), ["ccc.kp=1,2"]))
+    assert not any(failures)
+    for run, reference in zip(mixed, plain):
+        np.testing.assert_allclose(run.position, reference.position, rtol=0, atol=1e-12)
