@@ -33,9 +33,9 @@ kept as a :class:`Part` (:mod:`.benchmark_parts`: saved, read back, merged with 
 from __future__ import annotations
 
 import fnmatch
+import functools
 import json
 import math
-import time
 from collections import Counter
 from concurrent.futures import as_completed
 from dataclasses import dataclass, field
@@ -57,6 +57,7 @@ from ..core.margins import LoopMargins
 from ..core.metrics import Scores
 from .parts import register as allow_in_parts
 from .search import Agreement
+from .shared_batches import SharedBatches
 from .gains import gain_keys
 from .machine import fit_to_machine, machine_settings
 from .outcomes import experiment_for, run_outcomes, worst_case
@@ -443,11 +444,31 @@ def reference_job(data: dict, from_time: float, where: str, protocol: Protocol |
                      worst_case(data, {}, machine, from_time, protocol or Protocol(), where))
 
 
-def _tune_job(data, sections, keys, machine, noise_limit, from_time, protocol, where, robust_floor):
-    started = time.thread_time()           # this worker thread's CPU: right on processes and Dask threads alike
-    tuned = tune(data, sections, keys, machine, noise_limit, from_time, protocol, where, robust_floor=robust_floor)
-    tuned.cpu = time.thread_time() - started
-    return tuned
+def _tune_rows_job(jobs: list, keep: str | None = None) -> list:
+    """The :class:`Tuned` of each of ``jobs`` (rows of one scenario, each (the arguments of :func:`tune`: data,
+    sections, keys, machine, noise limit, from_time, protocol, where; its robustness floor; its checkpoint
+    key)), tuned side by side with their runs in one mixed batch a round
+    (:class:`~contouring_ros.studies.shared_batches.SharedBatches`); each row's ``cpu`` its own work and its
+    share of the rounds. ``keep``: the ``--checkpoints`` folder, where each row is kept as soon as it ends (a
+    run stopped part way keeps the rows of a scenario that had ended)."""
+    kept = Checkpoints(keep, Tuned) if keep else None
+
+    def finished(i, tuned, cpu):
+        tuned.cpu = cpu
+        if kept is not None:
+            kept.put(jobs[i][-1], tuned, jobs[i][7])
+
+    shared = SharedBatches(finished)
+    return shared.run([functools.partial(tune, *job[:8], robust_floor=job[8]) for job in jobs])
+
+
+def _job_cost(rows: list) -> float:
+    """What a scenario's job (its (row, job arguments)) is expected to cost, to start the longest first: the
+    steps and axes of a run, once for each row and once more for each further pass of a learning controller."""
+    data = rows[0][1][0]
+    experiment = experiment_for(data, {}, {}, "benchmark")
+    passes = sum(int(row.combination.sections["/ccc"].get("passes", 1) or 1) for row, _ in rows)
+    return experiment.n_steps * len(experiment.axes) * (len(rows) + passes)
 
 
 def matches_methods(label_of, methods) -> bool:
@@ -505,30 +526,36 @@ def run_benchmark(families: list, protocol: Protocol | None = None, workers: int
                 rows.append(row)
                 jobs.append(row)
             rows += [Row(family, None, e, status=f"cannot be paired: {e.reason}") for e in excluded]
-        # the longest first (a learning controller runs every pass per evaluation), so that none starts last
-        running = {}
-        with tqdm(total=len(jobs), desc="benchmark", disable=not progress, leave=False) as bar:
-            for row in sorted(jobs, key=lambda r: -int(r.combination.sections["/ccc"].get("passes", 1) or 1)):
-                family, combo, reference = row.family, row.combination, row.bound
-                data = family.data[family.proposed]
-                args = (data, fit_to_machine(data, combo.sections, reference.machine), combo.gain_keys,
-                        reference.machine, reference.noise_limit, family.from_time, protocol)
-                floor = reference.worst if math.isfinite(reference.worst) else 0.0
-                key = checkpoints.key(*args, floor)
-                row.tuned = checkpoints.get(key)
-                if row.tuned is not None:
-                    row.status = row.tuned.status
-                    bar.update(1)
-                    continue
-                running[pool.submit(_tune_job, *args, f"{family.name} {combo.label}", floor)] = row, key
-            if checkpoints.taken:
-                say(f"{checkpoints.taken} of {len(jobs)} rows taken from {checkpoints.folder}")
-            for job in as_completed(running):
-                row, key = running[job]
-                row.tuned = job.result()
+        # one job per scenario, its rows tuned side by side; the longest first (a learning controller runs every
+        # pass per evaluation), so that none starts last
+        waiting = {}
+        for row in jobs:
+            family, combo, reference = row.family, row.combination, row.bound
+            data = family.data[family.proposed]
+            args = (data, fit_to_machine(data, combo.sections, reference.machine), combo.gain_keys,
+                    reference.machine, reference.noise_limit, family.from_time, protocol)
+            floor = reference.worst if math.isfinite(reference.worst) else 0.0
+            key = checkpoints.key(*args, floor)
+            row.tuned = checkpoints.get(key)
+            if row.tuned is not None:
                 row.status = row.tuned.status
-                checkpoints.put(key, row.tuned, f"{row.family.name} {row.combination.label}")
-                bar.update(1)
+                continue
+            waiting.setdefault(family.name, []).append((row, (*args, f"{family.name} {combo.label}", floor, key)))
+        if checkpoints.taken:
+            say(f"{checkpoints.taken} of {len(jobs)} rows taken from {checkpoints.folder}")
+        keep = str(checkpoints.folder) if checkpoints.folder is not None and not scheduler else None
+        running = {}
+        for name in sorted(waiting, key=lambda name: -_job_cost(waiting[name])):
+            rows_here = waiting[name]
+            running[pool.submit(_tune_rows_job, [job for _, job in rows_here], keep)] = rows_here
+        with tqdm(total=len(jobs), initial=checkpoints.taken, desc="benchmark", disable=not progress,
+                  leave=False) as bar:
+            for job in as_completed(running):
+                for (row, arguments), tuned in zip(running[job], job.result()):
+                    row.tuned = tuned
+                    row.status = tuned.status
+                    checkpoints.put(arguments[-1], tuned, arguments[7])
+                bar.update(len(running[job]))
     for family in families:
         mine = [r for r in rows if r.family is family and r.combination]
         proposed = proposed_row(family, mine)

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..core import progress
-from ..core.batch import batch_minimum, batch_problem, simulate_batch, structure
+from ..core.batch import NotBatchable, batch_minimum, batch_problem, frame, loop_parts, simulate_batch, structure
 from ..core.simulation import first_divergence, simulate
 from ..errors import ConfigError, Diverged, ScoreError
 from ..experiment.build import build_loop
@@ -31,6 +31,7 @@ from ..notices import progress_of
 from ..records.outputs import write_atomically
 from ..records.scoring import score_run
 from .executors import pool as executor
+from .shared_batches import current_batches
 
 __all__ = ["experiments_for", "combinations",
            "SweepRow", "score_one", "score_experiments", "simulate_experiments",
@@ -141,14 +142,24 @@ def simulate_experiments(experiments: list) -> tuple:
     return (loops, *simulate_loops(loops))
 
 
-def simulate_loops(loops: list) -> tuple:
+def simulate_loops(loops: list, mixed: bool = False) -> tuple:
     """(results, why each ran alone, why each has no result) of built ``loops``, as
-    :func:`simulate_experiments` runs them."""
+    :func:`simulate_experiments` runs them. ``mixed``: the groups of different structures along one path
+    advance as one mixed batch (:func:`_simulate_mixed`); a run's numbers are those it has in a batch of its
+    own structure.
+
+    Where another thread shares its batches (:mod:`contouring_ros.studies.shared_batches`), the loops are
+    handed to it and run with the other threads' loops of the same round, mixed."""
+    shared = current_batches()
+    if shared is not None:
+        return shared.simulate(loops)
     results, alone, groups = [None] * len(loops), [""] * len(loops), {}
     failures = [""] * len(loops)
     for i, loop in enumerate(loops):
         groups.setdefault(structure(loop), []).append(i)
     pending = list(groups.values())
+    if mixed:
+        pending = _simulate_mixed(loops, pending, results)
     while pending:
         group = pending.pop()
         members = [loops[i] for i in group]
@@ -174,6 +185,62 @@ def simulate_loops(loops: list) -> tuple:
                 results[i], failures[i] = _simulate_alone(loops[i])
                 alone[i] = why
     return results, alone, failures
+
+
+#: member-steps of one mixed batch, at most: its signals take about 0.2 kB a member-step on two axes, so a
+#: batch of 1000 members of 2000 steps holds about 0.45 GB while it is scored
+MIXED_MEMBER_STEPS = 2_000_000
+
+
+def _simulate_mixed(loops: list, groups: list, results: list) -> list:
+    """Run the structure ``groups`` (lists of indices into ``loops``) that can share a mixed batch
+    (:func:`contouring_ros.core.batch.simulate_batch` with ``mixed``: one :func:`~contouring_ros.core.batch.frame`,
+    each structure batchable) together, their results into ``results``; returns the groups left to run as
+    :func:`simulate_loops` runs them alone (a frame of one structure; a structure whose costly class, its
+    :func:`~contouring_ros.core.batch.batch_minimum`, has fewer members in the frame than that minimum; a
+    mixed batch in which a member failed). At most :data:`MIXED_MEMBER_STEPS` member-steps a batch."""
+    left, frames = [], {}
+    for group in groups:
+        members = [loops[i] for i in group]
+        if batch_problem(members if len(members) > 1 else members * 2):
+            left.append(group)
+        else:
+            frames.setdefault(frame(members[0]), []).append(group)
+    for together in frames.values():
+        if len(together) == 1:
+            left += together
+            continue
+        classes = [{type(part).__name__ for part in loop_parts(loops[g[0]])} for g in together]
+        chosen = []
+        for group, mine in zip(together, classes):
+            smallest, setter = batch_minimum(loops[group[0]])
+            sharing = sum(len(g) for g, theirs in zip(together, classes) if setter in theirs) if setter else len(group)
+            (chosen if sharing >= smallest else left).append(group)
+        for chunk in _member_chunks(chosen, loops[chosen[0][0]].n_steps if chosen else 1):
+            indices = [i for group in chunk for i in group]
+            try:
+                batch = simulate_batch([loops[i] for i in indices], mixed=True)
+            except (NotBatchable, *RUN_FAILURES):
+                left += chunk
+                continue
+            for j, i in enumerate(indices):
+                results[i] = batch[j]
+    return left
+
+
+def _member_chunks(groups: list, steps: int) -> list:
+    """``groups`` in chunks of at most :data:`MIXED_MEMBER_STEPS` member-steps (a group larger than that is cut)."""
+    most = max(1, MIXED_MEMBER_STEPS // max(1, steps))
+    chunks, chunk, size = [], [], 0
+    for group in groups:
+        for start in range(0, len(group), most):
+            part = group[start:start + most]
+            if size + len(part) > most and chunk:
+                chunks.append(chunk)
+                chunk, size = [], 0
+            chunk.append(part)
+            size += len(part)
+    return chunks + ([chunk] if chunk else [])
 
 
 def _shape(section):

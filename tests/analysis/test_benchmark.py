@@ -604,3 +604,64 @@ def test_a_stopped_benchmark_goes_on_from_its_checkpoints(tmp_path, capsys):
         run_benchmark(families, FAST, workers=1, checkpoints=Checkpoints(tmp_path / "rows", tuning.Tuned))
     assert main(["benchmark", "--from-parts", str(damaged), "--checkpoints", str(tmp_path), "--out",
                  str(tmp_path)]) == 2
+
+
+def test_rows_tuned_side_by_side_share_their_rounds_and_tune_as_alone():
+    """SharedBatches: the rows of a scenario, each in its thread, run each round's runs in one mixed batch; each
+    row ends where it ends tuned alone (its runs' numbers up to the last digits of a batch against a run alone),
+    in fewer rounds than the rows' rounds added up, and each row's CPU time is its share."""
+    from contouring_ros.studies import shared_batches
+    family = select_families(scenario_families(), [SMALL])[0]
+    data = family.data[family.proposed]
+    data = {**data, "/**": {"ros__parameters": {**data["/**"]["ros__parameters"], "duration": 0.5}}}
+    protocol = Protocol(evaluations=12, popsize=4, design=4, draws=1, searches=2, max_searches=2)
+    combos = plan(family)[0]
+    assert len(combos) == 2 and combos[0].estimator != combos[1].estimator
+
+    def task(combo):
+        return lambda: tuner.tune(data, combo.sections, combo.gain_keys, {}, math.inf, 0.0, protocol, "test")
+
+    alone, rounds_alone = [], 0
+    for combo in combos:
+        one = shared_batches.SharedBatches()
+        alone += one.run([task(combo)])
+        rounds_alone += one.rounds
+    rounds = []
+    for _ in range(2):
+        shared = shared_batches.SharedBatches()
+        together = shared.run([task(combo) for combo in combos])
+        rounds.append((shared.rounds, [[e.objective for e in t.evaluations] for t in together]))
+        assert all(cpu > 0 for cpu in shared.cpu)
+        for mine, theirs in zip(together, alone):
+            assert len(mine.evaluations) == len(theirs.evaluations) == 2 * 12
+            for a, b in zip(mine.evaluations, theirs.evaluations):
+                assert a.gains == pytest.approx(b.gains, rel=1e-6)
+                assert a.outcome.tace == pytest.approx(b.outcome.tace, rel=1e-6, abs=1e-15)
+            assert mine.search_tace == pytest.approx(theirs.search_tace, rel=1e-6)
+    assert rounds[0] == rounds[1]                       # the same rounds, the same numbers, run after run
+    assert rounds[0][0] <= 0.75 * rounds_alone      # about the longer row's, not the two rows' added up
+    assert shared_batches.current_batches() is None     # outside the tasks, runs are this thread's own
+
+
+def test_a_task_that_fails_lets_the_others_end_and_is_raised_after_them():
+    from contouring_ros.studies import shared_batches
+    from contouring_ros.studies.sweep import simulate_loops
+    from contouring_ros.experiment.build import build_loop
+    from contouring_ros.api import load_experiment
+    loop = build_loop(load_experiment(str(benchmark.CONFIG_DIR / "paper000_b_ismc_h50_newton.yaml")))
+    loop.n_steps = 20
+    ended = []
+
+    def fine():
+        for _ in range(3):
+            simulate_loops([loop])
+        ended.append("fine")
+        return "fine"
+
+    def broken():
+        simulate_loops([loop])
+        raise RuntimeError("broken task")
+
+    with pytest.raises(RuntimeError, match="broken task"):
+        shared_batches.SharedBatches().run([fine, broken])
+    assert ended == ["fine"]
