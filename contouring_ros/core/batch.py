@@ -188,13 +188,15 @@ def batchable(loops: list) -> bool:
     return batch_problem(loops) is None
 
 
-def _stacked(loops, mixed: bool = False):
+def _stacked(loops, mixed: bool = False, structures: list | None = None):
+    """The loops' parts stacked (see :func:`simulate_batch`); ``structures``: each loop's :func:`structure`,
+    where the caller has it (a mixed batch then takes each part's classes from it)."""
     first = loops[0]
     if any(loop.n_steps != first.n_steps or loop.sample_time != first.sample_time
            or len(loop.plants) != len(first.plants) or loop.preview != first.preview for loop in loops):
         raise NotBatchable("the batch mixes durations, sample times, axis counts or reference previews")
     n = len(first.plants)
-    part = _mixed_part if mixed else (lambda kind, objects: stack(objects))
+    part = _mixed_part if mixed else (lambda kind, objects, axes, keys: stack(objects))
     if not mixed:
         for name in ("plants", "servos"):
             for i in range(n):
@@ -202,11 +204,15 @@ def _stacked(loops, mixed: bool = False):
                     raise NotBatchable(f"the batch mixes {name[:-1]} classes on axis {i + 1}")
     # every axis of every member is a row of one object of the plants and one of the servos, member by member
     # (row j n + i: member j's axis i), each class's axes stacked apart where the axes' classes differ
+    keys = None if structures is None else [structure[5:] for structure in structures]   # plants, servos, ...
     return (stack([loop.curve for loop in loops]), stack([loop.schedule for loop in loops]),
-            _mixed_part(MixedPlants, [plant for loop in loops for plant in loop.plants], n),
-            _mixed_part(MixedServos, [servo for loop in loops for servo in loop.servos], n),
-            part(MixedEstimators, [loop.estimator for loop in loops]),
-            part(MixedControllers, [loop.controller for loop in loops]))
+            _mixed_part(MixedPlants, [plant for loop in loops for plant in loop.plants], n,
+                        None if keys is None else [key[i] for key in keys for i in range(n)]),
+            _mixed_part(MixedServos, [servo for loop in loops for servo in loop.servos], n,
+                        None if keys is None else [key[n + i] for key in keys for i in range(n)]),
+            part(MixedEstimators, [loop.estimator for loop in loops], 0, None if keys is None else [k[-2] for k in keys]),
+            part(MixedControllers, [loop.controller for loop in loops], 0,
+                 None if keys is None else [k[-1] for k in keys]))
 
 
 # ------------------------------------------------------------------------------------------ mixed batches
@@ -219,16 +225,17 @@ def _stacked(loops, mixed: bool = False):
 # computes in a batch of its own structure: each class's batch path works row by row.
 
 
-def _mixed_part(kind, objects: list, axes: int = 0):
+def _mixed_part(kind, objects: list, axes: int = 0, classes: list | None = None):
     """``objects`` (one part of every loop) stacked: one object where they share their classes, else a ``kind``
     (MixedPlants, ...) of one stacked object per class, each on its members' rows. ``axes``: the objects are
     every member's axes, member by member (row j axes + i: member j's axis i); the axes of a class whose
     ``batch_axes`` is set (its batch path computes with every number of its own elementwise, so that one
     axis' numbers can differ from another's) are stacked together, unless they differ in a setting that is
     not a number (say one axis' velocity from the encoder, another's from the model); any other class's
-    axis by axis."""
-    keys = [part_classes(o) if axes <= 1 or getattr(type(o), "batch_axes", False) else (part_classes(o), j % axes)
-            for j, o in enumerate(objects)]
+    axis by axis. ``classes``: each object's :func:`part_classes`, where the caller has them."""
+    classes = classes or [part_classes(o) for o in objects]
+    keys = [key if axes <= 1 or getattr(type(o), "batch_axes", False) else (key, j % axes)
+            for j, (o, key) in enumerate(zip(objects, classes))]
     members = {}
     for j, key in enumerate(keys):
         members.setdefault(key, []).append(j)
@@ -441,10 +448,11 @@ def _by_axis(values, b: int, n: int):
     return values.reshape(b, n) if values.__class__ is np.ndarray and values.size == b * n else values
 
 
-def simulate_batch(loops: list[ControlLoop], mixed: bool = False) -> list[SimulationResult]:
+def simulate_batch(loops: list[ControlLoop], mixed: bool = False, structures: list | None = None) -> list[SimulationResult]:
     """Run every loop of ``loops`` (one structure, see :func:`batchable`) in one vectorised pass. ``mixed``:
     loops of different structures along one path (one :func:`frame`), each part stacked per class (see
-    "mixed batches" above); every member's numbers are those of a batch of its own structure.
+    "mixed batches" above); every member's numbers are those of a batch of its own structure. ``structures``:
+    each loop's :func:`structure`, where the caller has them.
 
     Each loop's objects are left untouched (the batch works on stacked copies).
 
@@ -454,7 +462,7 @@ def simulate_batch(loops: list[ControlLoop], mixed: bool = False) -> list[Simula
         When the loops cannot run as one batch.
     """
     loops = [copy.deepcopy(loop, _read_only(loop)) for loop in loops]
-    curve, schedule, plants, servos, estimator, controller = _stacked(loops, mixed)
+    curve, schedule, plants, servos, estimator, controller = _stacked(loops, mixed, structures)
     b, m, n, ts = len(loops), loops[0].n_steps, len(loops[0].plants), loops[0].sample_time
     clocks = [loop.clock for loop in loops]
     clocked = any(clock is not None for clock in clocks)

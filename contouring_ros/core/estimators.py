@@ -105,14 +105,20 @@ class BranchCheck:
     def restart_batch(self, distance, position):
         """:meth:`restart` for a batch: distances (B, 1), positions (B, n). Returns None when no estimate
         is on a wrong branch, else the parameters to restart from (B, 1) and where to restart (B, 1)."""
-        if np.all(distance <= self.tolerance):      # as in restart: no sample can be nearer by more
+        over = np.flatnonzero(distance[:, 0] > self.tolerance)
+        if not over.size:                           # as in restart: no sample can be nearer by more
             return None
-        points = self.points if self.points.ndim == 3 else self.points[None]
-        squared = np.sum((points - position[:, None, :]) ** 2, axis=-1)
+        # the members whose distance is over the tolerance alone (the others cannot restart)
+        points = self.points[over] if self.points.ndim == 3 else self.points[None]
+        squared = np.sum((points - position[over, None, :]) ** 2, axis=-1)
         nearest = np.argmin(squared, axis=1)[:, None]
         closest = np.sqrt(np.take_along_axis(squared, nearest, axis=1))
-        start = np.take_along_axis(np.broadcast_to(self.grid, squared.shape), nearest, axis=1)
-        return start, distance > closest + self.tolerance
+        grid = self.grid[over] if self.grid.ndim == 2 else self.grid
+        start = np.zeros(distance.shape)
+        start[over] = np.take_along_axis(np.broadcast_to(grid, squared.shape), nearest, axis=1)
+        restart = np.zeros(distance.shape, dtype=bool)
+        restart[over] = distance[over] > closest + self.tolerance
+        return start, restart
 
     def restart(self, distance: float, position) -> float | None:
         """The parameter to restart from, or None when the estimate is on the nearest branch."""
@@ -292,7 +298,8 @@ class NewtonEstimator:
         b = position.shape[0]
         compiled = kernels.newton_flow_batch(
             curve, position, self.theta, self.filtered, self._filter_decay, 1.0 - self._filter_decay, self._gain,
-            self._tolerance_squared, self.max_iterations, np.ones((b, 1), dtype=bool) if active is None else active)
+            self._tolerance_squared, self.max_iterations, active,
+            self.__dict__.setdefault("_flow_constants", {}))      # a batch's own object: its columns, made once
         if compiled is not None:                       # the same steps, compiled (core/kernels.py)
             self.theta, self.filtered, self.iterations, capped = compiled
             return capped

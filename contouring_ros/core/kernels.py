@@ -183,11 +183,14 @@ def _flow_for(curve):
     return flow
 
 
-def newton_flow_batch(curve, position, theta, filtered, decay, blend, gain, tolerance2, cap, active):
+def newton_flow_batch(curve, position, theta, filtered, decay, blend, gain, tolerance2, cap, active,
+                      constants: dict | None = None):
     """The compiled flow of a batch on ``curve`` (possibly a batch's stacked curve): positions (B, n), every
     other per-member value a float or an array of shape (B, 1). Returns (theta, filtered, iterations,
     capped), each (B, 1), as ``NewtonEstimator._iterate_batch`` leaves them, or None where it does not run
-    compiled (then nothing has changed)."""
+    compiled (then nothing has changed). ``constants``: where the caller keeps the columns of the values that
+    do not change from step to step (the curve's parameters and domain, decay, blend, gain, tolerance, cap),
+    made at its first step."""
     if not ENABLED or formula_of(curve) is None or position.shape[1] != curve.dimension \
             or not _worth_compiling(position.shape[0]):
         return None
@@ -199,14 +202,20 @@ def newton_flow_batch(curve, position, theta, filtered, decay, blend, gain, tole
 
     def column(value, dtype=float):
         return np.ascontiguousarray(np.broadcast_to(value, (b, 1))[:, 0], dtype=dtype)
-    parameters = np.ascontiguousarray(np.stack([column(v) for v in curve.parameters], axis=1))
-    lo, hi = (column(v) for v in curve.domain)
+    fixed = None if constants is None else constants.get(b)
+    if fixed is None:
+        fixed = (np.ascontiguousarray(np.stack([column(v) for v in curve.parameters], axis=1)),
+                 *(column(v) for v in curve.domain), column(decay), column(blend), column(gain), column(tolerance2),
+                 column(cap, np.int64))
+        if constants is not None:
+            constants[b] = fixed
+    parameters, lo, hi, decay, blend, gain, tolerance2, cap = fixed
     theta, filtered = column(theta).copy(), column(filtered).copy()
     iterations, capped = np.zeros(b, dtype=np.int64), np.zeros(b, dtype=np.bool_)
+    active = np.ones(b, dtype=np.bool_) if active is None else column(active, np.bool_)
     try:
-        kernels[1](parameters, np.ascontiguousarray(position, dtype=float), theta, filtered, column(decay),
-                   column(blend), column(gain), column(tolerance2), column(cap, np.int64), lo, hi, bool(curve.closed),
-                   column(active, np.bool_), iterations, capped)
+        kernels[1](parameters, np.ascontiguousarray(position, dtype=float), theta, filtered, decay, blend, gain,
+                   tolerance2, cap, lo, hi, bool(curve.closed), active, iterations, capped)
     except Exception as error:          # noqa: BLE001 - a failure to compile: the pure path runs from the same state
         _KERNELS[key] = None
         _unavailable(f"the Newton batch kernel for {type(curve).__name__} failed ({type(error).__name__}: {error})")

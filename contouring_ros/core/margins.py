@@ -31,6 +31,7 @@ whose frame moves with the reference).
 """
 from __future__ import annotations
 
+import functools
 import math
 import warnings
 from dataclasses import dataclass
@@ -459,9 +460,21 @@ def margins(loop: control.TransferFunction, sample_time: float) -> LoopMargins:
                        stable=stable)
 
 
+@functools.lru_cache(maxsize=8)
 def _frequencies(points: int) -> np.ndarray:
-    """theta = w Ts [rad] of a quick check: ``points`` spaced logarithmically from 1e-5 Nyquist to Nyquist."""
-    return np.pi * np.logspace(-5.0, 0.0, points)
+    """theta = w Ts [rad] of a quick check: ``points`` spaced logarithmically from 1e-5 Nyquist to Nyquist
+    (read-only, made once)."""
+    theta = np.pi * np.logspace(-5.0, 0.0, points)
+    theta.flags.writeable = False
+    return theta
+
+
+@functools.lru_cache(maxsize=1024)
+def _unit_circle(points: int) -> np.ndarray:
+    """z = e^(j theta) on :func:`_frequencies` (read-only, made once)."""
+    z = np.exp(1j * _frequencies(points))
+    z.flags.writeable = False
+    return z
 
 
 def _loop_response(loop: control.TransferFunction, theta) -> np.ndarray:
@@ -476,8 +489,17 @@ def quick_robustness(loop: control.TransferFunction, points: int = 4096) -> tupl
     refinement of :func:`margins`, so at most a few per cent low at a sharp peak), stable when every root of
     the characteristic polynomial den + num lies inside the unit circle."""
     num, den = trim(loop.num[0][0]), trim(loop.den[0][0])
+    return _quick_robustness(tuple(num.tolist()), tuple(den.tolist()), points)
+
+
+@functools.lru_cache(maxsize=4096)
+def _quick_robustness(num: tuple, den: tuple, points: int) -> tuple:
+    """:func:`quick_robustness` of the loop num / den (coefficients as tuples: a search asks again for the
+    loops its points share, such as an axis' own loop beside every contour gain it tries)."""
+    num, den = np.asarray(num), np.asarray(den)
+    z = _unit_circle(points)
     with np.errstate(divide="ignore", invalid="ignore"):
-        sensitivity = 1.0 / np.abs(1.0 + _loop_response(loop, _frequencies(points)))
+        sensitivity = 1.0 / np.abs(1.0 + np.polyval(num, z) / np.polyval(den, z))
     ms = float(np.nanmax(sensitivity)) if np.isfinite(sensitivity).any() else math.inf
     characteristic = np.polyadd(den, num)
     stable = bool(np.all(np.abs(np.roots(characteristic)) < 1.0)) if len(characteristic) > 1 else True

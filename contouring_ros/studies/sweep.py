@@ -155,11 +155,12 @@ def simulate_loops(loops: list, mixed: bool = False) -> tuple:
         return shared.simulate(loops)
     results, alone, groups = [None] * len(loops), [""] * len(loops), {}
     failures = [""] * len(loops)
-    for i, loop in enumerate(loops):
-        groups.setdefault(structure(loop), []).append(i)
+    structures = [structure(loop) for loop in loops]
+    for i, key in enumerate(structures):
+        groups.setdefault(key, []).append(i)
     pending = list(groups.values())
     if mixed:
-        pending = _simulate_mixed(loops, pending, results)
+        pending = _simulate_mixed(loops, pending, results, structures)
     while pending:
         group = pending.pop()
         members = [loops[i] for i in group]
@@ -192,8 +193,9 @@ def simulate_loops(loops: list, mixed: bool = False) -> tuple:
 MIXED_MEMBER_STEPS = 2_000_000
 
 
-def _simulate_mixed(loops: list, groups: list, results: list) -> list:
-    """Run the structure ``groups`` (lists of indices into ``loops``) that can share a mixed batch
+def _simulate_mixed(loops: list, groups: list, results: list, structures: list) -> list:
+    """Run the structure ``groups`` (lists of indices into ``loops``, whose :func:`~contouring_ros.core.batch.structure`
+    is ``structures``) that can share a mixed batch
     (:func:`contouring_ros.core.batch.simulate_batch` with ``mixed``: one :func:`~contouring_ros.core.batch.frame`,
     each structure batchable) together, their results into ``results``; returns the groups left to run as
     :func:`simulate_loops` runs them alone (a frame of one structure; a structure whose costly class, its
@@ -219,7 +221,8 @@ def _simulate_mixed(loops: list, groups: list, results: list) -> list:
         for chunk in _member_chunks(chosen, loops[chosen[0][0]].n_steps if chosen else 1):
             indices = [i for group in chunk for i in group]
             try:
-                batch = simulate_batch([loops[i] for i in indices], mixed=True)
+                batch = simulate_batch([loops[i] for i in indices], mixed=True,
+                                       structures=[structures[i] for i in indices])
             except (NotBatchable, *RUN_FAILURES):
                 left += chunk
                 continue
