@@ -17,12 +17,16 @@ Where numba is installed (:mod:`contouring_ros.core.kernels`) each case is measu
 kernels and with the pure numpy path (``pure`` lines), alternated in the same process, and the speed-up is
 printed; ``--pure`` measures the pure path alone.
 
+``--mixed SCENARIO`` times the rows of one benchmark scenario as a tuning's round runs them: ``--batch`` members of
+each of its combinations on its realistic machine, all in mixed batches (``simulate_loops(mixed=True)``: each
+part stacked per class) against a batch per combination (``simulate_loops``), the sides alternated.
+
 ``--sweep W ...`` then times :func:`contouring_ros.studies.sweep.run_sweep` of the default experiment (``--sweep-size``
 combinations of ccc.kp, ``--seconds`` each) with each number of local worker processes W, and prints
 configuration-steps per second of wall time and the scaling relative to the first W.
 
 Usage: python bench/batch_speed.py [--batch 64] [--alone 4] [--seconds 0.5] [--repeat 3] [--only LABEL ...]
-       [--pure] [--sweep 1 2] [--sweep-size 64]
+       [--pure] [--sweep 1 2] [--sweep-size 64] [--mixed SCENARIO]
 """
 from __future__ import annotations
 
@@ -155,6 +159,46 @@ def _sweeps(args) -> None:
         print(f"  {workers} worker{'s' if workers > 1 else ' '} {rate:>10.0f}   x{rate / first:.2f}", flush=True)
 
 
+def _mixed(args) -> None:
+    from contouring_ros.studies.benchmark import plan, reference_job, scenario_families, select_families
+    from contouring_ros.studies.machine import fit_to_machine
+    from contouring_ros.studies.outcomes import experiment_for
+    from contouring_ros.studies.sweep import simulate_loops
+    family = select_families(scenario_families(), [args.mixed])[0]
+    data = family.data[family.proposed]
+    machine = dict(reference_job(data, family.from_time, family.name).machine, duration=args.seconds)
+    combos = [c for c in plan(family)[0] if c.gain_keys]
+    rng = np.random.default_rng(1)
+
+    def loops():      # each combination's file gains, each gain x U(0.5, 2) per member
+        out = []
+        for combo in combos:
+            sections = fit_to_machine(data, combo.sections, machine)
+            for _ in range(args.batch):
+                ccc = dict(sections["/ccc"], **{k: sections["/ccc"][k] * rng.uniform(0.5, 2.0) for k in combo.gain_keys
+                                               if isinstance(sections["/ccc"].get(k), (int, float))})
+                try:
+                    out.append(build_loop(experiment_for(data, {**sections, "/ccc": ccc}, machine, "bench")))
+                except Exception:       # noqa: BLE001 - a drawn gain a pairing refuses: left out
+                    pass
+        return out
+    members = len(loops())
+    steps = members * int(round(args.seconds / float(data["/**"]["ros__parameters"]["sample_time"])))
+    timings = {"mixed": [], "by structure": []}
+    with np.errstate(all="ignore"):
+        for _ in range(args.repeat):
+            for mode in timings:
+                batch = loops()
+                timings[mode].append(_timed(lambda: simulate_loops(batch, mixed=mode == "mixed")))
+    print(f"\n{family.name}: {len(combos)} combinations x {args.batch} members ({members} runs), {args.seconds:g} s "
+          f"each, as a tuning's round (configuration-steps/s, wall (CPU), medians of {args.repeat})")
+    rates = {mode: tuple(steps / statistics.median(t[i] for t in runs) for i in (0, 1)) for mode, runs in timings.items()}
+    for mode, (wall, cpu) in rates.items():
+        print(f"  {mode:13} {wall:>10.0f} ({cpu:>9.0f})", flush=True)
+    print(f"  {'ratio':13} {rates['mixed'][0] / rates['by structure'][0]:>10.2f} "
+          f"({rates['mixed'][1] / rates['by structure'][1]:>9.2f})", flush=True)
+
+
 COMPILED = kernels.ENABLED
 
 
@@ -169,6 +213,8 @@ def main() -> None:
     parser.add_argument("--sweep", type=int, nargs="*", default=[], metavar="W",
                         help="also time a sweep of the default experiment with each number of workers")
     parser.add_argument("--sweep-size", type=int, default=64, help="combinations of that sweep")
+    parser.add_argument("--mixed", metavar="SCENARIO",
+                        help="time a benchmark scenario's rows as mixed batches against a batch per combination")
     args = parser.parse_args()
     modes = ["compiled", "pure"] if COMPILED and not args.pure else ["pure"]
     if COMPILED:                    # compile the kernels of the Newton cases' curve before anything is timed
@@ -177,6 +223,9 @@ def main() -> None:
         kernels.newton_flow(parabola)(np.zeros(2), 0.0, 0.0, 0.9, 0.1, 0.5, 1e-18, 200)
         kernels.newton_flow_batch(parabola, np.zeros((2, 2)), 0.0, 0.0, 0.9, 0.1, 0.5, 1e-18, 200,
                                   np.ones((2, 1), dtype=bool))
+    if args.mixed:
+        _mixed(args)
+        return
     print(f"configuration-steps/s, {args.seconds:g} s of each experiment; vectorised: one batch of {args.batch}; "
           f"one by one: {args.alone} runs; wall (CPU), medians of {args.repeat}; "
           + ("compiled kernels (numba) and the pure numpy path alternated" if len(modes) == 2 else

@@ -53,6 +53,7 @@ class SharedBatches:
         self._live = 0
         self._waiting = {}          # task -> the loops it asks for
         self._answers = {}          # task -> (results, alone, failures) or the exception its round raised
+        self._run_round = None      # run_round(loops) of the latest request (sweep.simulate_loops, mixed)
         self._shares = {}           # task -> CPU seconds of rounds given to it (its member-steps' share)
         self.cpu = []               # each task's CPU seconds: its own work and its share of the rounds
         self.rounds = 0             # rounds run
@@ -102,11 +103,14 @@ class SharedBatches:
                 raise error
         return results
 
-    def simulate(self, loops: list) -> tuple:
+    def simulate(self, loops: list, run_round) -> tuple:
         """What :func:`contouring_ros.studies.sweep.simulate_loops` returns for ``loops``, run in this round's
-        mixed batch with every other task's loops (called from a task's thread, holding the turn)."""
+        mixed batch with every other task's loops (called from a task's thread, holding the turn).
+        ``run_round(loops)`` runs a round's loops and returns (results, alone, failures), one entry a loop;
+        the round runs with the last request's."""
         task = _local.task
         self._waiting[task] = list(loops)
+        self._run_round = run_round
         self._turn.notify_all()
         self._turn.wait_for(lambda: task in self._answers)
         answer = self._answers.pop(task)
@@ -116,14 +120,13 @@ class SharedBatches:
 
     def _round(self) -> None:
         """Run the round every task still running waits for (in the caller of :meth:`run`, the turn held)."""
-        from .sweep import simulate_loops
         tasks = sorted(self._waiting)
         asked = [self._waiting.pop(task) for task in tasks]
         loops = [loop for mine in asked for loop in mine]
         started = time.thread_time()
         try:
             with np.errstate(all="ignore"):         # a diverging run overflows; each task is told how it ended
-                results, alone, failures = simulate_loops(loops, mixed=True)
+                results, alone, failures = self._run_round(loops)
         except BaseException as error:              # noqa: BLE001 - every task of the round gets it
             for task in tasks:
                 self._answers[task] = error

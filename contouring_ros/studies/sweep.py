@@ -142,6 +142,11 @@ def simulate_experiments(experiments: list) -> tuple:
     return (loops, *simulate_loops(loops))
 
 
+def _simulate_round(loops: list) -> tuple:
+    """A shared round's loops (:mod:`contouring_ros.studies.shared_batches`), run mixed."""
+    return simulate_loops(loops, mixed=True)
+
+
 def simulate_loops(loops: list, mixed: bool = False) -> tuple:
     """(results, why each ran alone, why each has no result) of built ``loops``, as
     :func:`simulate_experiments` runs them. ``mixed``: the groups of different structures along one path
@@ -152,7 +157,7 @@ def simulate_loops(loops: list, mixed: bool = False) -> tuple:
     handed to it and run with the other threads' loops of the same round, mixed."""
     shared = current_batches()
     if shared is not None:
-        return shared.simulate(loops)
+        return shared.simulate(loops, _simulate_round)
     results, alone, groups = [None] * len(loops), [""] * len(loops), {}
     failures = [""] * len(loops)
     structures = [structure(loop) for loop in loops]
