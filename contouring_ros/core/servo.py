@@ -262,16 +262,21 @@ class ESOSlidingModeServo:
         self.mass, self.damping, self.gain = float(mass), float(damping), float(gain)
         self.c, self.k = float(c), float(k)
         self.observer = ExtendedStateObserver(mass, damping, gain, alphas, sigma, sample_time, position, velocity)
-        self.disturbance_compensation = bool(disturbance_compensation)
+        # d^'s weight in (24), 1 or 0: a number, so that runs with and without it share a batch
+        self.compensation = 1.0 if disturbance_compensation else 0.0
         self.output_limit = float(output_limit)
+
+    @property
+    def disturbance_compensation(self) -> bool:
+        """Whether d^ is subtracted in (24)."""
+        return bool(np.all(self.compensation))
 
     def step(self, ref_pos, ref_vel, ref_acc, position, velocity, correction) -> float:
         q_hat, v_hat, d_hat = self.observer.estimates()
         error, error_rate = q_hat - ref_pos, v_hat - ref_vel
         surface = error_rate + self.c * error
         acceleration = ref_acc + self.damping / self.mass * v_hat - self.c * error_rate - self.k * surface
-        if self.disturbance_compensation:
-            acceleration -= d_hat
+        acceleration = acceleration - self.compensation * d_hat
         command = self.mass / self.gain * acceleration + correction
         if has_limit(self.output_limit):
             command = symmetric_clip(command, self.output_limit)

@@ -443,3 +443,15 @@ def test_a_mixed_sweep_gives_each_run_what_the_sweep_by_structure_gives():
     assert not any(failures)
     for run, reference in zip(mixed, plain):
         np.testing.assert_allclose(run.position, reference.position, rtol=0, atol=1e-12)
+
+
+def test_runs_with_and_without_the_eso_disturbance_compensation_share_a_batch_and_differ():
+    # paper 004's "without ESO" file only switches d^ off in (24): one batch runs both, each as it runs alone
+    def saddle_loops():
+        return [loop for name in ("paper004_saddle_eso.yaml", "paper004_saddle_no_eso.yaml")
+                for loop in _loops(shortened(CONFIG / name, 0.3), [])]
+    loops = saddle_loops()
+    assert batch_problem(loops) is None
+    together = simulate_batch(loops)
+    _assert_equal_runs(together, [simulate(loop) for loop in saddle_loops()])
+    assert not np.allclose(together[0].position, together[1].position, rtol=0, atol=1e-9)
