@@ -182,17 +182,17 @@ def _mixed(args) -> None:
                 except Exception:       # noqa: BLE001 - a drawn gain a pairing refuses: left out
                     pass
         return out
-    members = len(loops())
-    steps = members * int(round(args.seconds / float(data["/**"]["ros__parameters"]["sample_time"])))
-    timings = {"mixed": [], "by structure": []}
+    rates, members = {"mixed": [], "by structure": []}, []
     with np.errstate(all="ignore"):
         for _ in range(args.repeat):
-            for mode in timings:
-                batch = loops()
-                timings[mode].append(_timed(lambda: simulate_loops(batch, mixed=mode == "mixed")))
-    print(f"\n{family.name}: {len(combos)} combinations x {args.batch} members ({members} runs), {args.seconds:g} s "
-          f"each, as a tuning's round (configuration-steps/s, wall (CPU), medians of {args.repeat})")
-    rates = {mode: tuple(steps / statistics.median(t[i] for t in runs) for i in (0, 1)) for mode, runs in timings.items()}
+            for mode in rates:
+                batch = loops()         # a drawn gain a pairing refuses leaves a member out: each batch counted
+                steps = sum(loop.n_steps for loop in batch)
+                rates[mode].append([steps / t for t in _timed(lambda: simulate_loops(batch, mixed=mode == "mixed"))])
+                members.append(len(batch))
+    print(f"\n{family.name}: {len(combos)} combinations x {args.batch} members ({min(members)}-{max(members)} runs), "
+          f"{args.seconds:g} s each, as a tuning's round (configuration-steps/s, wall (CPU), medians of {args.repeat})")
+    rates = {mode: tuple(statistics.median(r[i] for r in runs) for i in (0, 1)) for mode, runs in rates.items()}
     for mode, (wall, cpu) in rates.items():
         print(f"  {mode:13} {wall:>10.0f} ({cpu:>9.0f})", flush=True)
     print(f"  {'ratio':13} {rates['mixed'][0] / rates['by structure'][0]:>10.2f} "

@@ -266,11 +266,6 @@ class ESOSlidingModeServo:
         self.compensation = 1.0 if disturbance_compensation else 0.0
         self.output_limit = float(output_limit)
 
-    @property
-    def disturbance_compensation(self) -> bool:
-        """Whether d^ is subtracted in (24)."""
-        return bool(np.all(self.compensation))
-
     def step(self, ref_pos, ref_vel, ref_acc, position, velocity, correction) -> float:
         q_hat, v_hat, d_hat = self.observer.estimates()
         error, error_rate = q_hat - ref_pos, v_hat - ref_vel
