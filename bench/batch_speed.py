@@ -89,7 +89,7 @@ CASES = [
      "ccc.kp", (100.0, 180.0)),
     ("adaptive-tnb", "AdaptiveTNBCCC (+ osculating circle)", _file("paper001_caseII_adaptive_tnb.yaml"),
      "ccc.alpha", (30.0, 50.0)),
-    ("mpcc", "ModelPredictiveContouring (a QP per member and step, OSQP)", _file("mpcc_ellipse.yaml"),
+    ("mpcc", "ModelPredictiveContouring (every member's QP a row of one solve)", _file("mpcc_ellipse.yaml"),
      "ccc.q_contour", (3e5, 3e6)),
     ("gcode", "ToolPath + FeedPlan (+ Newton, unit vector)", _file("gcode_example_part.yaml"), "ccc.kp", (0.5, 2.0)),
     ("spline", "SplineCurve + FeedrateSchedule (default experiment's loop)", _spline, "ccc.kp", (0.5, 4.0)),

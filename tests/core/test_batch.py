@@ -209,11 +209,14 @@ def test_every_scenario_file_can_run_as_a_batch():
 
 
 def test_an_mpcc_batch_gives_each_member_its_run_alone_bit_for_bit():
-    """The MPCC's batch (core/mpc.py MemberBatch): each member solves its own QP on its row, so a batch of
-    different weights and limits gives each run alone, to the bit, solve counts included."""
+    """The MPCC's batch (core/mpc.py ContouringBatch): the members' QPs are rows of one computation (members of
+    another horizon, delay or velocity estimate rows of another), and a batch of different weights, limits
+    (one reached), velocity estimates and delays gives each run alone, to the bit."""
     text = shortened(CONFIG / "mpcc_ellipse.yaml", 0.3)
     variants = [text, text.replace("q_contour: 1.0e6", "q_contour: 1.0e5"),
-                text.replace("r_rate: 1.0e-6", "r_rate: 1.0e-4").replace("command_limit: [10.0]", "command_limit: [2.0]")]
+                text.replace("r_rate: 1.0e-6", "r_rate: 1.0e-4").replace("command_limit: [10.0]", "command_limit: [2.0]"),
+                text.replace("r_rate: 1.0e-6", "r_rate: 1.0e-6\n    velocity_estimate: model"),
+                text.replace("horizon: 20", "horizon: 19\n    command_delay: 1")]     # the same preview
     loops = [build_loop(parse_experiment(variant, "mpcc_ellipse.yaml")) for variant in variants]
     batch = simulate_batch(loops)
     for loop, batched in zip(loops, batch):
@@ -222,6 +225,8 @@ def test_an_mpcc_batch_gives_each_member_its_run_alone_bit_for_bit():
         np.testing.assert_array_equal(batched.position, alone.position)
     assert not np.array_equal(batch[0].command, batch[1].command)      # the members differ
     assert not np.array_equal(batch[0].command, batch[2].command)
+    assert not np.array_equal(batch[0].command, batch[3].command)
+    assert not np.array_equal(batch[0].command, batch[4].command)
     assert all(len(loop.controller.solve_times) == 0 for loop in loops)    # the loops themselves untouched
 
 

@@ -60,6 +60,22 @@ def test_it_keeps_its_command_limit_where_the_unconstrained_optimum_would_not():
     assert _steady_rms(bound) < 1e-4          # still near the contour where the drive cannot follow it exactly
 
 
+def test_where_the_limits_do_not_bind_the_unconstrained_optimum_is_osqp_s_solution():
+    # the step's QP solved both ways: the linear system's solution (within the limits, so the QP's) and OSQP's
+    loop, _ = _mpcc(0.05, command_limit="[10.0]")
+    rows = loop.controller._rows
+    size = rows.n * rows.horizon
+    rng = np.random.default_rng(1)
+    factor = rng.normal(size=(size, size))
+    hessian = factor @ factor.T + size * np.eye(size)
+    linear = rng.normal(size=size)
+    free = rows._solve(hessian[None], linear[None])[0]
+    assert np.abs(free).max() < 10.0
+    np.testing.assert_allclose(rows._solve_bounded(0, hessian, linear), free, rtol=1e-6, atol=1e-9)
+    clipped = rows._solve(hessian[None], 50.0 * linear[None] / np.abs(free).max())[0]   # the optimum outside
+    assert np.abs(clipped).max() <= 10.0 + 1e-12 and np.isclose(np.abs(clipped).max(), 10.0)
+
+
 def test_weighting_the_contour_error_is_what_lowers_it():
     contouring = _steady_rms(_mpcc(q_contour=1e6, q_lag=1e4))
     isotropic = _steady_rms(_mpcc(q_contour=1e6, q_lag=1e6))
@@ -105,17 +121,16 @@ def test_the_model_velocity_estimate_is_the_plants_velocity_and_beats_a_differen
     mean velocity of the last step, half a sample late: the deadbeat reconstruction through the model gives
     the true velocity (model matched, no noise), and the MPCC reading it tracks the ellipse far closer."""
     from contouring_ros.core.plants import MassDamperAxis
-    from contouring_ros.core.mpc import ModelPredictiveContouring
+    from contouring_ros.core.mpc import reconstructed_velocity
     ts, mass, damping, gain = 1e-3, 1.0, 800.0, 16.0
-    mpcc = ModelPredictiveContouring([mass], [damping], [gain], ts, horizon=5, velocity_estimate="model")
+    (_, pv), (_, vv) = sampled_mass_damper(mass, damping, gain, ts)[0]
+    b0, b1 = sampled_mass_damper(mass, damping, gain, ts)[1]
     plant = MassDamperAxis(mass, damping, gain, ts)
-    mpcc.applied, mpcc.last_position = np.array([0.0]), np.array([plant.position])
     for k, u in enumerate(np.sin(np.arange(40) * 0.3) * 2.0):
         before = plant.position
         plant.step(u, k * ts)
-        mpcc.applied, mpcc.last_position = np.array([u]), np.array([before])
-        assert mpcc._reconstructed_velocity(np.array([plant.position]))[0] == pytest.approx(plant.velocity, rel=1e-9,
-                                                                                            abs=1e-15), k
+        assert reconstructed_velocity(plant.position, before, u, pv, vv, b0, b1) == pytest.approx(
+            plant.velocity, rel=1e-9, abs=1e-15), k
     text = shortened(CONFIG / "paper003_ellipse_natural_local_fn100.yaml", 0.5)
     text = text[:text.index("/ccc:")] + ("/ccc:\n  ros__parameters:\n    type: mpcc\n    mass: [1.0, 1.0]\n"
                                          "    damping: [798.5, 862.75]\n    gain: [16.23, 17.58]\n    horizon: 10\n"

@@ -57,7 +57,7 @@ def test_a_servo_node_refuses_a_preview_shorter_than_its_law_reads(tmp_path):
 
 
 def test_an_mpcc_graph_of_separate_processes_equals_the_simulation(tmp_path):
-    # the CCC node reads the horizon's reference from the preview points; OSQP solves the same QPs in both
+    # the CCC node reads the horizon's reference from the preview points; the same QPs are solved in both
     text = shortened(CONFIG / "paper003_ellipse_natural_local_fn100.yaml", 0.06)
     text = text[:text.index("/ccc:")] + ("/ccc:\n  ros__parameters:\n    type: mpcc\n    mass: [1.0, 1.0]\n"
                                          "    damping: [798.5, 862.75]\n    gain: [16.23, 17.58]\n    horizon: 15\n"
