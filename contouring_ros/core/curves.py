@@ -10,6 +10,7 @@ from abc import ABC, abstractmethod
 
 import numpy as np
 
+from .line_runs import LineItems, StretchChunk, blend_radius
 from .path_tables import SEGMENT_KINDS, PathBlock, SegmentTable, StretchTable
 
 __all__ = ["Curve", "Parabola", "Line", "Circle", "Ellipse", "FigureEight", "Saddle", "Helix", "Butterfly", "SplineCurve", "ToolPath",
@@ -563,12 +564,19 @@ class ToolPath(Curve):
     def stream(blocks, dimension: int, blend_tolerance: float = 0.0):
         """The tool path of a stream of part-program blocks (:class:`contouring_ros.core.gcode.Block`, any
         iterable), as :meth:`from_program` makes it, one stretch at a time: each a (segment, :class:`PathBlock`)
-        pair, the segment what :func:`segment_columns` evaluates. At most two blocks are held (a corner's blend
-        needs the block after it), so a program of any length streams in constant memory; the total length is
-        not capped (:data:`MAX_PATH_LENGTH` guards a whole program's units)."""
+        pair, the segment what :func:`segment_columns` evaluates; a run of G1 lines
+        (:class:`~contouring_ros.core.line_runs.LineRun`, read with ``ProgramReader.blocks(runs=True)``) as a
+        :class:`~contouring_ros.core.line_runs.StretchChunk` of its stretches (the same numbers). At most two
+        blocks or a run and a block are held (a corner's blend needs the block after it), so a program of any
+        length streams in constant memory; the total length is not capped (:data:`MAX_PATH_LENGTH` guards a
+        whole program's units)."""
         start = 0.0
-        for segment, length, kind, feed, line, deviation, dwell, _ in _blend(_program_items(blocks, dimension,
-                                                                                             blend_tolerance)):
+        for item in _blend(_program_items(blocks, dimension, blend_tolerance)):
+            if item.__class__ is StretchChunk:                  # a run of lines and their blends as arrays
+                start = item.place(start)
+                yield item
+                continue
+            segment, length, kind, feed, line, deviation, dwell, _ = item
             plain = (segment[1], segment[2]) if segment[0] == "line" else (segment[1], *segment[2])
             yield (segment, plain), _path_block(segment, plain, dimension, start, length, kind, feed, line,
                                                 deviation, dwell)
@@ -766,9 +774,18 @@ def _unit(vector) -> tuple:
 
 def _program_items(blocks, d: int, blend_tolerance: float):
     """Each part-program block's segment as :func:`_blend` takes it: [segment, length, kind, feed, line,
-    tolerance, dwell] (a generator; the segment's vectors as tuples of floats)."""
+    tolerance, dwell] (a generator; the segment's vectors as tuples of floats); a run of lines blended at its
+    corners as its :class:`~contouring_ros.core.line_runs.LineItems` (its blocks one at a time where it does
+    not blend, or a number is not finite)."""
     for block in blocks:
         tolerance = blend_tolerance if block.tolerance is None else block.tolerance
+        if block.kind == "run":
+            items = LineItems(block, d, tolerance) if tolerance > 0.0 else None
+            if items is not None and items.finite:
+                yield items
+            else:
+                yield from _program_items(block.blocks(), d, blend_tolerance)
+            continue
         if block.kind in ("line", "rapid"):
             start, end = block.start[:d].tolist(), block.end[:d].tolist()
             chord = [e - s for s, e in zip(start, end)]
@@ -807,41 +824,46 @@ def _program_items(blocks, d: int, blend_tolerance: float):
 def _blend(items):
     """Insert a tangent arc at each corner between two G1 lines whose first has a tolerance and no dwell
     (see :meth:`ToolPath.from_program`); a generator holding one item back (its end is cut by the corner's
-    blend). Vectors are tuples of floats, each component computed as numpy would compute it elementwise."""
+    blend). Vectors are tuples of floats, each component computed as numpy would compute it elementwise. A
+    run's :class:`~contouring_ros.core.line_runs.LineItems` comes out as a
+    :class:`~contouring_ros.core.line_runs.StretchChunk` of its lines and blends but the last line, held."""
     previous = None
     for item in items:
-        item = list(item) + [item[1]]
-        if previous is None:
-            previous = item
-            continue
-        arc = None
-        (_, _, u1, *_), length0 = previous[0], previous[1]
-        (_, p1, u2, *_), length1 = item[0], item[1]
-        tolerance = previous[5]
-        if previous[2] == "line" and item[2] == "line" and tolerance > 0.0 and not previous[6]:
-            difference = tuple([b - a for a, b in zip(u1, u2)])
-            chord = _norm(difference)
-            phi = 2.0 * math.atan2(chord, _norm([a + b for a, b in zip(u1, u2)]))     # the turn, at any angle
-            if 1e-9 < phi < math.pi - 1e-6:
-                half = phi / 2.0       # 1 / cos(half) - 1 = 2 sin^2(half / 2) / cos(half), exact for tiny turns
-                radius = tolerance * math.cos(half) / (2.0 * math.sin(half / 2.0) ** 2)
-                cut = radius * math.tan(half)
-                limit = 0.45 * min(previous[7], item[7])     # of the lines' programmed lengths
-                if cut > limit:
-                    cut, radius = limit, limit / math.tan(half)
-                corner = p1
-                cosine = math.cos(half)
-                centre = tuple([c + x / chord * radius / cosine for c, x in zip(corner, difference)])
-                e1 = tuple([(c - u * cut - m) / radius for c, u, m in zip(corner, u1, centre)])
-                previous[1] = length0 - cut
-                feeds = [f for f in (previous[3], item[3]) if f is not None]
-                arc = [("helix", centre, (e1, u1, (0.0,) * len(u1), radius), radius, 0.0, 1.0), radius * phi,
-                       "blend", min(feeds) if feeds else None, item[4], tolerance, 0.0, radius * phi]
-                item[0] = ("line", tuple([c + u * cut for c, u in zip(corner, u2)]), u2, 0.0, 0.0, 0.0)
-                item[1] = length1 - cut
-        yield previous
-        if arc is not None:
-            yield arc
+        run = item if item.__class__ is LineItems else None
+        item = run.item(0) if run is not None else list(item) + [item[1]]
+        if previous is not None:
+            arc = _corner_blend(previous, item)
+            yield previous
+            if arc is not None:
+                yield arc
         previous = item
+        if run is not None and len(run) > 1:
+            chunk, previous = run.blend(previous)
+            yield chunk
     if previous is not None:
         yield previous
+
+
+def _corner_blend(previous: list, item: list):
+    """The blend arc item at the corner where ``previous`` meets ``item`` (None: none), both cut back by it."""
+    (_, _, u1, *_), length0 = previous[0], previous[1]
+    (_, p1, u2, *_), length1 = item[0], item[1]
+    tolerance = previous[5]
+    if not (previous[2] == "line" and item[2] == "line" and tolerance > 0.0 and not previous[6]):
+        return None
+    difference = tuple([b - a for a, b in zip(u1, u2)])
+    chord = _norm(difference)
+    phi = 2.0 * math.atan2(chord, _norm([a + b for a, b in zip(u1, u2)]))     # the turn, at any angle
+    if not 1e-9 < phi < math.pi - 1e-6:
+        return None
+    radius, cut = blend_radius(phi, tolerance, 0.45 * min(previous[7], item[7]))   # of the programmed lengths
+    corner = p1
+    cosine = math.cos(phi / 2.0)
+    centre = tuple([c + x / chord * radius / cosine for c, x in zip(corner, difference)])
+    e1 = tuple([(c - u * cut - m) / radius for c, u, m in zip(corner, u1, centre)])
+    previous[1] = length0 - cut
+    feeds = [f for f in (previous[3], item[3]) if f is not None]
+    item[0] = ("line", tuple([c + u * cut for c, u in zip(corner, u2)]), u2, 0.0, 0.0, 0.0)
+    item[1] = length1 - cut
+    return [("helix", centre, (e1, u1, (0.0,) * len(u1), radius), radius, 0.0, 1.0), radius * phi,
+            "blend", min(feeds) if feeds else None, item[4], tolerance, 0.0, radius * phi]

@@ -225,8 +225,7 @@ class LimitBounds:
         if axis_v < feed:
             feed, bound = axis_v, "axis"
         if block.curvature > 0.0:
-            kappa = block.curvature
-            centripetal = min(math.sqrt((self.normal_acceleration or a) / kappa), (j / kappa**2) ** (1.0 / 3.0))
+            centripetal = self.centripetal(block.curvature, a, j)
             if centripetal < feed:
                 feed, bound = centripetal, "centripetal"
         if self.contour_tolerance > 0.0:
@@ -234,6 +233,24 @@ class LimitBounds:
             if capped < feed:
                 feed, bound = capped, "tolerance"
         return BlockLimit(feed, a, j, bound)
+
+    def centripetal(self, kappa: float, acceleration: float, jerk: float) -> float:
+        """The feed on an arc of curvature ``kappa`` within v^2 kappa <= A_n and v^3 kappa^2 <= J."""
+        return min(math.sqrt((self.normal_acceleration or acceleration) / kappa), (jerk / kappa**2) ** (1.0 / 3.0))
+
+    def chunk_limits(self, chunk):
+        """Step 1 for a :class:`~contouring_ros.core.line_runs.StretchChunk` (its lines and blend arcs at one
+        programmed feed): (feed, acceleration, jerk) lists, one value a row, each :meth:`limit`'s; None where a
+        bound depends on a line's direction (axis bounds, a contour tolerance: :meth:`limit` row by row)."""
+        if self._straight is None:
+            return None
+        line = self.limit(_Stretch("line", chunk.feed, 0.0, int(chunk.lines[0])))
+        a, j = line.acceleration, line.jerk
+        feed = chunk.feed * self.feed_override
+        feeds = [line.feed] * len(chunk)
+        for k, kappa in zip(np.flatnonzero(chunk.kind).tolist(), chunk.curvature[chunk.kind == 1].tolist()):
+            feeds[k] = min(feed, self.centripetal(kappa, a, j))
+        return feeds, [a] * len(chunk), [j] * len(chunk)
 
     def corner(self, before, after, limit_before: BlockLimit, limit_after: BlockLimit) -> float:
         """Step 2 of the module docstring: the speed limit where block ``before`` meets ``after`` (0 before a
@@ -246,6 +263,16 @@ class LimitBounds:
             before.tangent_out, after.tangent_in, before.deviation,
             min(limit_before.acceleration, limit_after.acceleration), min(limit_before.jerk, limit_after.jerk),
             self.axis_acceleration, self.axis_jerk))
+
+
+@dataclass(frozen=True)
+class _Stretch:
+    """What :meth:`LimitBounds.limit` reads of a straight stretch."""
+
+    kind: str
+    feed: float | None
+    curvature: float
+    line: int
 
 
 #: a block that could not rise more than this fraction above a span's feed within its own length runs on in
