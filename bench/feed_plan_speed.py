@@ -73,16 +73,18 @@ def stages(blocks: int) -> None:
     (the least process CPU time of 5: the machine may be shared), each stage's microseconds per chord the
     difference from the one before."""
     from contouring_ros.core.curves import ToolPath, _blend, _program_items
-    from contouring_ros.core.feed_stream import stream_program
+    from contouring_ros.core.feed_planning import LOOKAHEAD_BLOCKS
+    from contouring_ros.core.feed_stream import RUN_BLOCKS, stream_program
     from contouring_ros.core.gcode import ProgramReader, merge_collinear
 
-    def reader():
-        return merge_collinear(ProgramReader().blocks(lines(blocks)))
+    def reader():          # runs of plain G1 lines as stream_program reads them (line_runs.LineRun)
+        return merge_collinear(ProgramReader().blocks(lines(blocks), runs=min(RUN_BLOCKS, LOOKAHEAD_BLOCKS // 4)))
     pipeline = [("generate the lines", lambda: lines(blocks)),
-                ("read them into blocks (gcode.ProgramReader, merge_collinear)", reader),
-                ("each block's segment (curves._program_items)", lambda: _program_items(reader(), 2, 0.0)),
+                ("read them into blocks and runs of G1 lines (gcode.ProgramReader, merge_collinear)", reader),
+                ("each block's or run's segments (curves._program_items)", lambda: _program_items(reader(), 2, 0.0)),
                 ("each corner's blend arc (curves._blend)", lambda: _blend(_program_items(reader(), 2, 0.0))),
-                ("each stretch's tangents and curvature (ToolPath.stream)", lambda: ToolPath.stream(reader(), 2)),
+                ("each stretch's tangents and curvature (ToolPath.stream; a run's: line_runs.StretchChunk)",
+                 lambda: ToolPath.stream(reader(), 2)),
                 ("limits, junctions, spans, profiles (StreamingPlan.spans)",
                  lambda: stream_program(lines(blocks), 2, acceleration=1.0, jerk=10.0).spans()),
                 ("the reference every ms (StreamingPlan.samples)",
