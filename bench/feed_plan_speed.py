@@ -77,7 +77,7 @@ def stages(blocks: int) -> None:
     from contouring_ros.core.feed_stream import RUN_BLOCKS, stream_program
     from contouring_ros.core.gcode import ProgramReader, merge_collinear
 
-    def reader():          # runs of plain G1 lines as stream_program reads them (line_runs.LineRun)
+    def reader():          # runs of plain G1 lines as stream_program reads them (gcode.LineRun)
         return merge_collinear(ProgramReader().blocks(lines(blocks), runs=min(RUN_BLOCKS, LOOKAHEAD_BLOCKS // 4)))
     pipeline = [("generate the lines", lambda: lines(blocks)),
                 ("read them into blocks and runs of G1 lines (gcode.ProgramReader, merge_collinear)", reader),

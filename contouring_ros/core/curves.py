@@ -565,7 +565,7 @@ class ToolPath(Curve):
         """The tool path of a stream of part-program blocks (:class:`contouring_ros.core.gcode.Block`, any
         iterable), as :meth:`from_program` makes it, one stretch at a time: each a (segment, :class:`PathBlock`)
         pair, the segment what :func:`segment_columns` evaluates; a run of G1 lines
-        (:class:`~contouring_ros.core.line_runs.LineRun`, read with ``ProgramReader.blocks(runs=True)``) as a
+        (:class:`~contouring_ros.core.gcode.LineRun`, read with ``ProgramReader.blocks(runs=True)``) as a
         :class:`~contouring_ros.core.line_runs.StretchChunk` of its stretches (the same numbers). At most two
         blocks or a run and a block are held (a corner's blend needs the block after it), so a program of any
         length streams in constant memory; the total length is not capped (:data:`MAX_PATH_LENGTH` guards a

@@ -5,7 +5,7 @@ TwinCAT 120 to 500 blocks, Heidenhain up to 5000).
 The pipeline is lazy from end to end: the program's lines (any iterable: a file read line by line) become
 blocks (:class:`~contouring_ros.core.gcode.ProgramReader`, G64 Q merged by
 :func:`~contouring_ros.core.gcode.merge_collinear`; runs of plain G1 lines as
-:class:`~contouring_ros.core.line_runs.LineRun` arrays), the blocks tool-path stretches with their corner blends
+:class:`~contouring_ros.core.gcode.LineRun` arrays), the blocks tool-path stretches with their corner blends
 (:meth:`~contouring_ros.core.curves.ToolPath.stream`; a run's as one
 :class:`~contouring_ros.core.line_runs.StretchChunk`), and :class:`StreamingPlan` plans the stretches as
 :class:`~contouring_ros.core.feed_planning.FeedPlan` does with ``lookahead_blocks`` W (its module docstring,

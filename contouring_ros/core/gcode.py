@@ -37,9 +37,8 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .line_runs import LineRun
 
-__all__ = ["Block", "Program", "ProgramError", "ProgramReader", "SourceBlocks", "parse_program", "read_program",
+__all__ = ["Block", "LineRun", "Program", "ProgramError", "ProgramReader", "SourceBlocks", "parse_program", "read_program",
            "merge_collinear", "MM", "INCH", "JUNCTION_DEVIATION", "SETUP_WORDS", "SOURCE_CODES", "MAX_MERGED"]
 
 MM, INCH = 1e-3, 25.4e-3          # metres per unit
@@ -337,6 +336,29 @@ def _code_of(block: Block) -> str:
     return "G1" if block.kind == "line" else "G2" if block.clockwise else "G3"
 
 
+class LineRun:
+    """Consecutive G1 blocks with one feed [m/s] and path tolerance (G64 P [m]; None: the experiment's), no
+    dwell, no G64 Q: ``points`` (n + 1, 3) [m] the start and each block's end, ``lines`` their source lines,
+    ``numbers`` their N numbers (-1: none). ``kind`` "run" (no block kind: nothing merges with it)."""
+
+    kind = "run"
+    merge_tolerance = 0.0
+    dwell = 0.0
+
+    def __init__(self, points: np.ndarray, lines: np.ndarray, numbers: np.ndarray, feed: float, tolerance):
+        self.points, self.lines, self.numbers, self.feed, self.tolerance = points, lines, numbers, feed, tolerance
+
+    def __len__(self) -> int:
+        return len(self.lines)
+
+    def blocks(self) -> list:
+        """The run's :class:`~contouring_ros.core.gcode.Block` objects."""
+        points = list(self.points)
+        return [Block("line", points[i], points[i + 1], self.feed, int(line), tolerance=self.tolerance,
+                      number=None if number < 0 else int(number))
+                for i, (line, number) in enumerate(zip(self.lines.tolist(), self.numbers.tolist()))]
+
+
 class ProgramReader:
     """Reads a part program line by line into its motion blocks (:meth:`blocks`, a generator: a program of
     any length is read in constant memory), keeping what :class:`Program` states about the whole program as
@@ -368,7 +390,7 @@ class ProgramReader:
 
         ``runs`` > 0: consecutive plain G1 lines (:data:`_PLAIN_G1`: axis words alone, with an optional N number
         and G1, in absolute mode, once a feed is set and where no G64 Q merges them) are read by one regular
-        expression each and handed on as a :class:`~contouring_ros.core.line_runs.LineRun` of up to
+        expression each and handed on as a :class:`LineRun` of up to
         ``runs`` blocks (what a run adds to the read-ahead), their last one held back as a block (a G4 may add to it): the same blocks
         as ``LineRun.blocks`` gives them (tested), without the general reader's cost per line."""
         modal = _Modal(np.array(list(self.start) + [0.0] * (3 - len(self.start)), dtype=float))

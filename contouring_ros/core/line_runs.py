@@ -1,9 +1,10 @@
 """Runs of plain G1 lines as arrays: what a long CAM program mostly is (chords of microns under G64 P), read,
 blended and made tool-path stretches a run at a time instead of a block at a time.
 
-- :class:`LineRun`: consecutive G1 blocks of one feed and path tolerance, their points as one array (read by
-  :meth:`~contouring_ros.core.gcode.ProgramReader.blocks` with ``runs=True``); :meth:`LineRun.blocks` gives
-  the :class:`~contouring_ros.core.gcode.Block` objects the general reader makes of the same lines.
+- :class:`~contouring_ros.core.gcode.LineRun` (the reader's, here for the arithmetic on it): consecutive G1
+  blocks of one feed and path tolerance, their points as one array (read by
+  :meth:`~contouring_ros.core.gcode.ProgramReader.blocks` with ``runs=True``); ``LineRun.blocks`` gives the
+  :class:`~contouring_ros.core.gcode.Block` objects the general reader makes of the same lines.
 - :class:`LineItems`: a run's lines as the tool path takes them (origin, unit direction, length), and
   :meth:`LineItems.blend`: the blend arcs at its corners (:meth:`~contouring_ros.core.curves.ToolPath.
   from_program`'s formula) for all corners at once.
@@ -22,33 +23,10 @@ import math
 
 import numpy as np
 
+from .gcode import LineRun
 from .path_tables import PathBlock
 
-__all__ = ["LineRun", "LineItems", "StretchChunk", "blend_radius"]
-
-
-class LineRun:
-    """Consecutive G1 blocks with one feed [m/s] and path tolerance (G64 P [m]; None: the experiment's), no
-    dwell, no G64 Q: ``points`` (n + 1, 3) [m] the start and each block's end, ``lines`` their source lines,
-    ``numbers`` their N numbers (-1: none). ``kind`` "run" (no block kind: nothing merges with it)."""
-
-    kind = "run"
-    merge_tolerance = 0.0
-    dwell = 0.0
-
-    def __init__(self, points: np.ndarray, lines: np.ndarray, numbers: np.ndarray, feed: float, tolerance):
-        self.points, self.lines, self.numbers, self.feed, self.tolerance = points, lines, numbers, feed, tolerance
-
-    def __len__(self) -> int:
-        return len(self.lines)
-
-    def blocks(self) -> list:
-        """The run's :class:`~contouring_ros.core.gcode.Block` objects."""
-        from .gcode import Block
-        points = list(self.points)
-        return [Block("line", points[i], points[i + 1], self.feed, int(line), tolerance=self.tolerance,
-                      number=None if number < 0 else int(number))
-                for i, (line, number) in enumerate(zip(self.lines.tolist(), self.numbers.tolist()))]
+__all__ = ["LineItems", "StretchChunk", "blend_radius"]
 
 
 def blend_radius(phi: float, tolerance: float, limit: float) -> tuple:

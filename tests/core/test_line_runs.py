@@ -11,7 +11,8 @@ from contouring_ros.core.curves import ToolPath
 from contouring_ros.core.feed_planning import FeedPlan
 from contouring_ros.core.feed_stream import stream_program
 from contouring_ros.core.gcode import ProgramError, ProgramReader, parse_program
-from contouring_ros.core.line_runs import LineRun, StretchChunk
+from contouring_ros.core.gcode import LineRun
+from contouring_ros.core.line_runs import StretchChunk
 
 #: plain G1 lines of every spelling the fast reader takes, and lines it leaves to the general reader
 #: (comments, words out of order, G91, F, G64 Q, dwells, arcs, a zero-length move), between them
