@@ -8,6 +8,15 @@ drawn uniformly in the box with twice the population of the run before; every po
 objective at once, so that a caller can run it as one vectorised batch. It minimises over [0, 1]^n: the
 caller maps the box onto its own coordinates (:mod:`contouring_ros.core.tuning_space`).
 
+The last share of a search's budget (``polish``) goes to a poll of the best point found: a pattern search
+whose every poll is the 2n coordinate steps and two steps along a random direction, evaluated as one
+population; it moves to the best point polled where that is lower and halves the step where none is
+(generating set search: Kolda, Lewis & Torczon, "Optimization by direct search", SIAM Review 45, 2003). A
+tuned optimum often lies on a constraint (the robustness bound is a stability edge under the perturbations,
+where the objective rises by decades within a step); CMA-ES's steps shrink as its population meets it, and
+searches that reach the same edge stop at different points of it. The poll walks along the edge to where
+no step lowers the value, at the resolution it ends with.
+
 A row of the benchmark is *converged* (:func:`agreement`) when at least :data:`AGREE` of its independent
 searches end within :data:`TOLERANCE` of the best of them (SCIENCE: a tuned result is a claim that no better
 admissible point exists; several searches ending at one value show it).
@@ -20,7 +29,7 @@ from typing import Callable
 
 import numpy as np
 
-__all__ = ["TOLERANCE", "AGREE", "SearchTrace", "IPOPCMAES", "ipop_cmaes", "run_side_by_side", "Agreement", "agreement"]
+__all__ = ["TOLERANCE", "AGREE", "SearchTrace", "IPOPCMAES", "Poll", "ipop_cmaes", "run_side_by_side", "Agreement", "agreement"]
 
 TOLERANCE = 0.05     # searches agree when they end within this share of the best one
 AGREE = 3            # ... and a row is converged when at least this many of them do
@@ -62,10 +71,12 @@ class IPOPCMAES:
     ``confirm``: the search also ends once a restart ends within this of the best value found before it (a
     second run from elsewhere in the box came back to the same optimum: the rest of the budget would confirm
     it again). ``minstd``: per-coordinate smallest step (an integer coordinate's spacing, so the search does
-    not stall on one step's plateau). ``seed`` decides every draw: the same seed, the same trace."""
+    not stall on one step's plateau). ``polish``: the evaluations kept for the poll of the best point at the
+    end (:class:`Poll`, first step ``polish_step``; the CMA-ES runs end where those begin, or sooner when
+    confirmed). ``seed`` decides every draw: the same seed, the same trace."""
 
     def __init__(self, start, budget: int, seed: int, popsize: int = 8, sigma: float = 0.25, minstd=None,
-                 confirm: float | None = None, design: int = 0):
+                 confirm: float | None = None, design: int = 0, polish: int = 0, polish_step: float = 0.05):
         self.start = np.clip(np.asarray(start, dtype=float), 0.0, 1.0)
         self.n, self.budget, self.seed, self.sigma = len(self.start), int(budget), int(seed), float(sigma)
         self.minstd, self.confirm = minstd, confirm
@@ -74,6 +85,8 @@ class IPOPCMAES:
         self._size, self._run, self._best_before = max(int(popsize), 2), 0, math.inf
         self._asked, self._es = None, None
         self._over = self.n == 0 or self.budget <= 0
+        self._global_budget = self.budget - max(min(int(polish), self.budget - 1), 0)
+        self._polish_step, self._poll = float(polish_step), None
         self._design = []
         if not self._over and design > 0:
             import warnings
@@ -111,15 +124,34 @@ class IPOPCMAES:
     def done(self) -> bool:
         return self._over or self.trace.evaluations >= self.budget
 
+    @property
+    def polishing(self) -> bool:
+        """Whether the search is in its poll of the best point (its last phase)."""
+        return self._poll is not None
+
+    def _to_poll(self) -> None:
+        """The global phase over: the poll of the best point with what is left of the budget (or the end)."""
+        if self.budget - self.trace.evaluations <= 0 or self._global_budget >= self.budget:
+            self._over = True
+            return
+        point, value = self.trace.best
+        self._poll = Poll(point, value, self._polish_step, self.minstd, np.random.default_rng((self.seed, 2 ** 31)))
+        if self._poll.done:
+            self._over = True
+
     def ask(self) -> list:
         """The next points to evaluate (lists of n floats in [0, 1]); [] when done."""
         if self.done:
             return []
+        left = self.budget - self.trace.evaluations
+        if self._poll is not None:
+            self._asked = self._poll.ask()[:left]
+            return [list(x) for x in self._asked]
+        left = self._global_budget - self.trace.evaluations
         if self._es is None:                   # the design first, all at once
-            self._asked = self._design[:self.budget - self.trace.evaluations]
+            self._asked = self._design[:left]
             return [list(x) for x in self._asked]
         self._asked = self._es.ask()
-        left = self.budget - self.trace.evaluations
         return [list(np.asarray(x[:self.n], dtype=float)) for x in self._asked[:left]]
 
     def tell(self, values) -> None:
@@ -128,13 +160,18 @@ class IPOPCMAES:
         asked, self._asked = self._asked, None
         self.trace.points += [np.asarray(x[:self.n], dtype=float) for x in asked[:len(values)]]
         self.trace.values += values
+        if self._poll is not None:
+            self._poll.tell(asked[:len(values)], values)
+            if self._poll.done or len(values) < len(asked):
+                self._over = True
+            return
+        if self.trace.evaluations >= self._global_budget:
+            self._to_poll()                    # the global phase's budget spent
+            return
         if self._es is None:                   # the design told: CMA-ES from its best point, or the start
             best = int(np.argmin(values)) if values else None
             start_value = self._start_value
             self._new_run(self.start if best is None or start_value <= values[best] else np.asarray(asked[best]))
-            return
-        if len(values) < len(asked):
-            self._over = True                 # the budget ended within this population
             return
         self._es.tell(asked, values)
         if not self._es.stop():
@@ -142,7 +179,7 @@ class IPOPCMAES:
         run_best = min(self.trace.values[self._first:], default=math.inf)
         if self.confirm is not None and self._run and abs(run_best - self._best_before) <= self.confirm:
             self.trace.confirmed = True
-            self._over = True
+            self._to_poll()
             return
         self._best_before = min(self._best_before, run_best)
         self._run += 1
@@ -151,13 +188,52 @@ class IPOPCMAES:
 
 
 def ipop_cmaes(objective_many: Callable, start, budget: int, seed: int, popsize: int = 8,
-               sigma: float = 0.25, minstd=None, confirm: float | None = None, design: int = 0) -> SearchTrace:
+               sigma: float = 0.25, minstd=None, confirm: float | None = None, design: int = 0,
+               polish: int = 0, polish_step: float = 0.05) -> SearchTrace:
     """Minimise ``objective_many`` (a list of points -> their values, one call per population) over the unit
     box from ``start`` within ``budget`` evaluations (:class:`IPOPCMAES`, run alone)."""
-    search = IPOPCMAES(start, budget, seed, popsize, sigma, minstd, confirm, design)
+    search = IPOPCMAES(start, budget, seed, popsize, sigma, minstd, confirm, design, polish, polish_step)
     while not search.done:
         search.tell(objective_many(search.ask()))
     return search.trace
+
+
+class Poll:
+    """A pattern search over the unit box from ``point`` (value ``value``), a poll at a time: each poll is the
+    point plus and minus the step along every coordinate (at least the coordinate's resolution, ``minstd``)
+    and along one random direction (``rng``), clipped to the box (a point the clip leaves at the centre is
+    left out). The best point polled becomes the centre where it is lower, the step doubled (at most the
+    first, ``step``); else the step halves. It is :attr:`done` once the step is below :attr:`RESOLUTION`."""
+
+    RESOLUTION = 1e-3      # the step at which a poll ends [share of the box]
+
+    def __init__(self, point, value: float, step: float, minstd, rng):
+        self.centre, self.value = np.asarray(point, dtype=float), float(value)
+        self.first = self.step = float(step)
+        n = len(self.centre)
+        self.resolution = np.zeros(n) if minstd is None else np.asarray(minstd, dtype=float)[:n]
+        self._rng = rng
+        self.done = n == 0 or not math.isfinite(self.value)
+
+    def ask(self) -> list:
+        """This poll's points."""
+        n = len(self.centre)
+        direction = self._rng.standard_normal(n)
+        direction *= self.step / max(float(np.linalg.norm(direction)), 1e-300)
+        along = np.diag(np.maximum(self.step, self.resolution))
+        points = np.clip(self.centre + np.vstack([along, -along, direction[None], -direction[None]]), 0.0, 1.0)
+        moved = np.any(points != self.centre, axis=1)
+        return [list(x) for x in points[moved]]
+
+    def tell(self, points, values) -> None:
+        """The values of this poll's points."""
+        if values and min(values) < self.value:
+            best = int(np.argmin(values))
+            self.centre, self.value = np.asarray(points[best], dtype=float), float(values[best])
+            self.step = min(2.0 * self.step, self.first)
+        else:
+            self.step /= 2.0
+        self.done = self.step < self.RESOLUTION or not points
 
 
 def run_side_by_side(searches: list, objective_many: Callable) -> None:

@@ -249,7 +249,8 @@ class Tuning:
         value of its start (the file's gains, evaluated first)."""
         p = self.protocol
         searches = [IPOPCMAES(self.start(run.index), budget[run.index], p.seed + run.index, p.popsize, p.step,
-                              self.space.steps, math.log10(1.0 + p.agreement), p.design) for run in runs]
+                              self.space.steps, math.log10(1.0 + p.agreement), p.design,
+                              round(p.polish * p.evaluations), p.polish_step) for run in runs]
         for run, search in zip(runs, searches):
             if run.evaluations:                      # search 0: the file's gains, evaluated first
                 search.known_start(run.evaluations[0].objective)

@@ -88,6 +88,8 @@ class Protocol:
     design: int = 48               # each search's first points: scrambled Sobol over the whole box, one batch
     popsize: int = 16              # the first CMA-ES run's population; each restart doubles it (IPOP)
     step: float = 0.25             # CMA-ES's first step [share of each coordinate's range]
+    polish: float = 0.25           # share of a search's evaluations kept for the poll of its best point at the end
+    polish_step: float = 0.05      # ... its first step [share of each coordinate's range]
     searches: int = 3              # independent searches per combination (seeds seed, seed + 1, ...)
     max_searches: int = 6          # ... more, side by side, while they do not agree, up to this many
     agreement: float = 0.05        # searches agree when they end within this share of the best nominal TACE
@@ -109,7 +111,9 @@ class Protocol:
                 f"(the first from the file's gains, the others from uniform random points), each "
                 f"{self.design} scrambled-Sobol points over the box, then IPOP-CMA-ES from the best point "
                 f"(population {self.popsize}, doubled at each restart; the searches' populations run as one "
-                f"batch), at most {self.evaluations} evaluations in all; converged when {self.agree} searches end within "
+                f"batch), the last {100 * self.polish:g}% of them a pattern search's polls of the best point (first step "
+                f"{self.polish_step:g} of the box, halved to 0.001), at most {self.evaluations} evaluations in all; "
+                f"converged when {self.agree} searches end within "
                 f"{100 * self.agreement:g}% of the best nominal TACE; noise sensitivity <= {self.noise_factor:g} "
                 f"x the proposed method's; <= {100 * self.saturation_share:g}% of steps saturated; "
                 f"{f'linear loops stable with Ms <= {MS_LIMIT:g}; ' if self.ms_limit else ''}robust: stable at "

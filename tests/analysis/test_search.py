@@ -5,15 +5,16 @@ import math
 import numpy as np
 import pytest
 
-from contouring_ros.studies.search import IPOPCMAES, agreement, ipop_cmaes, run_side_by_side
+from contouring_ros.studies.search import IPOPCMAES, Poll, agreement, ipop_cmaes, run_side_by_side
 from contouring_ros.studies.tuning import Protocol
 
 PROTOCOL = Protocol()
 
 
 def search(objective, start, budget, seed):
-    """The benchmark's search (its population, first step and design) on ``objective``."""
-    return ipop_cmaes(objective, start, budget, seed, PROTOCOL.popsize, PROTOCOL.step, design=PROTOCOL.design)
+    """The benchmark's search (its population, first step, design and poll) on ``objective``."""
+    return ipop_cmaes(objective, start, budget, seed, PROTOCOL.popsize, PROTOCOL.step, design=PROTOCOL.design,
+                      polish=round(PROTOCOL.polish * budget), polish_step=PROTOCOL.polish_step)
 
 VALLEY_MINIMUM = np.array([0.7, 0.3, 0.55])
 WITHIN_5_PERCENT = math.log10(1.05)      # the tuning's objective is log10 of a TACE: 5% of it is this
@@ -65,6 +66,43 @@ def test_restarts_with_growing_populations_find_the_deeper_of_two_basins(seed):
     point, value = trace.best
     assert basins([SHALLOW])[0] == pytest.approx(math.log10(2.0))
     assert value < WITHIN_5_PERCENT and np.max(np.abs(point - DEEP)) < 0.05
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_the_poll_walks_a_narrow_curved_valley_to_its_minimum(seed):
+    """From a point on the valley's floor 51x its minimum's value, the pattern search alone (its coordinate
+    steps are all across the curved floor) reaches within 5% of the minimum in 400 evaluations."""
+    d = np.array([-0.2, -0.2, 0.0])
+    for _ in range(50):                         # onto the floor: d1 - d0 = 2 (d0 + d1)^2
+        d[1] = d[0] + 2.0 * (d[0] + d[1]) ** 2
+    start = VALLEY_MINIMUM + d
+    poll = Poll(start, valley([start])[0], PROTOCOL.polish_step, None, np.random.default_rng(seed))
+    spent = 0
+    while not poll.done and spent < 400:
+        points = poll.ask()
+        values = valley(points)
+        spent += len(points)
+        assert all(0.0 <= v <= 1.0 for x in points for v in x)
+        poll.tell(points, values)
+    assert valley([start])[0] > math.log10(50.0) and poll.value < WITHIN_5_PERCENT
+
+
+def test_the_last_share_of_a_search_polls_its_best_point_and_never_loses_it():
+    budget, polish = 200, 50
+    search = IPOPCMAES(SHALLOW, budget, 1, 8, 0.25, polish=polish)
+    best_before = None
+    while not search.done:
+        if search.polishing and best_before is None:
+            best_before = search.trace.best[1]
+            assert search.trace.evaluations == budget - polish       # the global phase ended where the poll begins
+        search.tell(basins(search.ask()))
+    assert best_before is not None and search.trace.evaluations <= budget
+    assert search.trace.best[1] <= best_before
+    # a poll ends once its step is below the resolution, with the budget unspent where that comes first
+    flat = IPOPCMAES([0.5, 0.5], 400, 1, 8, 0.25, polish=300)
+    while not flat.done:
+        flat.tell([0.0 for _ in flat.ask()])
+    assert flat.polishing and flat.trace.evaluations < 400
 
 
 def test_restarts_double_the_population():
