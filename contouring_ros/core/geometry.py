@@ -353,6 +353,14 @@ class ExactContourError:
         Restrict each point's search to parameters within +-window of the parameter given with it
         (``near``); default: the curve's ``contour_error_window`` (0: the whole curve).
 
+    Other branches. Where the whole curve is searched, each point's refined distance D is checked against
+    every other stretch of the curve that could come nearer: any point of the curve lies within half the
+    largest sample spacing s of a sample, so a nearer foot point has a sample within D + s/2 of the point;
+    the samples there (at most :attr:`BRANCH_CANDIDATES`, nearest first) that are not the refinement's own
+    bracket are refined too, and the nearest foot point kept. Without it a point near where a path comes back
+    close to itself (a lead-in line that ends where a circle of a million chords begins, sampled every
+    0.25 mm) could be given the other branch's distance.
+
     Far points. A k-d tree's nearest-sample search costs about as many samples as lie within the point's
     distance of it: a point millimetres off the path (a run that nearly diverged) costs 10-100x a point on it.
     A point farther than :attr:`FAR` spacings of every :attr:`COARSE`-th sample from every sample (the first
@@ -365,6 +373,7 @@ class ExactContourError:
     """
 
     CANDIDATES = 64   # nearest samples examined per point when a window restricts the search
+    BRANCH_CANDIDATES = 8    # samples within D + s/2 examined per point for a nearer branch (see above)
     COARSE = 8        # every COARSE-th sample makes the search of far points
     FAR = 128         # ... for points farther than FAR of its spacings from every sample
 
@@ -380,6 +389,9 @@ class ExactContourError:
         self._coarse_tree = _search_tree(coarse) if len(coarse) > 1 else None
         self._far = self.FAR * float(np.max(np.linalg.norm(np.diff(coarse, axis=0), axis=-1))) if len(coarse) > 1 \
             else math.inf
+        # half the largest spacing of neighbouring samples, with a margin for the arc between them
+        self._half_spacing = 0.6 * float(np.max(np.linalg.norm(np.diff(samples, axis=0), axis=-1))) \
+            if len(samples) > 1 else 0.0
         self.tolerance = float(tolerance)
         self.max_iterations = int(max_iterations)
         self.window = float(curve.contour_error_window if window is None else window)
@@ -422,16 +434,10 @@ class ExactContourError:
             offset = (offset + period / 2) % period - period / 2
         return np.abs(offset) <= self.window
 
-    def __call__(self, points, near=None) -> FootPoints:
-        """Exact contour error of ``points`` (shape (m, n) or (n,)); ``near`` gives each point's reference
-        parameter, used when the search is restricted to a window."""
-        points = np.atleast_2d(np.asarray(points, dtype=float))
+    def _refine(self, points, nearest, reach) -> np.ndarray:
+        """Each point's foot-point parameter: Newton's steps on the squared distance (paper 000 eqs. 9-11)
+        from the sample ``nearest``, bracketed by the samples ``reach`` either side of it."""
         grid = self._grid
-        reach = 1
-        if self.window > 0.0 and near is not None:
-            nearest = self._nearest_in_window(points, near)
-        else:
-            nearest, reach = self._nearest(points)
         lower = grid[np.maximum(nearest - reach, 0)]
         upper = grid[np.minimum(nearest + reach, grid.size - 1)]
         theta = grid[nearest]
@@ -449,6 +455,38 @@ class ExactContourError:
             active = active[moving]
             if not active.size:
                 break
+        return theta
+
+    def _nearer_branches(self, points, theta, nearest, reach) -> None:
+        """Replace in ``theta`` each foot point that another stretch of the curve beats (see the class
+        docstring, "Other branches")."""
+        distance = np.linalg.norm(self.curve.point(theta) - points, axis=-1)
+        radius = distance + self._half_spacing
+        k = min(self.BRANCH_CANDIDATES, self._grid.size)
+        found, candidates = self._tree.query(points, k=k, distance_upper_bound=float(np.max(radius)))
+        found, candidates = found.reshape(len(points), -1), candidates.reshape(len(points), -1)
+        reach = np.broadcast_to(np.asarray(reach), (len(points),))
+        other = (found <= radius[:, None]) & (np.abs(candidates - nearest[:, None]) > reach[:, None] + 1)
+        rows, columns = np.nonzero(other)
+        if not rows.size:
+            return
+        alternative = self._refine(points[rows], candidates[rows, columns], 1)
+        gap = np.linalg.norm(self.curve.point(alternative) - points[rows], axis=-1)
+        order = np.argsort(-gap, kind="stable")          # the nearest written last
+        rows, alternative, gap = rows[order], alternative[order], gap[order]
+        better = gap < distance[rows]
+        theta[rows[better]] = alternative[better]
+
+    def __call__(self, points, near=None) -> FootPoints:
+        """Exact contour error of ``points`` (shape (m, n) or (n,)); ``near`` gives each point's reference
+        parameter, used when the search is restricted to a window."""
+        points = np.atleast_2d(np.asarray(points, dtype=float))
+        if self.window > 0.0 and near is not None:
+            theta = self._refine(points, self._nearest_in_window(points, near), 1)
+        else:
+            nearest, reach = self._nearest(points)
+            theta = self._refine(points, nearest, reach)
+            self._nearer_branches(points, theta, nearest, reach)
         d = self.curve.derivatives(theta, order=1)
         vector = d[0] - points
         tangent = d[1] / np.linalg.norm(d[1], axis=-1, keepdims=True)

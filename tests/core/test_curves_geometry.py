@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from contouring_ros.core.curves import (Butterfly, Circle, Ellipse, FigureEight, Helix, Line, Parabola, Saddle,
+from contouring_ros.core.curves import (Butterfly, Circle, Curve, Ellipse, FigureEight, Helix, Line, Parabola, Saddle,
                                        SplineCurve, ToolPath)
 from contouring_ros.core.gcode import parse_program
 from contouring_ros.core.geometry import ExactContourError, curvature, frenet_frame
@@ -203,3 +203,25 @@ def test_a_curve_that_refers_back_to_itself_gets_its_own_solver():
     first.owner, second.owner = first, second         # a plugin's curve may keep a reference to itself
     exact_solver(first)
     assert exact_solver(second).curve is second
+
+
+class _ThinLoop(Curve):
+    """An ellipse 2 m long and 40 um wide whose parametrisation starts off its axis, so that the samples of
+    its two long branches do not lie above one another: a point of one branch is often nearer a sample of
+    the other than any of its own (spacing 0.3 mm)."""
+
+    dimension, domain, closed = 2, (0.0, 2.0 * np.pi), True
+    a, b, shift = 1.0, 2e-5, 0.1234
+
+    def columns(self, t):
+        c, s = np.cos(t + self.shift), np.sin(t + self.shift)
+        return [(self.a * c, self.b * s), (-self.a * s, self.b * c), (-self.a * c, -self.b * s), (self.a * s, -self.b * c)]
+
+
+def test_a_point_on_a_branch_is_measured_against_its_branch_where_another_comes_nearer_than_the_sampling():
+    # points on the curve are 0 from it, however near the other branch passes (40 um, within the 0.3 mm
+    # spacing of the 20,001 samples): the nearer branch's samples are checked, not only the nearest's
+    loop = _ThinLoop()
+    theta = np.linspace(0.1, 6.0, 5000)
+    foot = ExactContourError(loop)(loop.point(theta))
+    assert_allclose(foot.distance, 0.0, atol=1e-12)
