@@ -355,11 +355,13 @@ class ExactContourError:
 
     Other branches. Where the whole curve is searched, each point's refined distance D is checked against
     every other stretch of the curve that could come nearer: any point of the curve lies within half the
-    largest sample spacing s of a sample, so a nearer foot point has a sample within D + s/2 of the point;
-    the samples there (at most :attr:`BRANCH_CANDIDATES`, nearest first) that are not the refinement's own
-    bracket are refined too, and the nearest foot point kept. Without it a point near where a path comes back
-    close to itself (a lead-in line that ends where a circle of a million chords begins, sampled every
-    0.25 mm) could be given the other branch's distance.
+    largest sample spacing s of a sample, so a nearer foot point has a sample within D + s/2 of the point.
+    The samples there that are not the refinement's own bracket (the nearest :attr:`BRANCH_CANDIDATES`
+    asked for first, four times as many where all of them lie within that distance) are refined too, one
+    per cell of s/2 (a path gone round one circle many times has a sample of each lap there, all with one
+    foot point), and the nearest foot point kept. Without it a point near where a path comes back close to
+    itself (a lead-in line that ends where 80 laps of a circle of a million chords begin, sampled every
+    0.25 mm) was given another branch's distance.
 
     Far points. A k-d tree's nearest-sample search costs about as many samples as lie within the point's
     distance of it: a point millimetres off the path (a run that nearly diverged) costs 10-100x a point on it.
@@ -373,7 +375,8 @@ class ExactContourError:
     """
 
     CANDIDATES = 64   # nearest samples examined per point when a window restricts the search
-    BRANCH_CANDIDATES = 8    # samples within D + s/2 examined per point for a nearer branch (see above)
+    BRANCH_CANDIDATES = 8    # samples first asked for within D + s/2 of a point, for a nearer branch (see above)
+    CHUNK = 4096             # points whose other branches are looked for at once (memory)
     COARSE = 8        # every COARSE-th sample makes the search of far points
     FAR = 128         # ... for points farther than FAR of its spacings from every sample
 
@@ -390,6 +393,7 @@ class ExactContourError:
         self._far = self.FAR * float(np.max(np.linalg.norm(np.diff(coarse, axis=0), axis=-1))) if len(coarse) > 1 \
             else math.inf
         # half the largest spacing of neighbouring samples, with a margin for the arc between them
+        self._samples = samples
         self._half_spacing = 0.6 * float(np.max(np.linalg.norm(np.diff(samples, axis=0), axis=-1))) \
             if len(samples) > 1 else 0.0
         self.tolerance = float(tolerance)
@@ -459,23 +463,45 @@ class ExactContourError:
 
     def _nearer_branches(self, points, theta, nearest, reach) -> None:
         """Replace in ``theta`` each foot point that another stretch of the curve beats (see the class
-        docstring, "Other branches")."""
+        docstring, "Other branches"), :attr:`CHUNK` points at a time."""
         distance = np.linalg.norm(self.curve.point(theta) - points, axis=-1)
-        radius = distance + self._half_spacing
-        k = min(self.BRANCH_CANDIDATES, self._grid.size)
-        found, candidates = self._tree.query(points, k=k, distance_upper_bound=float(np.max(radius)))
-        found, candidates = found.reshape(len(points), -1), candidates.reshape(len(points), -1)
         reach = np.broadcast_to(np.asarray(reach), (len(points),))
-        other = (found <= radius[:, None]) & (np.abs(candidates - nearest[:, None]) > reach[:, None] + 1)
-        rows, columns = np.nonzero(other)
+        for start in range(0, len(points), self.CHUNK):
+            rows = slice(start, start + self.CHUNK)
+            better = self._other_branch(points[rows], distance[rows], nearest[rows], reach[rows])
+            if better is not None:
+                here, alternative = better
+                theta[start + here] = alternative
+
+    def _other_branch(self, points, distance, nearest, reach):
+        """(rows, their foot-point parameters) where another branch is nearer than ``distance``, or None."""
+        radius = distance + self._half_spacing
+        rows, samples = [], []
+        asked, k = np.arange(len(points)), min(self.BRANCH_CANDIDATES, self._grid.size)
+        while asked.size:
+            found, candidates = self._tree.query(points[asked], k=k, distance_upper_bound=float(np.max(radius[asked])))
+            found, candidates = found.reshape(asked.size, -1), candidates.reshape(asked.size, -1)
+            inside = found <= radius[asked, None]
+            other = inside & (np.abs(candidates - nearest[asked, None]) > reach[asked, None] + 1)
+            full = inside[:, -1] & (k < self._grid.size)     # every candidate inside: there may be more
+            here, columns = np.nonzero(other & ~full[:, None])
+            rows.append(asked[here])
+            samples.append(candidates[here, columns])
+            asked, k = asked[full], min(4 * k, self._grid.size)
+        rows, samples = np.concatenate(rows), np.concatenate(samples)
         if not rows.size:
-            return
-        alternative = self._refine(points[rows], candidates[rows, columns], 1)
+            return None
+        # samples of laps over one stretch (a path gone round one circle many times) give one foot point:
+        # one candidate per point and cell of half the spacing
+        cells = np.floor(self._samples[samples] / max(self._half_spacing, 1e-300)).astype(np.int64)
+        _, first = np.unique(np.column_stack([rows, cells]), axis=0, return_index=True)
+        rows, samples = rows[first], samples[first]
+        alternative = self._refine(points[rows], samples, 1)
         gap = np.linalg.norm(self.curve.point(alternative) - points[rows], axis=-1)
-        order = np.argsort(-gap, kind="stable")          # the nearest written last
-        rows, alternative, gap = rows[order], alternative[order], gap[order]
-        better = gap < distance[rows]
-        theta[rows[better]] = alternative[better]
+        order = np.lexsort((gap, rows))
+        best = order[np.unique(rows[order], return_index=True)[1]]        # each point's nearest
+        better = best[gap[best] < distance[rows[best]]]
+        return rows[better], alternative[better]
 
     def __call__(self, points, near=None) -> FootPoints:
         """Exact contour error of ``points`` (shape (m, n) or (n,)); ``near`` gives each point's reference

@@ -225,3 +225,12 @@ def test_a_point_on_a_branch_is_measured_against_its_branch_where_another_comes_
     theta = np.linspace(0.1, 6.0, 5000)
     foot = ExactContourError(loop)(loop.point(theta))
     assert_allclose(foot.distance, 0.0, atol=1e-12)
+
+
+def test_a_point_on_a_lead_in_is_on_it_where_the_path_then_goes_round_a_circle_forty_times():
+    # the lead-in ends where 40 laps of a circle begin: near its end the 40 laps' samples are all nearer
+    # than the lead-in's own (0.13 mm apart), and the point is still measured against the lead-in
+    path = ToolPath([0.0, 0.0], ["G1 X0.01 Y0"] + ["G3 X0.01 Y0 I-0.01 J0"] * 40)
+    x = np.linspace(0.0095, 0.00999, 50)
+    foot = ExactContourError(path)(np.stack([x, np.zeros_like(x)], axis=1))
+    assert_allclose(foot.distance, 0.0, atol=1e-12)
