@@ -461,17 +461,19 @@ class ExactContourError:
                 break
         return theta
 
-    def _nearer_branches(self, points, theta, nearest, reach) -> None:
-        """Replace in ``theta`` each foot point that another stretch of the curve beats (see the class
-        docstring, "Other branches"), :attr:`CHUNK` points at a time."""
-        distance = np.linalg.norm(self.curve.point(theta) - points, axis=-1)
+    def _nearer_branches(self, points, theta, distance, nearest, reach) -> np.ndarray:
+        """Replace in ``theta`` each foot point (at ``distance``) that another stretch of the curve beats (see
+        the class docstring, "Other branches"), :attr:`CHUNK` points at a time; the rows replaced."""
         reach = np.broadcast_to(np.asarray(reach), (len(points),))
+        replaced = []
         for start in range(0, len(points), self.CHUNK):
             rows = slice(start, start + self.CHUNK)
             better = self._other_branch(points[rows], distance[rows], nearest[rows], reach[rows])
             if better is not None:
                 here, alternative = better
                 theta[start + here] = alternative
+                replaced.append(start + here)
+        return np.concatenate(replaced) if replaced else np.zeros(0, dtype=int)
 
     def _other_branch(self, points, distance, nearest, reach):
         """(rows, their foot-point parameters) where another branch is nearer than ``distance``, or None."""
@@ -512,8 +514,11 @@ class ExactContourError:
         else:
             nearest, reach = self._nearest(points)
             theta = self._refine(points, nearest, reach)
-            self._nearer_branches(points, theta, nearest, reach)
         d = self.curve.derivatives(theta, order=1)
+        if not (self.window > 0.0 and near is not None):
+            replaced = self._nearer_branches(points, theta, np.linalg.norm(d[0] - points, axis=-1), nearest, reach)
+            if replaced.size:
+                d[:, replaced] = self.curve.derivatives(theta[replaced], order=1)
         vector = d[0] - points
         tangent = d[1] / np.linalg.norm(d[1], axis=-1, keepdims=True)
         return FootPoints(theta=theta, vector=vector, distance=np.linalg.norm(vector, axis=-1),

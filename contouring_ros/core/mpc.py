@@ -127,6 +127,7 @@ class ModelPredictiveContouring:
         difference = np.eye(big_n) - np.eye(big_n, k=-1)
         # the rate's Hessian, r_rate D^T D on each axis' block of the diagonal
         self.rates = np.kron(np.eye(n), self.r_rate * difference.T @ difference)
+        self.rate_first = self.r_rate * difference.T[:, 0]      # times the previous command: the first change
         self._rows = _Rows([self])
 
     @property
@@ -171,9 +172,7 @@ class _Rows:
         self.forced_transposed = np.ascontiguousarray(self.forced.transpose(0, 1, 3, 2))
         self.forced_sum = self.forced.sum(axis=3)          # the response to a constant input of 1, (B, n, N)
         self.rates = np.array([m.rates for m in members])                   # (B, n N, n N)
-        # times the previous command: the first change's part of the linear term, r_rate D^T e_0
-        self.rate_first = np.array([m.r_rate for m in members])[:, None] * \
-            (np.eye(self.horizon) - np.eye(self.horizon, k=-1)).T[:, 0][None, :]
+        self.rate_first = np.array([m.rate_first for m in members])      # (B, N)
         self.bounds = np.array([np.repeat(m.limits, self.horizon) for m in members])   # (B, n N), inf: none
         # the step's state
         self.held = [np.zeros((size, self.n)) for _ in range(self.delay)]   # computed, not yet applied (oldest first)
