@@ -1,6 +1,6 @@
 """What a benchmark run with ``--checkpoints DIR`` has tuned so far: per scenario, the rows kept, how many
 converged and their CPU time, and each row's searches by what they were compared by (the nominal TACE of
-their robust choices, or their choices' worst case where none found a robust point), while the run goes on or
+their robust choices, or the lowest objective each reached where none found an admissible point), while the run goes on or
 after it stopped.
 
     python tools/checkpoint_status.py DIR [--rows]
@@ -19,7 +19,7 @@ from contouring_ros.studies import benchmark  # noqa: E402,F401  (registers the 
 from contouring_ros.studies.checkpoints import SUFFIX, KeptRow  # noqa: E402
 from contouring_ros.errors import ConfigError  # noqa: E402
 from contouring_ros.studies.parts import load  # noqa: E402
-from contouring_ros.studies.tuner import chosen_point, compared_values  # noqa: E402
+from contouring_ros.studies.tuner import chosen_point, compared_values, lowest_objective  # noqa: E402
 from contouring_ros.studies.tuning import Search  # noqa: E402
 
 
@@ -32,7 +32,7 @@ def agreement_values(tuned) -> tuple:
     kept = []
     for i in sorted(searches):
         chosen, robust = chosen_point(searches[i])
-        kept.append(Search(chosen, "ok" if robust else "not robust"))
+        kept.append(Search(chosen, "ok" if robust else "not robust", lowest=lowest_objective(searches[i])))
     return compared_values(kept)
 
 

@@ -48,6 +48,11 @@ def counts(evaluations: list, search: int) -> str:
     return ", ".join(f"{n} {k}" for k, n in mine.most_common())
 
 
+def found_objective(found) -> float:
+    """The objective of the point a search chose (nan: none)."""
+    return found.chosen.objective if found.chosen is not None else math.nan
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("scenario")
@@ -87,7 +92,10 @@ def main(argv=None) -> int:
     searches = tuning.search(list(range(args.searches)))
     for i, found in enumerate(searches):
         where = tuning.space.text(found.chosen.point) if found.chosen is not None else found.status
-        print(f"search {i}: {found.tace * 1e6:.4g} um at {where} ({counts(tuning.tuned.evaluations, i)})")
+        lowest = min((e.objective for e in tuning.tuned.evaluations if e.search == i), default=math.nan)
+        worst = found.chosen.worst * 1e6 if found.chosen is not None else math.nan
+        print(f"search {i}: {found.tace * 1e6:.4g} um (worst {worst:.4g} um, objective {found_objective(found):.4g}, "
+              f"lowest {lowest:.4g}) at {where} ({counts(tuning.tuned.evaluations, i)})")
     print(f"{searches_agreement(searches, protocol).describe()}; {time.process_time() - started:.1f} s of CPU")
     return 0
 

@@ -22,7 +22,7 @@ from .search import IPOPCMAES, Agreement, agreement, run_side_by_side
 from .space import tuned_servo, tuning_space
 from .tuning import Evaluation, Outcome, Protocol, Search, Tuned
 
-__all__ = ["best_search", "chosen_point", "compared_values", "searches_agreement", "Tuning", "tune"]
+__all__ = ["best_search", "chosen_point", "compared_values", "lowest_objective", "searches_agreement", "Tuning", "tune"]
 
 
 def best_search(searches: list) -> Search:
@@ -41,13 +41,15 @@ def best_search(searches: list) -> Search:
 
 def compared_values(searches: list) -> tuple:
     """(what a row's searches are compared by, each search's value): the nominal TACE of the robust choices
-    (inf for a search without one); where no search found a robust point, the worst TACE over the
-    perturbations of each one's not-robust choice."""
+    (inf for a search without one); where no search found an admissible point, the lowest objective each
+    reached, penalties included (:attr:`~contouring_ros.studies.tuning.Search.penalised`): what the searches
+    minimised, so that they agree when each ended at the same optimum of it, the same conflict of constraints
+    (a not-robust choice's own worst case is not what a search minimises: two searches at one optimum of the
+    objective can hold choices whose worst cases differ severalfold)."""
     values = [s.value for s in searches]
     if any(math.isfinite(v) for v in values):
         return "nominal TACE", values
-    return "worst TACE over the perturbations (no search found a robust point)", [
-        s.chosen.worst if s.chosen is not None and math.isfinite(s.chosen.worst) else math.inf for s in searches]
+    return "lowest objective as a TACE (no search found an admissible point)", [s.penalised for s in searches]
 
 
 def searches_agreement(searches: list, protocol: Protocol) -> Agreement:
@@ -67,6 +69,12 @@ def chosen_point(mine: list) -> tuple:
     if fragile:
         return min(fragile, key=lambda e: e.worst), False
     return None, False
+
+
+def lowest_objective(mine: list) -> float:
+    """The lowest objective of a search's evaluations ``mine`` among the points that ran (penalties
+    included); inf where every point diverged or was refused unrun."""
+    return min((e.objective for e in mine if e.objective < UNSTABLE), default=math.inf)
 
 
 @dataclass
@@ -262,19 +270,20 @@ class Tuning:
         marked not robust; else no admissible gain."""
         p = self.protocol
         chosen, robust = chosen_point(mine)
+        lowest = lowest_objective(mine)
         if robust:
-            return Search(chosen, "ok", chosen.worst / chosen.outcome.tace, len(mine))
+            return Search(chosen, "ok", chosen.worst / chosen.outcome.tace, len(mine), lowest)
         if chosen is not None:
             status = (f"not robust: no point of the search stays within {p.robust_factor:g}x at "
                       f"+-{100 * p.perturbation:g}% of a plant parameter while meeting the other constraints "
                       f"(given: the point with the lowest worst case)")
-            return Search(chosen, status, chosen.worst / chosen.outcome.tace, len(mine))
+            return Search(chosen, status, chosen.worst / chosen.outcome.tace, len(mine), lowest)
         failures = sorted({e.outcome.failure.split(":")[0] for e in mine if e.outcome.failure})
         limit = self.constraints.noise_limit
         noisy = [e.outcome.noise / limit for e in mine if e.outcome.noise == e.outcome.noise and limit > 0]
         return Search(None, "no admissible gain: every point diverged or broke a constraint"
                       + (f" (least noise {min(noisy):.3g} x the bound)" if noisy else "")
-                      + (f" ({'; '.join(failures)})" if failures else ""), evaluations=len(mine))
+                      + (f" ({'; '.join(failures)})" if failures else ""), evaluations=len(mine), lowest=lowest)
 
     # --- the whole tuning ----------------------------------------------------------------------------
     def search_until_agreed(self, optimiser=None) -> list:

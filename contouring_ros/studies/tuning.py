@@ -197,6 +197,7 @@ class Search:
     status: str
     robust_worst: float = math.nan
     evaluations: int = 0
+    lowest: float = math.inf      # the lowest objective it reached, penalties included (inf: no point ran)
 
     @property
     def tace(self) -> float:
@@ -208,3 +209,10 @@ class Search:
         """What the searches of a row are compared by (:func:`contouring_ros.studies.search.agreement`): the
         nominal TACE of a robust choice; inf where the search found none."""
         return self.tace if self.status == "ok" and math.isfinite(self.tace) else math.inf
+
+    @property
+    def penalised(self) -> float:
+        """The lowest objective it reached as a TACE [m], 10^objective um: the nominal TACE of the point
+        there times 10 per decade a constraint is broken by there (:mod:`~contouring_ros.studies.objective`);
+        inf where no point ran."""
+        return 10.0 ** self.lowest * 1e-6 if math.isfinite(self.lowest) else math.inf

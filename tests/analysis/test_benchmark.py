@@ -455,6 +455,33 @@ def test_the_kept_search_prefers_robust_then_the_lowest_worst_case():
     assert tuner.best_search([none, fragile]) is fragile
 
 
+def test_searches_without_an_admissible_point_are_compared_by_what_they_minimised():
+    """Two searches at one optimum of the objective (a point just beyond the noise bound) agree, however far
+    apart the worst cases of their not-robust choices; a third elsewhere does not; one robust choice makes the
+    row compared by nominal TACE, where the others count as finding nothing."""
+    def fragile(worst, lowest):
+        chosen = tuning.Evaluation({}, tuning.Outcome(tace=1e-6), 1.5, False, worst)
+        return tuning.Search(chosen, "not robust: ...", worst / 1e-6, lowest=lowest)
+    at_one_optimum = [fragile(9e-6, -0.140), fragile(3e-5, -0.141), fragile(2e-5, -0.139)]
+    what, values = tuner.compared_values(at_one_optimum)
+    assert what.startswith("lowest objective") and values[0] == pytest.approx(10 ** -0.14 * 1e-6)
+    assert tuner.searches_agreement(at_one_optimum, tuning.Protocol()).converged
+    apart = at_one_optimum[:2] + [fragile(9e-6, 0.3)]
+    assert not tuner.searches_agreement(apart, tuning.Protocol()).converged
+    robust = tuning.Search(tuning.Evaluation({}, tuning.Outcome(tace=2e-6), 0.3, True, 3e-6), "ok", 1.5,
+                           lowest=0.3)
+    what, values = tuner.compared_values(at_one_optimum + [robust])
+    assert what == "nominal TACE" and values == [math.inf] * 3 + [2e-6]
+    assert tuning.Search(None, "no admissible gain: every point diverged").penalised == math.inf
+
+
+def test_the_lowest_objective_counts_only_points_that_ran():
+    def evaluation(objective):
+        return tuning.Evaluation({}, tuning.Outcome(tace=1e-6), objective, False)
+    assert tuner.lowest_objective([evaluation(100.0), evaluation(0.5), evaluation(-0.2)]) == -0.2
+    assert tuner.lowest_objective([evaluation(100.0), evaluation(objective.UNSTABLE)]) == math.inf
+
+
 def test_two_runs_compared_row_by_row_name_what_a_protocol_change_moved(tmp_path):
     """tools/compare_benchmarks.py: a row whose error doubled, a verdict that flipped, a status that changed
     and a new best combination are each counted and named; a run against itself changes nothing."""
