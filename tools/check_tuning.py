@@ -9,7 +9,8 @@ with ``--factor`` times the benchmark's whole budget of a row (its searches x th
 rows of a benchmark.csv (or the rows a run with ``--checkpoints DIR`` has kept so far: give the folder), re-tunes
 the chosen combinations on the same machine and noise bound, and prints both nominal and median TACE with the
 ratio (re-tuned / reported: below 0.9 means the report is beaten by more than 10%); where neither finds a robust
-point, the worst TACE over the perturbations of each (what the searches of such a row are compared by).
+point, the worst TACE over the perturbations of each one's choice (the point such a row shows: its searches
+are compared by the lowest objective they reached, which this optimiser in raw gains does not share).
 
     python tools/check_tuning.py reports/benchmark.csv "paper000_h50:newton + unit_vector / ismc" ...
     python tools/check_tuning.py CHECKPOINT_DIR "paper000_h50:newton + unit_vector / ismc" ...
@@ -136,7 +137,7 @@ def main(argv=None) -> int:
         for (name, label), job in zip(wanted, jobs):
             row, tuned = table[(name, label)], job.result()
             if tuned.status.startswith("not robust") and tuned.nominal is not None and row.get("robust_worst"):
-                # where no point is robust, rows are compared by the worst case over the perturbations
+                # where no point is robust, a row shows the point of the lowest worst case over the perturbations
                 worst = tuned.robust_worst * tuned.nominal.tace * 1e6
                 reported = float(row["robust_worst"]) * float(row["tace_um"])
                 print(f"| {name} | {label} | {row['tace_um']} / {row['tace_median_um']} (not robust: worst "

@@ -248,15 +248,25 @@ def convergence_text(tuned: list) -> str:
         return ""
     converged = [r for r in tuned if r.converged]
     searches = [a.searches for a in agreements]
+    inadmissible = [r for r in converged if getattr(r.tuned, "status", "ok") != "ok"]
     text = (f" **Convergence**: {len(converged)} of {len(tuned)} tuned rows converged "
-            f"({100 * len(converged) / len(tuned):.0f}%); searches per row: median {float(np.median(searches)):g}, "
-            f"at most {max(searches)}.")
+            f"({100 * len(converged) / len(tuned):.0f}%)"
+            + (f", {len(inadmissible)} of them rows without an admissible point whose searches agree on the "
+               f"optimum of the objective, penalties included (the conflict of constraints their status names)"
+               if inadmissible else "")
+            + f"; searches per row: median {float(np.median(searches)):g}, at most {max(searches)}.")
     left = [r for r in tuned if not r.converged]
     if left:
-        text += " Not converged (no verdict rests on them): " + "; ".join(
+        text += " Not converged (no verdict rests on them; each search's nominal TACE in um): " + "; ".join(
             f"{r.family.name} {r.label} ({r.tuned.agreement.agreed} of {r.tuned.agreement.searches} agree, "
-            f"spread {number(r.tuned.agreement.spread)}x)" for r in left) + "."
+            f"spread {number(r.tuned.agreement.spread)}x{_search_taces(r.tuned)})" for r in left) + "."
     return text
+
+
+def _search_taces(tuned) -> str:
+    """': ' and a row's searches' nominal TACEs in um, lowest first (nothing where it kept none)."""
+    values = sorted(v * 1e6 for v in getattr(tuned, "search_tace", ()) or () if v == v)
+    return (": " + ", ".join(f"{v:.3g}" for v in values)) if values else ""
 
 
 def benchmark_report(rows: list, families: list, protocol: Protocol, where: str,

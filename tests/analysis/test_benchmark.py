@@ -433,12 +433,16 @@ def test_the_report_counts_converged_rows_and_names_the_others():
 
     def row(values):
         a = agreement(values)
-        return SimpleNamespace(tuned=SimpleNamespace(agreement=a), converged=a.converged, family=family,
-                               label="est + ccc / servo")
+        return SimpleNamespace(tuned=SimpleNamespace(agreement=a, search_tace=values, status=status),
+                               converged=a.converged, family=family, label="est + ccc / servo")
+    status = "ok"
     rows = [row([1e-6, 1.01e-6, 1.02e-6]), row([1e-6, 3e-6, 1.5e-6, 2e-6, 1.2e-6, 4e-6])]
     text = benchmark_report.convergence_text(rows)
-    assert "1 of 2 tuned rows converged (50%)" in text and "at most 6" in text
-    assert "scenario est + ccc / servo (1 of 6 agree, spread 4x)" in text
+    assert "1 of 2 tuned rows converged (50%); searches" in text and "at most 6" in text
+    assert "scenario est + ccc / servo (1 of 6 agree, spread 4x: 1, 1.2, 1.5, 2, 3, 4)" in text
+    status = "not robust: ..."
+    text = benchmark_report.convergence_text(rows + [row([1e-6, 1.01e-6, 1.02e-6])])
+    assert "2 of 3 tuned rows converged (67%), 1 of them rows without an admissible point" in text
 
 
 def test_the_kept_search_prefers_robust_then_the_lowest_worst_case():
