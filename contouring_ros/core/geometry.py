@@ -336,6 +336,17 @@ def _search_tree(samples: np.ndarray):
     return tree
 
 
+def _tangents_and_curvatures(curve: Curve, theta) -> tuple:
+    """(unit tangents, curvature vectors) of ``curve`` at the parameters ``theta``: t = c' / |c'| and
+    k = (c'' - (c''.t) t) / |c'|^2 (zero where c' vanishes)."""
+    d = curve.derivatives(theta, order=2)
+    speed = np.linalg.norm(d[1], axis=-1, keepdims=True)
+    safe = np.where(speed > 0.0, speed, 1.0)
+    tangent = np.where(speed > 0.0, d[1] / safe, 0.0)
+    normal_part = d[2] - np.sum(d[2] * tangent, axis=-1, keepdims=True) * tangent
+    return tangent, np.where(speed > 0.0, normal_part / safe ** 2, 0.0)
+
+
 class ExactContourError:
     """Distance from points to the whole curve: k-d tree global search, then bracketed Newton refinement.
 
@@ -359,7 +370,9 @@ class ExactContourError:
     The samples there that are not the refinement's own bracket (the nearest :attr:`BRANCH_CANDIDATES`
     asked for first, four times as many where all of them lie within that distance) are refined too, one
     per cell of s/2 (a path gone round one circle many times has a sample of each lap there, all with one
-    foot point), and the nearest foot point kept. Without it a point near where a path comes back close to
+    foot point): the one whose stretch passes nearest the point to second order (the distance from the
+    curve's expansion about it with its tangent and curvature), so that a stretch that ends among the laps'
+    samples is refined, not a lap; and the nearest foot point kept. Without it a point near where a path comes back close to
     itself (a lead-in line that ends where 80 laps of a circle of a million chords begin, sampled every
     0.25 mm) was given another branch's distance.
 
@@ -377,6 +390,8 @@ class ExactContourError:
     CANDIDATES = 64   # nearest samples examined per point when a window restricts the search
     BRANCH_CANDIDATES = 8    # samples first asked for within D + s/2 of a point, for a nearer branch (see above)
     CHUNK = 4096             # points whose other branches are looked for at once (memory)
+    HALVINGS = 60     # a descending Newton step is halved at most this often
+    TURN = 0.25       # [rad] a tangent turning by more between neighbouring samples: a bracket across a corner
     COARSE = 8        # every COARSE-th sample makes the search of far points
     FAR = 128         # ... for points farther than FAR of its spacings from every sample
 
@@ -394,6 +409,11 @@ class ExactContourError:
             else math.inf
         # half the largest spacing of neighbouring samples, with a margin for the arc between them
         self._samples = samples
+        self._sample_tangent, self._sample_curvature = _tangents_and_curvatures(curve, self._grid)
+        # intervals between neighbouring samples where the tangent turns by more than TURN (a corner of a
+        # tool path, a blend arc of microns), as a running count: a bracket holds one where the count moves
+        turning = np.sum(self._sample_tangent[1:] * self._sample_tangent[:-1], axis=-1) < math.cos(self.TURN)
+        self._turns = np.concatenate([[0], np.cumsum(turning)])
         self._half_spacing = 0.6 * float(np.max(np.linalg.norm(np.diff(samples, axis=0), axis=-1))) \
             if len(samples) > 1 else 0.0
         self.tolerance = float(tolerance)
@@ -440,12 +460,38 @@ class ExactContourError:
 
     def _refine(self, points, nearest, reach) -> np.ndarray:
         """Each point's foot-point parameter: Newton's steps on the squared distance (paper 000 eqs. 9-11)
-        from the sample ``nearest``, bracketed by the samples ``reach`` either side of it."""
+        from the sample ``nearest``, bracketed by the samples ``reach`` either side of it. Where the tangent
+        turns by more than :attr:`TURN` within the bracket (a corner, or a blend arc of microns), the distance
+        along the curve has a minimum on each side of the turn and Newton's steps stay on the side they start
+        (from the far side of a square corner they stop at the corner): there the steps are also made from the
+        bracket's two ends, and from the sample once more with each step shortened until the distance falls
+        (so that steps that overshoot a corner, the nearest point there, come back to it instead of leaping
+        from side to side); the nearest of the four foot points is kept."""
         grid = self._grid
-        lower = grid[np.maximum(nearest - reach, 0)]
-        upper = grid[np.minimum(nearest + reach, grid.size - 1)]
-        theta = grid[nearest]
+        nearest = np.asarray(nearest)
+        low, high = np.maximum(nearest - reach, 0), np.minimum(nearest + reach, grid.size - 1)
+        lower, upper = grid[low], grid[high]
+        theta = self._newton(points, grid[nearest], lower, upper)
+        turned = np.flatnonzero(self._turns[high] > self._turns[low])
+        if turned.size:
+            here = points[turned]
+            best = theta[turned]
+            gap = np.linalg.norm(self.curve.point(best) - here, axis=-1)
+            for start, descent in ((low, False), (high, False), (nearest, True)):
+                other = self._newton(here, grid[start[turned]], lower[turned], upper[turned], descent)
+                other_gap = np.linalg.norm(self.curve.point(other) - here, axis=-1)
+                nearer = other_gap < gap
+                best, gap = np.where(nearer, other, best), np.where(nearer, other_gap, gap)
+            theta[turned] = best
+        return theta
+
+    def _newton(self, points, theta, lower, upper, descent: bool = False) -> np.ndarray:
+        """Newton's steps on each point's squared distance from the parameters ``theta``, each clipped to its
+        bracket [lower, upper], until they settle (at most :attr:`max_iterations`); with ``descent`` each step
+        halved (up to :attr:`HALVINGS` times) until the distance falls, and not made where it never does."""
+        theta = np.array(theta, dtype=float)
         active = np.arange(len(points))          # the points whose Newton step has not yet settled
+        value = np.sum((self.curve.point(theta) - points) ** 2, axis=-1) if descent else None
         for _ in range(self.max_iterations):
             here = theta[active]
             d = self.curve.derivatives(here, order=2)
@@ -454,6 +500,8 @@ class ExactContourError:
             hessian = np.sum(error * d[2], axis=-1) + np.sum(d[1] * d[1], axis=-1)  # eq. 10
             hessian = np.where(hessian > 0.0, hessian, np.sum(d[1] * d[1], axis=-1))  # eq. 11 fallback
             new_theta = np.clip(here - gradient / hessian, lower[active], upper[active])
+            if descent:
+                new_theta = self._descending(points[active], here, new_theta, value, active)
             theta[active] = new_theta
             moving = np.abs(new_theta - here) > self.tolerance * np.maximum(1.0, np.abs(new_theta))
             active = active[moving]
@@ -494,16 +542,57 @@ class ExactContourError:
         if not rows.size:
             return None
         # samples of laps over one stretch (a path gone round one circle many times) give one foot point:
-        # one candidate per point and cell of half the spacing
+        # one candidate per point and cell of half the spacing, the one whose stretch passes nearest the
+        # point to second order (where a lead-in ends among the laps' samples, the lead-in's); a sample whose
+        # bracket holds a turn of the tangent (a corner) is refined on its own
         cells = np.floor(self._samples[samples] / max(self._half_spacing, 1e-300)).astype(np.int64)
-        _, first = np.unique(np.column_stack([rows, cells]), axis=0, return_index=True)
-        rows, samples = rows[first], samples[first]
+        low, high = np.maximum(samples - 1, 0), np.minimum(samples + 1, self._grid.size - 1)
+        alone = np.where(self._turns[high] > self._turns[low], samples, -1)
+        order = np.argsort(self._second_order_distance(points[rows], samples), kind="stable")
+        _, first = np.unique(np.column_stack([rows[order], cells[order], alone[order]]), axis=0, return_index=True)
+        rows, samples = rows[order[first]], samples[order[first]]
         alternative = self._refine(points[rows], samples, 1)
         gap = np.linalg.norm(self.curve.point(alternative) - points[rows], axis=-1)
         order = np.lexsort((gap, rows))
         best = order[np.unique(rows[order], return_index=True)[1]]        # each point's nearest
         better = best[gap[best] < distance[rows[best]]]
         return rows[better], alternative[better]
+
+    def _descending(self, points, here, proposed, value, active) -> np.ndarray:
+        """The steps ``here`` -> ``proposed`` halved until each point's squared distance is below its
+        ``value[active]`` (``value`` updated), or, where it never is (or the step falls below the tolerance
+        first), no step."""
+        step = proposed - here
+        new = proposed.copy()
+        new_value = np.sum((self.curve.point(new) - points) ** 2, axis=-1)
+        # a step that changes the distance by rounding alone (a settled point) is made as it is
+        bound = value[active] * (1.0 + 1e-12)
+        worse, refused = np.flatnonzero(new_value > bound), []
+        for _ in range(self.HALVINGS):
+            if not worse.size:
+                break
+            step[worse] *= 0.5
+            tiny = np.abs(step[worse]) <= self.tolerance * np.maximum(1.0, np.abs(here[worse]))
+            refused.append(worse[tiny])
+            worse = worse[~tiny]
+            if not worse.size:
+                break
+            new[worse] = here[worse] + step[worse]
+            new_value[worse] = np.sum((self.curve.point(new[worse]) - points[worse]) ** 2, axis=-1)
+            worse = worse[new_value[worse] > bound[worse]]
+        refused = np.concatenate(refused + [worse])
+        new[refused], new_value[refused] = here[refused], value[active][refused]
+        value[active] = np.minimum(new_value, value[active])
+        return new
+
+    def _second_order_distance(self, points, samples) -> np.ndarray:
+        """Each point's distance from the curve's second-order expansion about its sample: with q the point
+        less the sample, t the unit tangent and k the curvature vector there, |q - (q.t) t - (q.t)^2 k / 2|,
+        the distance to that stretch of the curve within O(h^3) for a foot point h along it."""
+        q = points - self._samples[samples]
+        along = np.sum(q * self._sample_tangent[samples], axis=-1, keepdims=True)
+        return np.linalg.norm(q - along * self._sample_tangent[samples]
+                              - 0.5 * along ** 2 * self._sample_curvature[samples], axis=-1)
 
     def __call__(self, points, near=None) -> FootPoints:
         """Exact contour error of ``points`` (shape (m, n) or (n,)); ``near`` gives each point's reference

@@ -227,10 +227,25 @@ def test_a_point_on_a_branch_is_measured_against_its_branch_where_another_comes_
     assert_allclose(foot.distance, 0.0, atol=1e-12)
 
 
-def test_a_point_on_a_lead_in_is_on_it_where_the_path_then_goes_round_a_circle_forty_times():
-    # the lead-in ends where 40 laps of a circle begin: near its end the 40 laps' samples are all nearer
-    # than the lead-in's own (0.13 mm apart), and the point is still measured against the lead-in
-    path = ToolPath([0.0, 0.0], ["G1 X0.01 Y0"] + ["G3 X0.01 Y0 I-0.01 J0"] * 40)
-    x = np.linspace(0.0095, 0.00999, 50)
+@pytest.mark.parametrize("laps", [40, 80])
+def test_a_point_on_a_lead_in_is_on_it_where_the_path_then_goes_round_a_circle_many_times(laps):
+    # the lead-in ends where the laps of a circle begin: near its end the laps' samples are all nearer than
+    # the lead-in's own (0.13 and 0.25 mm apart), and the point is still measured against the lead-in (with
+    # 80 laps the nearest sample of the lead-in's end is the circle's first, across the corner: 14 um before)
+    path = ToolPath([0.0, 0.0], ["G1 X0.01 Y0"] + ["G3 X0.01 Y0 I-0.01 J0"] * laps)
+    x = np.linspace(0.0095, 0.0099999, 2000)
     foot = ExactContourError(path)(np.stack([x, np.zeros_like(x)], axis=1))
     assert_allclose(foot.distance, 0.0, atol=1e-12)
+
+
+@pytest.mark.parametrize("samples", [16, 23, 31, 47])
+def test_points_around_a_square_corner_sampled_coarsely_get_their_exact_distance(samples):
+    # two legs of 10 mm at a right angle, sampled every 0.4-1.3 mm: a point whose nearest sample is across
+    # the corner is measured against its own leg, and one beyond the corner against the corner itself
+    path = ToolPath([0.0, 0.0], ["G1 X0.01 Y0", "G1 X0.01 Y0.01"])
+    x = np.linspace(0.008, 0.0102, 400)
+    points = np.stack([x, np.zeros_like(x)], axis=1) + np.random.default_rng(1).normal(0.0, 2e-5, (400, 2))
+    first = np.hypot(np.clip(points[:, 0], 0.0, 0.01) - points[:, 0], points[:, 1])
+    second = np.hypot(points[:, 0] - 0.01, np.clip(points[:, 1], 0.0, 0.01) - points[:, 1])
+    foot = ExactContourError(path, samples=samples)(points)
+    assert_allclose(foot.distance, np.minimum(first, second), rtol=0.0, atol=1e-15)
