@@ -336,6 +336,21 @@ def _search_tree(samples: np.ndarray):
     return tree
 
 
+def _cell_keys(rows, positions, size: float) -> np.ndarray:
+    """One integer per (row, cell of side ``size`` that ``positions`` lie in): equal exactly for equal pairs."""
+    cells = np.floor(positions / max(size, 1e-300)).astype(np.int64)
+    if not len(rows):
+        return np.zeros(0, dtype=np.int64)
+    cells -= cells.min(axis=0)
+    spans = cells.max(axis=0) + 1
+    if float(np.prod(spans.astype(float))) * (float(rows.max()) + 1.0) < 2.0 ** 62:
+        key = rows.astype(np.int64)
+        for column, span in zip(cells.T, spans):
+            key = key * span + column
+        return key
+    return np.unique(np.column_stack([rows, cells]), axis=0, return_inverse=True)[1].reshape(-1)
+
+
 def _tangents_and_curvatures(curve: Curve, theta) -> tuple:
     """(unit tangents, curvature vectors) of ``curve`` at the parameters ``theta``: t = c' / |c'| and
     k = (c'' - (c''.t) t) / |c'|^2 (zero where c' vanishes)."""
@@ -545,12 +560,15 @@ class ExactContourError:
         # one candidate per point and cell of half the spacing, the one whose stretch passes nearest the
         # point to second order (where a lead-in ends among the laps' samples, the lead-in's); a sample whose
         # bracket holds a turn of the tangent (a corner) is refined on its own
-        cells = np.floor(self._samples[samples] / max(self._half_spacing, 1e-300)).astype(np.int64)
         low, high = np.maximum(samples - 1, 0), np.minimum(samples + 1, self._grid.size - 1)
-        alone = np.where(self._turns[high] > self._turns[low], samples, -1)
-        order = np.argsort(self._second_order_distance(points[rows], samples), kind="stable")
-        _, first = np.unique(np.column_stack([rows[order], cells[order], alone[order]]), axis=0, return_index=True)
-        rows, samples = rows[order[first]], samples[order[first]]
+        alone = self._turns[high] > self._turns[low]
+        merged = np.flatnonzero(~alone)
+        key = _cell_keys(rows[merged], self._samples[samples[merged]], self._half_spacing)
+        order = np.lexsort((self._second_order_distance(points[rows[merged]], samples[merged]), key))
+        first = merged[order[np.concatenate([[True], key[order][1:] != key[order][:-1]])]] if merged.size \
+            else merged
+        kept = np.concatenate([first, np.flatnonzero(alone)])
+        rows, samples = rows[kept], samples[kept]
         alternative = self._refine(points[rows], samples, 1)
         gap = np.linalg.norm(self.curve.point(alternative) - points[rows], axis=-1)
         order = np.lexsort((gap, rows))
