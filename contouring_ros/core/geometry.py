@@ -547,7 +547,7 @@ class ExactContourError:
             found, candidates = self._tree.query(points[asked], k=k, distance_upper_bound=float(np.max(radius[asked])))
             found, candidates = found.reshape(asked.size, -1), candidates.reshape(asked.size, -1)
             inside = found <= radius[asked, None]
-            other = inside & (np.abs(candidates - nearest[asked, None]) > reach[asked, None] + 1)
+            other = inside & (np.abs(candidates - nearest[asked, None]) > reach[asked, None])
             full = inside[:, -1] & (k < self._grid.size)     # every candidate inside: there may be more
             here, columns = np.nonzero(other & ~full[:, None])
             rows.append(asked[here])

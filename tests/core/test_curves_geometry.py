@@ -249,3 +249,15 @@ def test_points_around_a_square_corner_sampled_coarsely_get_their_exact_distance
     second = np.hypot(points[:, 0] - 0.01, np.clip(points[:, 1], 0.0, 0.01) - points[:, 1])
     foot = ExactContourError(path, samples=samples)(points)
     assert_allclose(foot.distance, np.minimum(first, second), rtol=0.0, atol=1e-15)
+
+
+def test_a_point_whose_foot_lies_two_samples_from_its_nearest_is_measured_there():
+    # a 45-degree jog of 20 um between two long lines: for a point above the jog the nearest sample's
+    # bracket misses the foot point, which lies between the next sample and the one after it
+    path = ToolPath([0.0, 0.0], ["G1 X0.5 Y0", "G1 X0.50002 Y2e-5", "G1 X1 Y2e-5"])
+    x = np.linspace(0.4998, 0.5002, 100)
+    points = np.stack([x, np.full_like(x, 2.2989e-4)], axis=1)
+    dense = path.point(np.linspace(0.495, 0.505, 40_001))
+    brute = np.min(np.linalg.norm(dense[None, :, :] - points[:, None, :], axis=-1), axis=1)
+    foot = ExactContourError(path)(points)
+    assert np.all(foot.distance <= brute + 1e-12) and np.max(brute - foot.distance) < 1e-7
