@@ -387,9 +387,9 @@ class ExactContourError:
     per cell of s/2 (a path gone round one circle many times has a sample of each lap there, all with one
     foot point): the one whose stretch passes nearest the point to second order (the distance from the
     curve's expansion about it with its tangent and curvature), so that a stretch that ends among the laps'
-    samples is refined, not a lap; and the nearest foot point kept. Without it a point near where a path comes back close to
-    itself (a lead-in line that ends where 80 laps of a circle of a million chords begin, sampled every
-    0.25 mm) was given another branch's distance.
+    samples is refined, not a lap; and the nearest foot point kept. Without it a point near where a path
+    comes back close to itself (a lead-in line that ends where 80 laps of a circle of a million chords begin,
+    sampled every 0.25 mm) was given another branch's distance.
 
     Corners. Where the tangent turns by more than :attr:`TURN` between neighbouring samples (a tool path's
     exact-stop corner, a blend arc of microns), the distance along the curve has a minimum either side and
@@ -431,14 +431,14 @@ class ExactContourError:
         self._far = self.FAR * float(np.max(np.linalg.norm(np.diff(coarse, axis=0), axis=-1))) if len(coarse) > 1 \
             else math.inf
         # half the largest spacing of neighbouring samples, with a margin for the arc between them
+        self._half_spacing = 0.6 * float(np.max(np.linalg.norm(np.diff(samples, axis=0), axis=-1))) \
+            if len(samples) > 1 else 0.0
         self._samples = samples
         self._sample_tangent, self._sample_curvature = _tangents_and_curvatures(curve, self._grid)
         # intervals between neighbouring samples where the tangent turns by more than TURN (a corner of a
         # tool path, a blend arc of microns), as a running count: a bracket holds one where the count moves
         turning = np.sum(self._sample_tangent[1:] * self._sample_tangent[:-1], axis=-1) < math.cos(self.TURN)
         self._turns = np.concatenate([[0], np.cumsum(turning)])
-        self._half_spacing = 0.6 * float(np.max(np.linalg.norm(np.diff(samples, axis=0), axis=-1))) \
-            if len(samples) > 1 else 0.0
         self.tolerance = float(tolerance)
         self.max_iterations = int(max_iterations)
         self.window = float(curve.contour_error_window if window is None else window)
@@ -624,13 +624,14 @@ class ExactContourError:
         """Exact contour error of ``points`` (shape (m, n) or (n,)); ``near`` gives each point's reference
         parameter, used when the search is restricted to a window."""
         points = np.atleast_2d(np.asarray(points, dtype=float))
-        if self.window > 0.0 and near is not None:
+        windowed = self.window > 0.0 and near is not None
+        if windowed:
             theta = self._refine(points, self._nearest_in_window(points, near), 1)
         else:
             nearest, reach = self._nearest(points)
             theta = self._refine(points, nearest, reach)
         d = self.curve.derivatives(theta, order=1)
-        if not (self.window > 0.0 and near is not None):
+        if not windowed:
             replaced = self._nearer_branches(points, theta, np.linalg.norm(d[0] - points, axis=-1), nearest, reach)
             if replaced.size:
                 d[:, replaced] = self.curve.derivatives(theta[replaced], order=1)
