@@ -27,7 +27,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from contouring_ros.studies.benchmark import fit_to_machine, plan, reference_job, scenario_families  # noqa: E402
-from contouring_ros.studies.tuner import Tuning, searches_agreement  # noqa: E402
+from contouring_ros.studies.tuner import Tuning, lowest_objective, searches_agreement  # noqa: E402
 from contouring_ros.studies.tuning import Protocol  # noqa: E402
 
 
@@ -92,7 +92,7 @@ def main(argv=None) -> int:
     searches = tuning.search(list(range(args.searches)))
     for i, found in enumerate(searches):
         where = tuning.space.text(found.chosen.point) if found.chosen is not None else found.status
-        lowest = min((e.objective for e in tuning.tuned.evaluations if e.search == i), default=math.nan)
+        lowest = lowest_objective([e for e in tuning.tuned.evaluations if e.search == i])
         worst = found.chosen.worst * 1e6 if found.chosen is not None else math.nan
         print(f"search {i}: {found.tace * 1e6:.4g} um (worst {worst:.4g} um, objective {found_objective(found):.4g}, "
               f"lowest {lowest:.4g}) at {where} ({counts(tuning.tuned.evaluations, i)})")

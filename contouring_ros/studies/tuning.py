@@ -213,6 +213,6 @@ class Search:
     @property
     def penalised(self) -> float:
         """The lowest objective it reached as a TACE [m], 10^objective um: the nominal TACE of the point
-        there times 10 per decade a constraint is broken by there (:mod:`~contouring_ros.studies.objective`);
-        inf where no point ran."""
+        there times 10^(PENALTY x the decades a constraint is broken by there)
+        (:mod:`~contouring_ros.studies.objective`); inf where no point ran."""
         return 10.0 ** self.lowest * 1e-6 if math.isfinite(self.lowest) else math.inf
