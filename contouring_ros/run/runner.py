@@ -486,6 +486,7 @@ def run_graph(experiment_path, bag=None, *, timeout: float | None = None, domain
             except (KeyboardInterrupt, Terminated) as interrupt:
                 raise _interrupted(interrupt, nodes, bag, final) from None
             except RunError as error:
+                _stop(nodes)      # the recorder closed (or killed) before we say whether a bag exists
                 raise RunError(str(error), bag=final if bag.is_file() else None) from None
             finally:
                 _stop_and_close(nodes, wall_started)
