@@ -521,8 +521,9 @@ class GainScaledLoops:
         Per axis: the loop without the PID (zero for a servo's own), {gain name: (the loop with that gain
         alone, that gain)} (control.TransferFunction; a gain of the servo's own size keeps the loop
         polynomials' rounding small), the Ms the axis may reach (:data:`MS_LIMIT`, or the axis' own where
-        its servo alone exceeds it), and for a servo's own PID ``loop_of(gains)``: the loop with those gains
-        ({name: value}), built exactly, whose stability decides a range of k (:meth:`largest_scale`).
+        its servo alone exceeds it), and ``loop_of(gains)``: the loop with those gains ({name: value}), built
+        exactly, whose stability decides a range of k above the lowest (:meth:`largest_scale`; a servo's own
+        PID, and a contour controller whose search may take such a range).
     limit : float
         The Ms a linear loop may reach (the tuning's MS_LIMIT); a search's Ms coordinate is a share of it.
     points : int
@@ -550,41 +551,70 @@ class GainScaledLoops:
             worst = max(worst, ms / allowed)
         return worst
 
-    def largest_scale(self, shape: dict, share: float, cap: float = math.inf) -> float:
-        """The largest k >= 0, at most ``cap``, with every axis' Ms at most ``share`` x its allowed Ms (0 where
-        k = 0 already exceeds it or no k qualifies, ``cap`` where no k exceeds it). Per frequency,
-        |1 + L(k)|^2 is a quadratic in k, above the bound outside the interval between its roots: the k that
-        keep the bound are ranges (:func:`_allowed_ranges`). Between two ranges no closed-loop pole can cross
-        the unit circle without |1 + L| = 0 on the way, so each range is stable or unstable as a whole.
-
-        An axis without ``loop_of`` (a contour controller around a stable servo loop: stable from k = 0 on)
-        takes the top of its lowest range, the k where the bound is first reached on the way from 0. An axis
-        with ``loop_of`` (a servo's own PID, whose loop can be unstable at small gains, as an integral on an
-        integrating axis is, and can keep the bound again at higher ones) takes the top of its highest range
-        below ``cap`` that is stable, one loop in it deciding (:func:`quick_robustness`). The frequency grid
-        decides where the ranges lie, so a narrow peak between two of its frequencies can be missed:
-        :func:`quick_robustness` on the loop itself still decides stability."""
-        best = cap
-        for one, units, allowed, loop_of in self.axes:
+    def ranges(self, shape: dict, share: float) -> list:
+        """The ranges [low, high] of k >= 0 (high inf for the last) where every axis' Ms is at most ``share`` x
+        its allowed Ms, lowest first: per frequency, |1 + L(k)|^2 is a quadratic in k, above the bound outside
+        the interval between its roots (:func:`_allowed_ranges`), and the axes' ranges intersected. [] where
+        k = 0 already exceeds the bound on an axis."""
+        joint = [(0.0, math.inf)]
+        for one, units, allowed, _ in self.axes:
             b = self._direction(units, shape)
             floor = 1.0 / (share * allowed)
             qa, qb, qc = np.abs(b) ** 2, 2.0 * np.real(one * np.conj(b)), np.abs(one) ** 2 - floor ** 2
             if np.nanmin(qc) < 0.0:
-                return 0.0
-            ranges = _allowed_ranges(qa, qb, qc)
-            if loop_of is None:
-                best = min(best, ranges[0][1] * (1.0 - 1e-6))     # inside: the boundary's rounding either way
+                return []
+            joint = _intersected(joint, _allowed_ranges(qa, qb, qc))
+        return joint
+
+    def largest_scale(self, shape: dict, share: float, cap: float = math.inf, highest: bool | None = None) -> float:
+        """The largest k >= 0, at most ``cap``, of a range of scales where every axis' Ms is at most ``share`` x
+        its allowed Ms (:meth:`ranges`) and every loop is stable (0 where k = 0 already exceeds the bound or no
+        range qualifies, ``cap`` where no k in a qualifying range exceeds it). Between two ranges no
+        closed-loop pole can cross the unit circle without |1 + L| = 0 on the way, so each range is stable or
+        unstable as a whole.
+
+        The lowest range (``highest`` False, the default where an axis has no ``loop_of``: a contour controller
+        around stable servo loops, stable from k = 0 on) gives its top, the k where the bound is first reached
+        on the way from 0. The highest (``highest`` True, the default where every axis has ``loop_of``: a
+        servo's own PID, whose loop can be unstable at small gains, as an integral on an integrating axis is,
+        and can keep the bound again at higher ones) gives the top of the highest range below ``cap`` whose
+        loops are stable, one loop of each axis in it deciding (:func:`quick_robustness`; an axis without
+        ``loop_of`` is known stable only in the range from 0). On a loop whose Ms is not monotone in the scale
+        (a contour controller around a PID + feedforward servo can keep the bound again at scales 10-30x the
+        lowest range's top) the two differ. The frequency grid decides where the ranges lie, so a narrow peak
+        between two of its frequencies can be missed: :func:`quick_robustness` on the loop itself still decides
+        stability."""
+        if highest is None:
+            highest = all(loop_of is not None for *_, loop_of in self.axes)
+        joint = self.ranges(shape, share)
+        if not joint:
+            return 0.0
+        if not highest:
+            return min(cap, joint[0][1] * (1.0 - 1e-6))     # inside: the boundary's rounding either way
+        for low, high in reversed(joint):
+            if low >= cap:
                 continue
-            for low, high in reversed(ranges):
-                if low >= best:
-                    continue
-                top = min(high * (1.0 - 1e-6), best)
-                if quick_robustness(loop_of({g: _inside(low, top) * float(shape.get(g, 0.0)) for g in units}))[1]:
-                    best = top
-                    break
-            else:
-                return 0.0
-        return best
+            top = min(high * (1.0 - 1e-6), cap)
+            inside = {g: _inside(low, top) * float(shape.get(g, 0.0)) for g in self.axes[0][1]}
+            if all(_stable(loop_of(inside)) if loop_of is not None else low == 0.0 for *_, loop_of in self.axes):
+                return top
+        return 0.0
+
+
+def _stable(loop) -> bool:
+    """Whether the closed loop of ``loop`` is stable (False where it could not be built: None)."""
+    return loop is not None and quick_robustness(loop)[1]
+
+
+def _intersected(first: list, second: list) -> list:
+    """The ranges [low, high] lying in both lists of disjoint ranges ``first`` and ``second`` (lowest first)."""
+    out = []
+    for a_low, a_high in first:
+        for b_low, b_high in second:
+            low, high = max(a_low, b_low), min(a_high, b_high)
+            if low < high:
+                out.append((low, high))
+    return sorted(out)
 
 
 def _allowed_ranges(qa: np.ndarray, qb: np.ndarray, qc: np.ndarray) -> list:

@@ -224,26 +224,34 @@ def pid_at_ms_space(context: TuningContext) -> Space:
     """A linear PID contour controller searched at a chosen peak sensitivity (the MIGO design: Åström &
     Hägglund, Advanced PID Control, 2006, ch. 7): its PI corner frequency f_c = ki / (2 pi kp) (0.01 Hz to
     an eighth of the sample rate, or off), its derivative time t_d = kd / kp (10 us to 0.1 s, or off), and
-    the Ms its coupled loops reach (1.2 to the bound); the gain scale is the largest that keeps every axis'
-    coupled loop at that Ms (``context.scaled_loops``, a :class:`contouring_ros.core.margins.GainScaledLoops`).
-    Every point is a stable loop within the bound, and the bound is an edge of the box."""
+    the Ms its coupled loops reach (1.2 to the bound) and which range of gain scales keeps every axis'
+    coupled loop at that Ms (``gain_range``: 0 the lowest, from 0; 1 the highest whose loops are stable,
+    below the gain whose proportional term alone crosses over at an eighth of the sample rate); the gain scale
+    is that range's top (``context.scaled_loops``, a :class:`contouring_ros.core.margins.GainScaledLoops`).
+    The Ms of a coupled loop need not rise with the scale: around a PID + feedforward servo it can keep the
+    bound again at gains 10-30x the lowest range's top, and the low-error gains can lie there. Every point
+    is a stable loop within the bound, and the bound is an edge of the box."""
     loops = context.scaled_loops
     top_gain = 1.0 / context.response(2 * math.pi * context.nyquist / 4.0)
 
     def gains(values):
         shape = {"kp": 1.0, "ki": 2 * math.pi * values["f_c"], "kd": values["t_d"]}
-        scale = min(loops.largest_scale(shape, values["ms"] / loops.limit), top_gain)
+        scale = loops.largest_scale(shape, values["ms"] / loops.limit, top_gain, highest=values["gain_range"] >= 1)
         return {key: scale * value for key, value in shape.items()}
 
     def point(sections):
         ccc = sections["/ccc"]
         kp, ki, kd = (gain_magnitude(ccc.get(k, 0.0)) for k in ("kp", "ki", "kd"))
         if kp <= 0:
-            return {"f_c": context.nyquist / 4.0, "t_d": 0.0, "ms": loops.limit}
-        return {"f_c": ki / (2 * math.pi * kp), "t_d": kd / kp,
-                "ms": loops.limit * loops.peak({"kp": kp, "ki": ki, "kd": kd})}
+            return {"f_c": context.nyquist / 4.0, "t_d": 0.0, "ms": loops.limit, "gain_range": 0}
+        shape = {"kp": kp, "ki": ki, "kd": kd}
+        share = loops.peak(shape)
+        lowest = loops.largest_scale(shape, share * (1.0 + 1e-6), highest=False)
+        return {"f_c": ki / (2 * math.pi * kp), "t_d": kd / kp, "ms": loops.limit * share,
+                "gain_range": 0 if lowest >= 1.0 - 1e-4 else 1}
     return Space((_hz("f_c", 0.01, context.nyquist / 4.0, off=True), Dimension("t_d", "s", 1e-5, 0.1, "log", off=True),
-                  Dimension("ms", "", 1.2, loops.limit, "log")), gains, point)
+                  Dimension("ms", "", 1.2, loops.limit, "log"), Dimension("gain_range", "", 0, 1, "int")),
+                 gains, point)
 
 
 def pid_contour_space(section: dict, context: TuningContext) -> Space | None:

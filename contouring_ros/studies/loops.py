@@ -5,6 +5,7 @@ PID's gains are scaled together (the coordinates a search chooses Ms in). The pr
 :mod:`contouring_ros.studies.tuning`."""
 from __future__ import annotations
 
+import functools
 import math
 
 import control
@@ -99,12 +100,26 @@ def scaled_loops(data: dict, sections: dict, machine: dict, where: str) -> GainS
                 for g, size in sizes.items()}
     except (ConfigError, ValueError):
         return None
+
+    @functools.lru_cache(maxsize=32)
+    def loops_at(gains: tuple) -> dict | None:
+        try:
+            return _loops_with(data, sections, dict(gains), machine, where)
+        except (ConfigError, ValueError):
+            return None
+
+    def coupled_at(gains: dict, axis: str):
+        """The coupled loop of ``axis`` with the contour controller's ``gains`` (None: not built)."""
+        loops = loops_at(tuple(sorted(gains.items())))
+        return loops[axis]["coupled"] if loops is not None else None
+
     axes = []
     for axis, loops in zero.items():
         if loops["coupled"] is None or loops["axis"] is None or any(unit[g][axis]["coupled"] is None for g in sizes):
             return None
         allowed = max(MS_LIMIT, quick_robustness(loops["axis"])[0])
-        axes.append((loops["coupled"], {g: (unit[g][axis]["coupled"], sizes[g]) for g in sizes}, allowed))
+        axes.append((loops["coupled"], {g: (unit[g][axis]["coupled"], sizes[g]) for g in sizes}, allowed,
+                     functools.partial(coupled_at, axis=axis)))
     return GainScaledLoops(axes, MS_LIMIT)
 
 

@@ -389,3 +389,31 @@ def test_the_largest_gain_scale_at_a_chosen_ms_has_its_known_answer():
         assert loops.peak({"kp": 1.0}, k) * 2.0 == pytest.approx(ms, rel=1e-4)
     # a loop already beyond the target without the controller: no scale
     assert loops.largest_scale({"kp": 0.0}, 0.4) == 0.0
+
+
+def test_a_gain_scale_is_the_top_of_the_lowest_range_or_of_the_highest_stable_one():
+    """Ranges of scales within the bound at [0, 1], [5, 8] and [20, inf), a loop 0.1 k / (z - 1) deciding
+    stability (stable for k < 20): the lowest range gives its top, 1; the highest stable range below the cap
+    100 is [5, 8] (the one above is unstable), below a cap of 7 its top is the cap, and below a cap of 3
+    only the lowest is left."""
+    import control
+    from contouring_ros.core.margins import GainScaledLoops
+    ts = 1e-3
+    zero, unit = control.tf([0.0], [1.0], ts), control.tf([ts], [1.0, -1.0], ts)
+    loops = GainScaledLoops([(zero, {"kp": (unit, 1.0)}, 2.0,
+                              lambda gains: control.tf([0.1 * gains["kp"]], [1.0, -1.0], ts))], 2.0)
+    loops.ranges = lambda shape, share: [(0.0, 1.0), (5.0, 8.0), (20.0, math.inf)]
+    assert loops.largest_scale({"kp": 1.0}, 1.0, 100.0, highest=False) == pytest.approx(1.0, rel=1e-5)
+    assert loops.largest_scale({"kp": 1.0}, 1.0, 100.0) == pytest.approx(8.0, rel=1e-5)     # loop_of given: highest
+    assert loops.largest_scale({"kp": 1.0}, 1.0, 7.0) == 7.0
+    assert loops.largest_scale({"kp": 1.0}, 1.0, 3.0) == pytest.approx(1.0, rel=1e-5)
+    loops.ranges = lambda shape, share: [(0.0, 1.0), (20.0, math.inf)]
+    loops.axes = [axis[:3] + (None,) for axis in loops.axes]     # no loop_of: stable only in the range from 0
+    assert loops.largest_scale({"kp": 1.0}, 1.0, 100.0, highest=True) == pytest.approx(1.0, rel=1e-5)
+
+
+def test_the_axes_ranges_of_scales_are_intersected():
+    from contouring_ros.core.margins import _intersected
+    assert _intersected([(0.0, 1.0), (2.0, 5.0), (6.0, math.inf)], [(0.0, 3.0), (4.0, math.inf)]) == \
+        [(0.0, 1.0), (2.0, 3.0), (4.0, 5.0), (6.0, math.inf)]
+    assert _intersected([(0.0, 1.0)], [(2.0, math.inf)]) == []
