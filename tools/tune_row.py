@@ -27,7 +27,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from contouring_ros.studies.benchmark import fit_to_machine, plan, reference_job, scenario_families  # noqa: E402
-from contouring_ros.studies.tuner import Tuning, lowest_objective, searches_agreement  # noqa: E402
+from contouring_ros.studies.tuner import Tuning, lowest_objective, median_tace, searches_agreement  # noqa: E402
 from contouring_ros.studies.tuning import Protocol  # noqa: E402
 
 
@@ -88,6 +88,12 @@ def main(argv=None) -> int:
             print(f"search {i}: {tace * 1e6:.4g} um ({counts(tuned.evaluations, i)})")
         print(f"{tuned.agreement.describe()}; kept search {tuned.search}: {tuned.status}; "
               f"{time.process_time() - started:.1f} s of CPU")
+        if tuned.selection:
+            print("picked from (nominal, median over the selection draws) [um]: " + ", ".join(
+                f"({nominal * 1e6:.4g}, {median * 1e6:.4g})" for nominal, median in tuned.selection))
+        if tuned.nominal is not None:
+            print(f"kept: {tuning.space.text(tuned.point)}: nominal {tuned.nominal.tace * 1e6:.4g} um, median over "
+                  f"the draws {median_tace(tuned.draws) * 1e6:.4g} um")
         return 0
     searches = tuning.search(list(range(args.searches)))
     for i, found in enumerate(searches):

@@ -22,7 +22,8 @@ from .search import IPOPCMAES, Agreement, agreement, run_side_by_side
 from .space import tuned_servo, tuning_space
 from .tuning import Evaluation, Outcome, Protocol, Search, Tuned
 
-__all__ = ["best_search", "chosen_point", "compared_values", "lowest_objective", "searches_agreement", "Tuning", "tune"]
+__all__ = ["best_search", "chosen_point", "compared_values", "lowest_objective", "searches_agreement",
+           "median_tace", "selection_candidates", "Tuning", "tune"]
 
 
 def best_search(searches: list) -> Search:
@@ -69,6 +70,27 @@ def chosen_point(mine: list) -> tuple:
     if fragile:
         return min(fragile, key=lambda e: e.worst), False
     return None, False
+
+
+def selection_candidates(evaluations: list, best: float, tolerance: float, count: int, spacing: float) -> list:
+    """The admissible points of ``evaluations`` whose nominal TACE is within ``tolerance`` (a share) of
+    ``best``, lowest first, at most ``count`` of them and each at least ``spacing`` (in every coordinate's
+    share of its range, the largest) from those before it: the points a row's agreement would count as one
+    result (:func:`searches_agreement`), one of each neighbourhood."""
+    near = sorted((e for e in evaluations if e.admissible and e.outcome.tace <= best * (1.0 + tolerance)),
+                  key=lambda e: e.outcome.tace)
+    out = []
+    for e in near:
+        if len(out) >= count:
+            break
+        if all(max((abs(a - b) for a, b in zip(e.unit, o.unit)), default=0.0) >= spacing for o in out):
+            out.append(e)
+    return out
+
+
+def median_tace(outcomes: list) -> float:
+    """The median steady-state TACE of ``outcomes``, a diverged one counting as inf."""
+    return float(np.median([o.tace if o.ok else math.inf for o in outcomes])) if outcomes else math.inf
 
 
 def lowest_objective(mine: list) -> float:
@@ -314,19 +336,53 @@ class Tuning:
 
     def keep(self, searches: list) -> Search:
         """The search kept (:func:`best_search`), recorded in :attr:`tuned` with the searches' agreement, each
-        search's TACE and evaluations, and the kept point."""
+        search's TACE and evaluations, and the kept point: of a robust result, the one :meth:`select` picks
+        over the selection draws."""
         p, tuned = self.protocol, self.tuned
         kept = best_search(searches)
         # nothing to tune: no search to agree with, the file's gains are the answer
         tuned.agreement = searches_agreement(searches, p) if self.space.dimensions else Agreement(1, 1, 1.0, True)
-        tuned.search, tuned.search_tace = searches.index(kept), [s.tace for s in searches]
+        tuned.search_tace = [s.tace for s in searches]
         tuned.search_evaluations = [s.evaluations for s in searches]
-        tuned.status, tuned.robust_worst = kept.status, kept.robust_worst
+        tuned.status = kept.status
+        if kept.chosen is not None and kept.status == "ok" and self.space.dimensions and p.selection_draws:
+            chosen = self.select(kept.chosen)
+            kept = Search(chosen, kept.status, chosen.worst / chosen.outcome.tace, kept.evaluations, kept.lowest)
+        tuned.search = kept.chosen.search if kept.chosen is not None else searches.index(kept)
+        tuned.robust_worst = kept.robust_worst
         if kept.chosen is not None:
             chosen = kept.chosen
             tuned.gains, tuned.nominal, tuned.point = chosen.gains, chosen.outcome, chosen.point
             tuned.at_bound = self.space.at_bound(chosen.unit)
         return kept
+
+    def select(self, best: Evaluation) -> Evaluation:
+        """Of the admissible points whose nominal TACE is within the agreement's tolerance of ``best``'s (the
+        lowest; :func:`selection_candidates`, from every search), the one of lowest median TACE over the
+        protocol's selection draws: draws ``draws`` to ``draws + selection_draws - 1``, never the report's
+        own, so that the interval the report gives is not the one the point was picked on. The objective is
+        the nominal TACE; two points it cannot tell apart can differ severalfold under model mismatch and
+        noise, which the report's median sees. Ties go to the lower nominal TACE."""
+        p = self.protocol
+        candidates = selection_candidates(self.tuned.evaluations, best.outcome.tace, p.agreement,
+                                          p.selection_candidates, p.selection_spacing)
+        if len(candidates) < 2:
+            self.tuned.selection = [(best.outcome.tace, math.nan)]
+            return best
+        settings = [dict(self.machine, **draw_settings(self.data, j, p.mismatch))
+                    for j in range(p.draws, p.draws + p.selection_draws)]
+        try:
+            experiments = [experiment_for(self.data, self.with_gains(e.gains), change, self.where)
+                           for e in candidates for change in settings]
+        except ConfigError:
+            self.tuned.selection = [(best.outcome.tace, math.nan)]
+            return best
+        runs = experiment_outcomes(experiments, self.from_time,
+                                   [actuator_limits(self.data, change) for change in settings] * len(candidates))
+        n = len(settings)
+        medians = [median_tace(runs[k * n:(k + 1) * n]) for k in range(len(candidates))]
+        self.tuned.selection = [(e.outcome.tace, m) for e, m in zip(candidates, medians)]
+        return candidates[min(range(len(candidates)), key=lambda k: (medians[k], candidates[k].outcome.tace))]
 
     def draws(self, gains: dict) -> Tuned:
         """The kept ``gains`` run over the protocol's draws (:func:`~contouring_ros.studies.machine.draw_settings`)

@@ -27,8 +27,13 @@ one vectorised batch, robustness checks batched too) of at most :attr:`Protocol.
 row is *converged* when at least :attr:`Protocol.agree` searches end within :attr:`Protocol.agreement` of the
 best nominal TACE (:func:`~contouring_ros.studies.tuner.searches_agreement`); while it is not, as many more
 searches as the agreement lacks run side by side (seeds continuing), up to :attr:`Protocol.max_searches`, the
-same cap for every method. The best search is kept (:func:`~contouring_ros.studies.tuner.best_search`); the
-draws run once, for its gains.
+same cap for every method. The best search is kept (:func:`~contouring_ros.studies.tuner.best_search`). The
+objective cannot tell apart points within the agreement's tolerance, and under model mismatch and noise two
+of them can differ severalfold; so of a robust result, the admissible points of every search within that
+tolerance of the best nominal TACE (:attr:`Protocol.selection_candidates` of them at most, each
+:attr:`Protocol.selection_spacing` from the others) run over :attr:`Protocol.selection_draws` draws of their
+own, and the one of lowest median TACE there is kept (:meth:`~contouring_ros.studies.tuner.Tuning.select`);
+the report's draws then run once, for its gains.
 
 Constraints (the same for every method of a scenario, measured in simulation):
 
@@ -101,6 +106,9 @@ class Protocol:
     robust_factor: float = 3.0     # ... with steady-state TACE at most this x the larger of the nominal and the floor
     ms_limit: bool = True          # refuse points whose linear loop has Ms over MS_LIMIT (see loop_robustness)
     draws: int = 8                 # noise seeds x model-mismatch draws of the interval
+    selection_draws: int = 8       # draws (after the interval's own) the kept point is picked over (0: none)
+    selection_candidates: int = 8  # ... from at most this many points within the agreement of the best
+    selection_spacing: float = 0.02  # ... each this far from the others (share of a coordinate's range)
     mismatch: float = 0.1          # model mismatch of a draw: each plant parameter x U(1 - this, 1 + this)
     seed: int = 1                  # search i's seed is seed + i (its CMA-ES samples and, from search 1 on, its start)
 
@@ -119,7 +127,9 @@ class Protocol:
                 f"{f'linear loops stable with Ms <= {MS_LIMIT:g}; ' if self.ms_limit else ''}robust: stable at "
                 f"+-{100 * self.perturbation:g}% of each plant parameter with TACE <= {self.robust_factor:g} x "
                 f"nominal, or no worse than the proposed method's worst there with the paper's gains; "
-                f"{self.draws} draws (noise seed, +-{100 * self.mismatch:g}% model mismatch)")
+                + (f"of the points within {100 * self.agreement:g}% of the best nominal TACE, the one of lowest "
+                   f"median over {self.selection_draws} draws of its own kept; " if self.selection_draws else "")
+                + f"{self.draws} draws (noise seed, +-{100 * self.mismatch:g}% model mismatch)")
 
 
 @dataclass(frozen=True)
@@ -176,6 +186,8 @@ class Tuned:
     agreement: object = None                           # search.Agreement of the searches
     point: dict = field(default_factory=dict)          # the kept gains in the tuning space's coordinates
     space: str = ""                                    # the tuning space, described
+    selection: list = field(default_factory=list)      # (nominal TACE, median over the selection draws) [m]
+    #                                                    of each point the kept one was picked from
 
     @property
     def converged(self) -> bool:

@@ -359,7 +359,7 @@ def _small_tune(**options):
     combo = next(c for c in plan(family)[0] if c.estimator == "natural_local")
     return tuner.tune(data, combo.sections, combo.gain_keys, {}, math.inf, family.from_time,
                        dataclasses.replace(Protocol(evaluations=8, popsize=4, design=0, draws=1, searches=1,
-                                                    max_searches=1),
+                                                    max_searches=1, selection_draws=0),
                                            **options.pop("protocol", {})),
                        "test", **options)
 
@@ -414,6 +414,43 @@ def test_several_searches_keep_the_robust_one_with_the_lowest_nominal_error():
     assert both.nominal.tace == min(both.search_tace) and both.search == both.search_tace.index(both.nominal.tace)
     assert both.search_evaluations == [2, 1]                   # search 0 also ran the file's gains
     assert both.agreement.searches == 2 and not both.converged     # 2 searches cannot make 3 agree
+
+
+def test_the_points_a_kept_one_is_picked_from_are_near_the_best_and_apart():
+    def point(tace, unit, admissible=True):
+        return tuning.Evaluation({}, tuning.Outcome(tace=tace), 0.0, admissible, unit=unit)
+    best = point(1.00, [0.5, 0.5])
+    same_place = point(1.01, [0.505, 0.5])         # within the spacing of the best: one neighbourhood
+    elsewhere = point(1.04, [0.1, 0.9])
+    too_high = point(1.06, [0.9, 0.1])              # beyond the 5% tolerance
+    refused = point(1.02, [0.9, 0.9], admissible=False)
+    evaluations = [too_high, elsewhere, refused, same_place, best]
+    assert tuner.selection_candidates(evaluations, 1.0, 0.05, 8, 0.02) == [best, elsewhere]
+    assert tuner.selection_candidates(evaluations, 1.0, 0.05, 8, 0.0) == [best, same_place, elsewhere]
+    assert tuner.selection_candidates(evaluations, 1.0, 0.05, 1, 0.0) == [best]
+    assert tuner.median_tace([tuning.Outcome(tace=1.0), tuning.Outcome(failure="diverged"),
+                              tuning.Outcome(tace=3.0)]) == 3.0
+
+
+def test_the_kept_point_is_the_one_of_lowest_median_over_draws_of_its_own(monkeypatch):
+    """Of the admissible points within the agreement of the best nominal TACE, the kept one has the lowest
+    median TACE over the selection draws, which are not the report's draws."""
+    used = []
+
+    def recorded(data, j, mismatch):
+        used.append(j)
+        return draw_settings(data, j, mismatch)
+    monkeypatch.setattr(tuner, "draw_settings", recorded)
+    tuned = _small_tune(robust_floor=math.inf, protocol=dict(evaluations=40, design=8, draws=2, selection_draws=3,
+                                                             agreement=0.5))
+    assert tuned.ok and len(tuned.selection) >= 2
+    nominals, medians = zip(*tuned.selection)
+    best = min(e.outcome.tace for e in tuned.evaluations if e.admissible)
+    assert nominals[0] == best and max(nominals) <= 1.5 * best
+    kept = tuned.selection[medians.index(min(medians))]
+    assert tuned.nominal.tace == kept[0]
+    assert sorted(set(used)) == [0, 1, 2, 3, 4]      # the selection's draws 2-4 after the report's 0-1
+    assert len(tuned.draws) == 2
 
 
 def test_searches_run_until_they_agree_and_report_it():
