@@ -33,7 +33,8 @@ OFF_SHARE = 0.02     # the lowest this share of a range that can be off means of
 class Dimension:
     """One coordinate of a tuning space: ``value`` ranges over [low, high] in ``unit``, on a log scale
     (``scale`` 'log') or over the integers (``scale`` 'int'); with ``off``, the lowest :data:`OFF_SHARE` of
-    the range means 0 (the term is off)."""
+    the range means 0 (the term is off); ``choice``: an integer that picks one of several options (no end of
+    it is a bound an optimum could lie beyond)."""
 
     name: str
     unit: str
@@ -41,6 +42,7 @@ class Dimension:
     high: float
     scale: str = "log"
     off: bool = False
+    choice: bool = False
 
     def value(self, u: float) -> float:
         """The value at ``u`` in [0, 1] (clipped)."""
@@ -134,6 +136,8 @@ class Space:
         """What of the point ``u`` sits at an end of its range (an optimum there is not an optimum)."""
         out = []
         for d, x in zip(self.dimensions, u):
+            if d.choice:
+                continue
             if d.off and d.value(x) == 0.0:
                 out.append(f"{d.name} off")
             elif x >= 1.0 - 1e-3:
@@ -250,7 +254,7 @@ def pid_at_ms_space(context: TuningContext) -> Space:
         return {"f_c": ki / (2 * math.pi * kp), "t_d": kd / kp, "ms": loops.limit * share,
                 "gain_range": 0 if lowest >= 1.0 - 1e-4 else 1}
     return Space((_hz("f_c", 0.01, context.nyquist / 4.0, off=True), Dimension("t_d", "s", 1e-5, 0.1, "log", off=True),
-                  Dimension("ms", "", 1.2, loops.limit, "log"), Dimension("gain_range", "", 0, 1, "int")),
+                  Dimension("ms", "", 1.2, loops.limit, "log"), Dimension("gain_range", "", 0, 1, "int", choice=True)),
                  gains, point)
 
 

@@ -309,7 +309,7 @@ def benchmark_report(rows: list, families: list, protocol: Protocol, where: str,
 def _header_lines(rows: list, families: list, where: str) -> list:
     """The report's title and what it holds: the scenarios, combinations and runs, how figures are given."""
     compatible = [r for r in rows if r.combination]
-    runs = sum(len(r.tuned.evaluations) + r.tuned.robustness_runs + len(r.tuned.draws) + 1
+    runs = sum(len(r.tuned.evaluations) + r.tuned.robustness_runs + r.tuned.selection_runs + len(r.tuned.draws) + 1
                for r in compatible if r.tuned)
     return [
         "# Contouring benchmark: every estimator and controller on every scenario, each gain tuned under equal "

@@ -76,14 +76,16 @@ def selection_candidates(evaluations: list, best: float, tolerance: float, count
     """The admissible points of ``evaluations`` whose nominal TACE is within ``tolerance`` (a share) of
     ``best``, lowest first, at most ``count`` of them and each at least ``spacing`` (in every coordinate's
     share of its range, the largest) from those before it: the points a row's agreement would count as one
-    result (:func:`searches_agreement`), one of each neighbourhood."""
+    result (:func:`searches_agreement`), one of each neighbourhood (two points of the same gains, as two unit
+    points of one option of a choice coordinate are, count once)."""
     near = sorted((e for e in evaluations if e.admissible and e.outcome.tace <= best * (1.0 + tolerance)),
                   key=lambda e: e.outcome.tace)
     out = []
     for e in near:
         if len(out) >= count:
             break
-        if all(max((abs(a - b) for a, b in zip(e.unit, o.unit)), default=0.0) >= spacing for o in out):
+        if all(e.gains != o.gains and max((abs(a - b) for a, b in zip(e.unit, o.unit)), default=0.0) >= spacing
+               for o in out):
             out.append(e)
     return out
 
@@ -366,19 +368,22 @@ class Tuning:
         p = self.protocol
         candidates = selection_candidates(self.tuned.evaluations, best.outcome.tace, p.agreement,
                                           p.selection_candidates, p.selection_spacing)
-        if len(candidates) < 2:
-            self.tuned.selection = [(best.outcome.tace, math.nan)]
-            return best
         settings = [dict(self.machine, **draw_settings(self.data, j, p.mismatch))
                     for j in range(p.draws, p.draws + p.selection_draws)]
-        try:
-            experiments = [experiment_for(self.data, self.with_gains(e.gains), change, self.where)
-                           for e in candidates for change in settings]
-        except ConfigError:
+        built = []
+        for e in candidates:                   # a point whose draws cannot be built is not a candidate
+            try:
+                built.append((e, [experiment_for(self.data, self.with_gains(e.gains), change, self.where)
+                                  for change in settings]))
+            except ConfigError:
+                continue
+        if len(built) < 2 or best not in [e for e, _ in built]:
             self.tuned.selection = [(best.outcome.tace, math.nan)]
             return best
-        runs = experiment_outcomes(experiments, self.from_time,
+        candidates = [e for e, _ in built]
+        runs = experiment_outcomes([x for _, experiments in built for x in experiments], self.from_time,
                                    [actuator_limits(self.data, change) for change in settings] * len(candidates))
+        self.tuned.selection_runs += len(runs)
         n = len(settings)
         medians = [median_tace(runs[k * n:(k + 1) * n]) for k in range(len(candidates))]
         self.tuned.selection = [(e.outcome.tace, m) for e, m in zip(candidates, medians)]

@@ -175,6 +175,7 @@ class Tuned:
     nominal: Outcome | None = None                     # the tuned gains, seed 0, nominal plant
     robust_worst: float = math.nan                     # worst TACE over the +-perturbation runs / nominal
     robustness_runs: int = 0
+    selection_runs: int = 0                            # runs of the points the kept one was picked from
     draws: list = field(default_factory=list)          # Outcome per draw
     ideal: Outcome | None = None                       # the tuned gains on the ideal machine
     margins: object = None                             # worst_margins of the tuned loop on the machine, if linear

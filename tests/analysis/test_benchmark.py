@@ -417,14 +417,16 @@ def test_several_searches_keep_the_robust_one_with_the_lowest_nominal_error():
 
 
 def test_the_points_a_kept_one_is_picked_from_are_near_the_best_and_apart():
-    def point(tace, unit, admissible=True):
-        return tuning.Evaluation({}, tuning.Outcome(tace=tace), 0.0, admissible, unit=unit)
+    def point(tace, unit, admissible=True, gains=None):
+        gains = gains if gains is not None else {"kp": unit[0], "ki": unit[1]}
+        return tuning.Evaluation(gains, tuning.Outcome(tace=tace), 0.0, admissible, unit=unit)
     best = point(1.00, [0.5, 0.5])
     same_place = point(1.01, [0.505, 0.5])         # within the spacing of the best: one neighbourhood
     elsewhere = point(1.04, [0.1, 0.9])
     too_high = point(1.06, [0.9, 0.1])              # beyond the 5% tolerance
     refused = point(1.02, [0.9, 0.9], admissible=False)
-    evaluations = [too_high, elsewhere, refused, same_place, best]
+    same_gains = point(1.03, [0.8, 0.2], gains=best.gains)     # another unit point of the best's gains
+    evaluations = [too_high, elsewhere, refused, same_place, best, same_gains]
     assert tuner.selection_candidates(evaluations, 1.0, 0.05, 8, 0.02) == [best, elsewhere]
     assert tuner.selection_candidates(evaluations, 1.0, 0.05, 8, 0.0) == [best, same_place, elsewhere]
     assert tuner.selection_candidates(evaluations, 1.0, 0.05, 1, 0.0) == [best]
@@ -451,6 +453,7 @@ def test_the_kept_point_is_the_one_of_lowest_median_over_draws_of_its_own(monkey
     assert tuned.nominal.tace == kept[0]
     assert sorted(set(used)) == [0, 1, 2, 3, 4]      # the selection's draws 2-4 after the report's 0-1
     assert len(tuned.draws) == 2
+    assert tuned.selection_runs == 3 * len(tuned.selection)
 
 
 def test_searches_run_until_they_agree_and_report_it():
@@ -616,6 +619,8 @@ def test_a_contour_pid_around_a_pid_feedforward_servo_is_offered_its_higher_rang
     ms, _, allowed = loops.loop_robustness(outcomes.experiment_for(data, search.with_gains(between), machine, "test"))
     assert ms > 1.5 * 2.0 * allowed / tuning.MS_LIMIT
     assert search.space.point(search.with_gains(high))["gain_range"] == 1
+    for r in (0, 1):          # the Ms at its bound is at a bound; the range is a choice, never one
+        assert search.space.at_bound(found[r][2]) == ["ms at the upper bound"]
     assert search.space.point(search.with_gains(low))["gain_range"] == 0
     ran = search.measure([(found[r][2], found[r][0], found[r][1]) for r in (0, 1)])
     assert ran[1].outcome.ok and ran[1].outcome.tace * 10 < ran[0].outcome.tace
