@@ -166,7 +166,8 @@ def _gain_text(row: Row) -> str:
     if not row.ok or not row.gains:
         return "-"
     point = getattr(row.tuned, "point", {}) or {}
-    text = ", ".join(f"{k} {'off' if v == 0 else number(v)}" for k, v in point.items())
+    text = getattr(row.tuned, "point_text", "") or ", ".join(    # a part saved before the space wrote it
+        f"{k} {'off' if v == 0 else number(v)}" for k, v in point.items())
     raw = ", ".join(f"{k} {number(v)}" for k, v in row.gains.items())
     text = f"{text} ({raw})" if text else raw
     return text + (f"; {'; '.join(row.tuned.at_bound)}" if row.tuned.at_bound else "")
@@ -361,7 +362,8 @@ def _protocol_lines(compatible: list, protocol: Protocol) -> list:
         "gains, at each plant parameter (gain, time constant, mass, damping) "
         f"+-{100 * protocol.perturbation:g}% on every axis, run for every point of every search in the same "
         "batch as its nominal run (a point that fails is inadmissible, its objective paying for it). "
-        "A row marked *not robust* had no robust point: its point with the lowest worst case is shown, and "
+        "A row marked *not robust* had no robust point: of its points that met every other constraint, the one "
+        "with the lowest worst case is shown, and "
         "it cannot be the best of its scenario.",
         f"- **Intervals**: each tuned method runs {protocol.draws} draws (noise seed, model mismatch within "
         f"+-{100 * protocol.mismatch:g}% of every plant parameter), the same draws for every method of a "

@@ -50,6 +50,7 @@ class Constraints:
         loop)."""
         value, admissible = objective(nominal, self.noise_limit, self.protocol)
         evaluation.outcome, evaluation.objective, evaluation.admissible = nominal, value, admissible
+        evaluation.quiet = admissible and nominal.ok
         if not nominal.ok:
             return
         if ms is not None and ms[0] > ms[2]:

@@ -62,11 +62,12 @@ def searches_agreement(searches: list, protocol: Protocol) -> Agreement:
 def chosen_point(mine: list) -> tuple:
     """(the point a search with evaluations ``mine`` ends with, whether it is robust): its admissible point
     (robust, quiet, unsaturated) of lowest nominal TACE; where it has none, its point of lowest worst case
-    among those that met every other constraint (not robust); else (None, False)."""
+    among those that met every other constraint (not robust: quiet and unsaturated, within the Ms bound); else
+    (None, False): a point that breaks the noise bound or the saturation share is never given, robust or not."""
     admissible = [e for e in mine if e.admissible]
     if admissible:
         return min(admissible, key=lambda e: e.outcome.tace), True
-    fragile = [e for e in mine if e.outcome.failure.startswith("not robust")]
+    fragile = [e for e in mine if e.outcome.failure.startswith("not robust") and e.quiet]
     if fragile:
         return min(fragile, key=lambda e: e.worst), False
     return None, False
@@ -302,7 +303,7 @@ class Tuning:
                       f"+-{100 * p.perturbation:g}% of a plant parameter while meeting the other constraints "
                       f"(given: the point with the lowest worst case)")
             return Search(chosen, status, chosen.worst / chosen.outcome.tace, len(mine), lowest)
-        failures = sorted({e.outcome.failure.split(":")[0] for e in mine if e.outcome.failure})
+        failures = sorted({e.outcome.failure.split(":")[0].split(" at t = ")[0] for e in mine if e.outcome.failure})
         limit = self.constraints.noise_limit
         noisy = [e.outcome.noise / limit for e in mine if e.outcome.noise == e.outcome.noise and limit > 0]
         return Search(None, "no admissible gain: every point diverged or broke a constraint"
@@ -355,6 +356,7 @@ class Tuning:
         if kept.chosen is not None:
             chosen = kept.chosen
             tuned.gains, tuned.nominal, tuned.point = chosen.gains, chosen.outcome, chosen.point
+            tuned.point_text = self.space.text(chosen.point)
             tuned.at_bound = self.space.at_bound(chosen.unit)
         return kept
 

@@ -56,7 +56,9 @@ Constraints (the same for every method of a scenario, measured in simulation):
   become its search's choice (its nominal objective below the search's best admissible one) is run at
   every perturbation (:meth:`~contouring_ros.studies.tuner.Tuning.measure`), so a search chooses what it
   would were every point checked; a point that could not is left unchecked, its objective the nominal one.
-  Where no point of a search is robust, the one with the lowest worst case is given, marked "not robust".
+  Where no point of a search is robust, its point of lowest worst case among those that meet every other
+  constraint (noise, saturation, Ms) is given, marked "not robust"; where none meets them, it has no
+  admissible gain.
 
 Objective: the steady-state TACE of the exact contour error (median seed).
 
@@ -162,6 +164,7 @@ class Evaluation:
     unit: list = field(default_factory=list)     # where in the search's unit box
     point: dict = field(default_factory=dict)    # the tuning space's values there
     search: int = 0                              # which search evaluated it
+    quiet: bool = False                          # it met the noise bound and the saturation share
 
 
 @dataclass
@@ -186,6 +189,7 @@ class Tuned:
     search_evaluations: list = field(default_factory=list)   # each search's evaluations
     agreement: object = None                           # search.Agreement of the searches
     point: dict = field(default_factory=dict)          # the kept gains in the tuning space's coordinates
+    point_text: str = ""                               # ... as the space writes them (units, terms off)
     space: str = ""                                    # the tuning space, described
     selection: list = field(default_factory=list)      # (nominal TACE, median over the selection draws) [m]
     #                                                    of each point the kept one was picked from

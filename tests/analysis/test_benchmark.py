@@ -2,6 +2,7 @@
 import csv
 import dataclasses
 import math
+import types
 
 import numpy as np
 import pytest
@@ -396,9 +397,31 @@ def test_the_robustness_floor_and_every_point_that_could_be_chosen_checked(monke
     # one whose worst case is the lowest
     tuned = _small_tune(protocol={"robust_factor": 1e-3})
     assert tuned.status.startswith("not robust") and not tuned.ok
-    checked = [e for e in tuned.evaluations if math.isfinite(e.worst)]
+    checked = [e for e in tuned.evaluations if math.isfinite(e.worst) and e.quiet]
     best = min(checked, key=lambda e: e.worst)
     assert tuned.gains == best.gains and tuned.robust_worst == pytest.approx(best.worst / best.outcome.tace)
+
+
+def test_a_point_given_as_not_robust_met_every_other_constraint():
+    """Where no point is robust, the point given is the quiet, unsaturated one of lowest worst case; a point
+    over the noise bound is never given, however low its worst case: with none quiet, no point is."""
+    def fragile(worst, quiet):
+        return tuning.Evaluation({"kp": worst}, tuning.Outcome(tace=1e-6, failure="not robust: ..."), 0.0, False,
+                                 worst=worst, quiet=quiet)
+    noisy, quiet_high, quiet_low = fragile(2e-6, False), fragile(9e-6, True), fragile(5e-6, True)
+    assert tuner.chosen_point([noisy, quiet_high, quiet_low]) == (quiet_low, False)
+    assert tuner.chosen_point([noisy]) == (None, False)
+    refused = [tuning.Evaluation({}, tuning.Outcome(failure=f"diverged at t = {t:g} s (step {k}): far"), 100.0, False)
+               for t, k in ((0.3, 300), (0.4, 400))]
+    search = tuner.Tuning.choose(types.SimpleNamespace(protocol=Protocol(), constraints=objective.Constraints(Protocol(), 1.0)),
+                                 [noisy] + refused)
+    assert search.chosen is None and search.status.endswith("(diverged; not robust)")    # each kind once
+    judged = tuning.Evaluation({}, tuning.Outcome(), 0.0, False)
+    nominal, perturbed = tuning.Outcome(tace=1e-6, noise=2.0, saturated=0.0), [tuning.Outcome(tace=1e-3)]
+    objective.Constraints(Protocol(), 1.0).judge(judged, nominal, perturbed, None)     # noise 2x the bound 1
+    assert judged.outcome.failure.startswith("not robust") and not judged.quiet
+    objective.Constraints(Protocol(), 3.0).judge(judged, nominal, perturbed, None)
+    assert judged.outcome.failure.startswith("not robust") and judged.quiet
 
 
 def test_several_searches_keep_the_robust_one_with_the_lowest_nominal_error():
