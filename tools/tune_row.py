@@ -92,7 +92,7 @@ def main(argv=None) -> int:
             print("picked from (nominal, median over the selection draws) [um]: " + ", ".join(
                 f"({nominal * 1e6:.4g}, {median * 1e6:.4g})" for nominal, median in tuned.selection))
         if tuned.nominal is not None:
-            print(f"kept: {tuning.space.text(tuned.point)}: nominal {tuned.nominal.tace * 1e6:.4g} um, median over "
+            print(f"kept: {tuned.point_text}: nominal {tuned.nominal.tace * 1e6:.4g} um, median over "
                   f"the draws {median_tace(tuned.draws) * 1e6:.4g} um")
         return 0
     searches = tuning.search(list(range(args.searches)))

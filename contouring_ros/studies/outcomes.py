@@ -64,13 +64,16 @@ def _figures(loop, result, from_time: float, limits: tuple) -> Outcome:
                    float(np.sqrt(np.mean(np.square(command)))), tuple(float(v) for v in np.max(np.abs(command), 0)))
 
 
-def run_outcomes(data: dict, sections: dict, settings_list: list, from_time: float, where: str) -> list:
+def run_outcomes(data: dict, sections: dict | list, settings_list: list, from_time: float, where: str) -> list:
     """An :class:`Outcome` per settings mapping: :func:`experiment_for` each, simulated in-process (batched
-    where the classes allow, :func:`experiment_outcomes`)."""
+    where the classes allow, :func:`experiment_outcomes`); one that cannot be built is refused, the others
+    still run. ``sections``: the combination's sections, or a list of them, one per settings mapping (several
+    combinations in one batch)."""
+    every = sections if isinstance(sections, list) else [sections] * len(settings_list)
     out, experiments, places = [], [], []
-    for settings in settings_list:
+    for settings, mine in zip(settings_list, every):
         try:
-            experiments.append(experiment_for(data, sections, settings, where))
+            experiments.append(experiment_for(data, mine, settings, where))
             places.append(len(out))
             out.append(None)
         except ConfigError as error:

@@ -370,21 +370,13 @@ class Tuning:
         p = self.protocol
         candidates = selection_candidates(self.tuned.evaluations, best.outcome.tace, p.agreement,
                                           p.selection_candidates, p.selection_spacing)
-        settings = [dict(self.machine, **draw_settings(self.data, j, p.mismatch))
-                    for j in range(p.draws, p.draws + p.selection_draws)]
-        built = []
-        for e in candidates:                   # a point whose draws cannot be built is not a candidate
-            try:
-                built.append((e, [experiment_for(self.data, self.with_gains(e.gains), change, self.where)
-                                  for change in settings]))
-            except ConfigError:
-                continue
-        if len(built) < 2 or best not in [e for e, _ in built]:
+        if len(candidates) < 2:
             self.tuned.selection = [(best.outcome.tace, math.nan)]
             return best
-        candidates = [e for e, _ in built]
-        runs = experiment_outcomes([x for _, experiments in built for x in experiments], self.from_time,
-                                   [actuator_limits(self.data, change) for change in settings] * len(candidates))
+        settings = [dict(self.machine, **draw_settings(self.data, j, p.mismatch))
+                    for j in range(p.draws, p.draws + p.selection_draws)]
+        runs = run_outcomes(self.data, [self.with_gains(e.gains) for e in candidates for _ in settings],
+                            settings * len(candidates), self.from_time, self.where)     # a refused run counts as inf
         self.tuned.selection_runs += len(runs)
         n = len(settings)
         medians = [median_tace(runs[k * n:(k + 1) * n]) for k in range(len(candidates))]
