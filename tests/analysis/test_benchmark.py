@@ -588,16 +588,24 @@ def test_two_runs_compared_row_by_row_name_what_a_protocol_change_moved(tmp_path
     assert "ok -> not robust" in text and "(changed)" in text
 
 
+def _realistic_tuning(scenario: str, pick, peak_command: tuple) -> tuple:
+    """(data, machine, Tuning) of the combination of ``scenario`` whose label ``pick`` accepts, on the realistic
+    machine whose actuator limits follow ``peak_command`` (machine_settings), without a noise bound."""
+    family = {f.name: f for f in scenario_families()}[scenario]
+    data = family.data[family.proposed]
+    combo = next(c for c in plan(family)[0] if pick(c.label))
+    machine = machine_settings(data, "realistic", peak_command)
+    sections = fit_to_machine(data, combo.sections, machine)
+    return data, machine, tuner.Tuning(data, sections, combo.gain_keys, machine, math.inf, family.from_time,
+                                       Protocol(), "test")
+
+
 def test_a_linear_pid_contour_controller_is_searched_at_a_chosen_ms():
     """Where the coupled loops are linear, a PID contour controller's space is its PI corner, its derivative
     time and the Ms its loops reach: every point of the box is a loop at that Ms (the exact check agrees,
     and Ms 2 is the bound's edge), and the file's gains map back to themselves."""
-    family = {f.name: f for f in scenario_families()}["paper001_caseIII"]
-    data = family.data[family.proposed]
-    combo = next(c for c in plan(family)[0] if c.label == "tangent_line + variable_gain / pid")
-    machine = machine_settings(data, "realistic", (1.0, 1.0))
-    sections = fit_to_machine(data, combo.sections, machine)
-    search = tuner.Tuning(data, sections, combo.gain_keys, machine, math.inf, family.from_time, Protocol(), "test")
+    data, machine, search = _realistic_tuning("paper001_caseIII", lambda label: label == "tangent_line + variable_gain / pid",
+                                              (1.0, 1.0))
     assert [d.name for d in search.space.dimensions] == ["f_c", "t_d", "ms", "gain_range"]
     rng = np.random.default_rng(3)
     for u in [list(rng.uniform(0.05, 1.0, 4)) for _ in range(6)] + [[0.6, 0.6, 1.0, 0.0], [0.6, 0.6, 1.0, 1.0]]:
@@ -622,12 +630,8 @@ def test_a_contour_pid_around_a_pid_feedforward_servo_is_offered_its_higher_rang
     it again near kp 300. Both ranges' tops are stable loops at the bound; a scale between them is beyond it;
     the low error lies in the higher range (the lower's top gives about 20x the TACE), and its gains map back
     to it."""
-    family = {f.name: f for f in scenario_families()}["paper002_butterfly"]
-    data = family.data[family.proposed]
-    combo = next(c for c in plan(family)[0] if c.label == "foot_point_search + variable_gain / pid_feedforward")
-    machine = machine_settings(data, "realistic", (0.0, 0.0))
-    sections = fit_to_machine(data, combo.sections, machine)
-    search = tuner.Tuning(data, sections, combo.gain_keys, machine, math.inf, family.from_time, Protocol(), "test")
+    data, machine, search = _realistic_tuning(
+        "paper002_butterfly", lambda label: label == "foot_point_search + variable_gain / pid_feedforward", (0.0, 0.0))
     found = {}
     for gain_range in (0, 1):
         values = {"f_c": 41.0, "t_d": 5.1e-3, "ms": 2.0, "gain_range": gain_range}
@@ -657,12 +661,7 @@ def test_the_zpetc_pid_is_searched_at_a_chosen_ms_of_each_axis_loop(scenario):
     as a PI on paper 001's almost double-integrating axes is), or none and is refused unrun; the file's gains
     map back to themselves; the Ms bound holds for the servo's own loop (no allowance for a drive already
     beyond it: its gains are the ones tuned)."""
-    family = {f.name: f for f in scenario_families()}[scenario]
-    data = family.data[family.proposed]
-    combo = next(c for c in plan(family)[0] if c.label.endswith("none / zpetc"))
-    machine = machine_settings(data, "realistic", (1.0, 1.0))
-    sections = fit_to_machine(data, combo.sections, machine)
-    search = tuner.Tuning(data, sections, combo.gain_keys, machine, math.inf, family.from_time, Protocol(), "test")
+    data, machine, search = _realistic_tuning(scenario, lambda label: label.endswith("none / zpetc"), (1.0, 1.0))
     assert [d.name for d in search.space.dimensions] == ["servo f_c", "servo t_d", "servo ms"] and search.servo_tuned
     stable_points, conditionally = 0, 0
     for u in qmc.Sobol(3, seed=5).random(16):
