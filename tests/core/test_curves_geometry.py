@@ -261,3 +261,37 @@ def test_a_point_whose_foot_lies_two_samples_from_its_nearest_is_measured_there(
     brute = np.min(np.linalg.norm(dense[None, :, :] - points[:, None, :], axis=-1), axis=1)
     foot = ExactContourError(path)(points)
     assert np.all(foot.distance <= brute + 1e-12) and np.max(brute - foot.distance) < 1e-7
+
+
+@pytest.mark.parametrize("curve, samples", [(FigureEight(0.03, 0.03), 20001), (Butterfly(0.01), 1003),
+                                            (ToolPath([0.0, 0.0], ["G1 X0.01 Y0"] + ["G3 X0.01 Y0 I-0.01 J0"] * 5), 4099)])
+def test_the_samples_within_a_wide_radius_found_through_the_coarse_ones_are_every_dense_one_there(curve, samples):
+    # the other-branch search of a point far off the path goes through the coarse samples: it must find
+    # the same dense samples as a search of them all, on a curve that crosses itself, one sampled with a
+    # tail after its last coarse sample, and one gone round a circle 5 times
+    solver = ExactContourError(curve, samples=samples)
+    rng = np.random.default_rng(4)
+    lo, hi = np.min(solver._samples, axis=0), np.max(solver._samples, axis=0)
+    points = rng.uniform(lo - 0.3 * (hi - lo), hi + 0.3 * (hi - lo), (300, lo.size))
+    radius = np.minimum(solver._coarse_half_spacing * 10.0 ** rng.uniform(-1.0, 2.5, 300), 0.5 * np.max(hi - lo))
+    wide = radius > solver.WIDE * solver._coarse_half_spacing
+    assert wide.sum() > 100 and (~wide).sum() > 10          # most through the coarse samples, some not
+    rows, found = solver._dense_within(points, radius)
+    distances = np.linalg.norm(solver._samples[None, :, :] - points[:, None, :], axis=-1)
+    want_rows, want = np.nonzero(distances <= radius[:, None])
+    assert sorted(zip(rows.tolist(), found.tolist())) == list(zip(want_rows.tolist(), want.tolist()))
+
+
+def test_far_points_off_a_curve_that_crosses_itself_get_the_nearest_branch_s_distance():
+    # points millimetres off a figure eight, its own crossing and its loops' insides included: the other
+    # branches are looked for among the coarse samples (a far point) or through them (a wide radius), and the
+    # distance is the brute-force one of a dense sampling, to the far points' documented share
+    curve = FigureEight(0.03, 0.03)
+    solver = ExactContourError(curve)
+    rng = np.random.default_rng(5)
+    points = rng.uniform([-0.1, -0.1], [0.16, 0.1], (400, 2))
+    dense = curve.point(np.linspace(*curve.domain, 400001))
+    brute = np.array([np.min(np.linalg.norm(dense - p, axis=1)) for p in points])
+    reach = solver._nearest(points)[1]
+    assert np.sum(reach > 1) > 100 and np.sum(reach == 1) > 50
+    assert_allclose(solver(points).distance, brute, rtol=1e-5, atol=1e-9)
