@@ -13,12 +13,16 @@ bound, refused unrun, ...), then the agreement rule's verdict.
 the protocol's agree, up to ``--max-searches``, then the draws); ``--popsize`` sets CMA-ES's first population:
 
     python tools/tune_row.py paper001_caseIII "osculating_circle + ilc / pid" --whole --popsize 8 --budget 200
+
+``--digest`` also prints a hash of every evaluation's point and figures to the last bit: a change meant to
+make tuning faster, not different, leaves it as it was.
 """
 from __future__ import annotations
 
 import argparse
 import collections
 import dataclasses
+import hashlib
 import math
 import sys
 import time
@@ -53,6 +57,12 @@ def found_objective(found) -> float:
     return found.chosen.objective if found.chosen is not None else math.nan
 
 
+def digest(evaluations: list) -> str:
+    """A hash of the evaluations' points, nominal TACEs, worst cases and objectives, every bit of each."""
+    text = repr([(e.search, e.unit, sorted(e.gains.items()), repr(e.outcome), e.worst, e.objective) for e in evaluations])
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("scenario")
@@ -63,6 +73,7 @@ def main(argv=None) -> int:
     parser.add_argument("--max-searches", type=int, default=Protocol.max_searches,
                         help="with --whole: searches at most, while they do not agree")
     parser.add_argument("--whole", action="store_true", help="the benchmark's whole tuning of the row (Tuning.run)")
+    parser.add_argument("--digest", action="store_true", help="print a hash of every evaluation's numbers")
     args = parser.parse_args(argv)
     families = {f.name: f for f in scenario_families()}
     if args.scenario not in families:
@@ -94,6 +105,8 @@ def main(argv=None) -> int:
         if tuned.nominal is not None:
             print(f"kept: {tuned.point_text}: nominal {tuned.nominal.tace * 1e6:.4g} um, median over "
                   f"the draws {median_tace(tuned.draws) * 1e6:.4g} um")
+        if args.digest:
+            print(f"digest {digest(tuned.evaluations)}")
         return 0
     searches = tuning.search(list(range(args.searches)))
     for i, found in enumerate(searches):
@@ -103,6 +116,8 @@ def main(argv=None) -> int:
         print(f"search {i}: {found.tace * 1e6:.4g} um (worst {worst:.4g} um, objective {found_objective(found):.4g}, "
               f"lowest {lowest:.4g}) at {where} ({counts(tuning.tuned.evaluations, i)})")
     print(f"{searches_agreement(searches, protocol).describe()}; {time.process_time() - started:.1f} s of CPU")
+    if args.digest:
+        print(f"digest {digest(tuning.tuned.evaluations)}")
     return 0
 
 

@@ -79,9 +79,9 @@ class TangentLineEstimator:
                                signed=float(signed_error(vector, tangent)))
 
 
-def _batch_derivatives(curve: Curve, theta, order: int) -> np.ndarray:
-    """R and its derivatives at a batch of parameters theta (B, 1): shape (order + 1, B, n)."""
-    return curve.derivatives(np.asarray(theta, dtype=float), order=order)[:, :, 0, :]
+def _batch_derivatives(curve: Curve, theta, order: int) -> tuple:
+    """R and its derivatives at a batch of parameters theta (B, 1): order + 1 arrays (B, n)."""
+    return tuple(curve.derivatives(np.asarray(theta, dtype=float), order=order)[:, :, 0, :])
 
 
 class BranchCheck:

@@ -8,6 +8,7 @@ from __future__ import annotations
 import bisect
 import math
 import threading
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -276,6 +277,10 @@ def at_reference(reference: Reference, function, *arguments):
     memo = reference.memo
     if memo is None:
         return function(*arguments)
+    members = _repeated_rows(arguments)
+    if members:          # a batch along a shared path: every member's row is the same, computed for one
+        one = at_reference(reference, function, *(a[:1] if a.__class__ is np.ndarray else a for a in arguments))
+        return _broadcast_all(one, members)
     key = (function, *(a.shape if a.__class__ is np.ndarray else a for a in arguments))
     value = memo.get(key)
     if value is None:
@@ -288,6 +293,31 @@ def at_reference(reference: Reference, function, *arguments):
             except (RuntimeError, StopIteration):     # another thread changed it meanwhile: keep it as it is
                 pass
         memo[key] = value
+    return value
+
+
+def _repeated_rows(arguments) -> int:
+    """The batch size b > 1 where every array among ``arguments`` has a leading axis of b that repeats one
+    row (a broadcast view, stride 0: a batch's reference read from a :class:`ReferenceTable`); else 0."""
+    members = 0
+    for a in arguments:
+        if a.__class__ is np.ndarray and a.ndim:
+            if a.strides[0] != 0 or a.shape[0] < 2 or members not in (0, a.shape[0]):
+                return 0
+            members = a.shape[0]
+    return members
+
+
+def _broadcast_all(value, members: int):
+    """``value`` (an array, a tuple of them or a dataclass holding them) of a batch of one, its arrays
+    broadcast to ``members`` rows (read-only views)."""
+    if value.__class__ is np.ndarray:
+        return np.broadcast_to(value, (members,) + value.shape[1:]) if value.ndim else value
+    if isinstance(value, tuple):
+        return tuple(_broadcast_all(item, members) for item in value)
+    if dataclasses.is_dataclass(value):
+        return dataclasses.replace(value, **{f.name: _broadcast_all(getattr(value, f.name), members)
+                                             for f in dataclasses.fields(value)})
     return value
 
 
