@@ -25,11 +25,13 @@ from .model import Experiment
 __all__ = ["build_curve_from", "build_curve", "build_schedule_from", "build_schedule", "build_disturbance",
            "initial_state", "build_plant", "in_position_windows", "planned_tool_path", "monitoring_limits",
            "interpolator_takes_state", "build_monitor", "build_feed_control", "build_clock", "build_servo", "build_estimator",
-           "build_controller", "build_loop", "build_path", "servo_preview", "controller_preview", "reference_preview"]
+           "build_controller", "build_loop", "build_path", "shares_path", "schedule_duration", "servo_preview",
+           "controller_preview", "reference_preview"]
 
 #: how many paths (curve, schedule, sample time) :func:`build_path` keeps
 KEPT_PATHS = 8
 _paths = OrderedDict()
+_durations = OrderedDict()
 _paths_lock = threading.Lock()
 
 
@@ -204,14 +206,18 @@ def build_servo(experiment: Experiment, axis: str, position: float, velocity: fl
     return servo
 
 
-def build_estimator(experiment: Experiment, curve):
-    return ESTIMATORS.build(experiment.estimator, BuildContext(experiment, curve, where=experiment.path))
+def build_estimator(experiment: Experiment, curve, schedule=None):
+    """The contour-error estimator (``schedule``: the path's, where the caller has it; else built if asked for)."""
+    return ESTIMATORS.build(experiment.estimator, BuildContext(experiment, curve, where=experiment.path,
+                                                               schedule=schedule))
 
 
-def build_controller(experiment: Experiment, curve):
-    """The contour controller. Its object's ``needs_state`` (what the simulation reads) must be its catalogue
-    entry's (what the runner and the CCC node read, before anything is built)."""
-    controller = CONTROLLERS.build(experiment.controller, BuildContext(experiment, curve, where=experiment.path))
+def build_controller(experiment: Experiment, curve, schedule=None):
+    """The contour controller (``schedule``: as :func:`build_estimator`). Its object's ``needs_state`` (what
+    the simulation reads) must be its catalogue entry's (what the runner and the CCC node read, before
+    anything is built)."""
+    controller = CONTROLLERS.build(experiment.controller, BuildContext(experiment, curve, where=experiment.path,
+                                                                       schedule=schedule))
     entry = CONTROLLERS.entry(experiment.controller["type"])
     if bool(getattr(controller, "needs_state", False)) != entry.needs_state:
         raise ConfigError(f"{experiment.path}: /ccc.type: the {entry.name} controller's object has needs_state = "
@@ -230,8 +236,7 @@ def build_path(experiment: Experiment) -> tuple:
     same for all of them. The last :data:`KEPT_PATHS` paths are kept. Built afresh, with no table: part
     programs (read from files; exact stops make each run's reference times its own) and curves or
     schedules of plugins (whose objects may keep state)."""
-    curve_type, schedule_type = experiment.curve["type"], experiment.schedule["type"]
-    if curve_type in TOOL_PATH_TYPES or not CURVES.entry(curve_type).builtin or not SCHEDULES.entry(schedule_type).builtin:
+    if not shares_path(experiment.curve, experiment.schedule):
         curve = build_curve(experiment)
         return curve, build_schedule(experiment, curve), None
     key = json.dumps([experiment.curve, experiment.schedule, experiment.sample_time], sort_keys=True, default=repr)
@@ -250,6 +255,35 @@ def build_path(experiment: Experiment) -> tuple:
     return path
 
 
+def shares_path(curve_section: dict, schedule_section: dict) -> bool:
+    """Whether runs along this curve and schedule share their objects (:func:`build_path`): built-in types,
+    not a tool path."""
+    curve_type, schedule_type = curve_section["type"], schedule_section["type"]
+    return curve_type not in TOOL_PATH_TYPES and CURVES.entry(curve_type).builtin and \
+        SCHEDULES.entry(schedule_type).builtin
+
+
+def schedule_duration(curve_section: dict, schedule_section: dict, curve, where: str) -> tuple:
+    """(duration [s], exact stops) of the schedule ``schedule_section`` builds along ``curve``
+    (:func:`build_schedule_from`). Kept for the last :data:`KEPT_PATHS` paths that :func:`build_path` would
+    share: a tuning validates the same path's experiment for every point it tries, and a feedrate
+    schedule's profile is a pass over 20001 points."""
+    key = json.dumps([curve_section, schedule_section], sort_keys=True, default=repr) \
+        if shares_path(curve_section, schedule_section) else None
+    with _paths_lock:
+        found = _durations.get(key)
+    if found is not None:
+        return found
+    schedule = build_schedule_from(schedule_section, curve, where)
+    found = (schedule.duration, len(getattr(schedule, "stops", ())))
+    if key is not None:
+        with _paths_lock:
+            _durations[key] = found
+            while len(_durations) > KEPT_PATHS:
+                _durations.popitem(last=False)
+    return found
+
+
 def build_loop(experiment: Experiment) -> ControlLoop:
     """Every core object of the experiment, in their initial state (the curve, schedule and reference table
     shared with earlier runs along the same path: :func:`build_path`)."""
@@ -262,7 +296,8 @@ def build_loop(experiment: Experiment) -> ControlLoop:
         plants=[build_plant(experiment, a, positions[i], velocities[i]) for i, a in enumerate(axes)],
         servos=[build_servo(experiment, a, positions[i], velocities[i], accelerations[i])
                 for i, a in enumerate(axes)],
-        estimator=build_estimator(experiment, curve), controller=build_controller(experiment, curve),
+        estimator=build_estimator(experiment, curve, schedule),
+        controller=build_controller(experiment, curve, schedule),
         sample_time=experiment.sample_time, n_steps=experiment.n_steps,
         divergence_factor=experiment.divergence_factor, preview=reference_preview(experiment),
         reference_table=table, monitor=monitor,

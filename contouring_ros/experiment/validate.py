@@ -23,7 +23,7 @@ from ..errors import ConfigError
 from ..wire.graph import graph_namespace
 from ..wire import catalogue as nodes
 from ..core.feed_control import parse_feed_events
-from .build import build_curve_from, build_schedule_from, in_position_windows, planned_tool_path
+from .build import build_curve_from, in_position_windows, planned_tool_path, schedule_duration
 from .catalogue import CONTROLLERS, GLOBALS, OPTIONAL_NODES, ROLE_TYPES, SERVOS
 from .catalogue.curves import TOOL_PATH_TYPES
 from .model import Experiment
@@ -141,11 +141,10 @@ def _validate_globals(where, given: dict) -> dict:
                           "(a gcode curve, or a toolpath with a feedrate schedule with jerk)")
     if out["duration"] == 0.0:
         try:
-            schedule = build_schedule_from(out["schedule"], curve, where)
+            duration, stops = schedule_duration(out["curve"], out["schedule"], curve, where)
             # with in-position checks every exact stop may wait up to its timeout
-            waits = len(schedule.stops) * out["schedule"]["in_position_timeout"] \
-                if in_position_windows(out) is not None and hasattr(schedule, "stops") else 0.0
-            out["duration"] = schedule.duration + waits + out["settle_time"]
+            waits = stops * out["schedule"]["in_position_timeout"] if in_position_windows(out) is not None else 0.0
+            out["duration"] = duration + waits + out["settle_time"]
         except (ArithmeticError, ValueError, MemoryError, np.linalg.LinAlgError) as error:
             _fail(where, "schedule", f"cannot build the schedule ({type(error).__name__}: {error})")
         if not out["duration"] <= MAX_DURATION:

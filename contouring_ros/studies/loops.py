@@ -14,7 +14,7 @@ from ..core.margins import GainScaledLoops, axis_loop, coupled_loop, margins, qu
 from ..core.servo import PIDServo
 from ..core.tuning_space import gain_magnitude
 from ..errors import ConfigError
-from ..experiment.build import build_controller, build_curve, build_plant, build_servo
+from ..experiment.build import build_controller, build_curve, build_path, build_plant, build_servo, shares_path
 from .gains import sections_with_gains
 from .outcomes import experiment_for
 from .tuning import MS_LIMIT
@@ -28,7 +28,9 @@ def linear_loops(experiment) -> dict:
     (:func:`~contouring_ros.core.margins.coupled_loop`: each axis as if the others were identical to it, on
     a straight line); None where the law is not linear time-invariant feedback."""
     ts = float(experiment.sample_time)
-    controller = build_controller(experiment, build_curve(experiment))
+    curve, schedule = build_path(experiment)[:2] if shares_path(experiment.curve, experiment.schedule) else \
+        (build_curve(experiment), None)         # a tool path's feed plan only where the controller asks for it
+    controller = build_controller(experiment, curve, schedule)
     out = {}
     for axis in experiment.axes:
         plant = build_plant(experiment, axis, 0.0, 0.0)
