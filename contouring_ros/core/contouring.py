@@ -10,7 +10,7 @@ import numpy as np
 
 from .curves import Curve
 from .geometry import (frenet_generator, frenet_frame, left_normal, matmul, matmul_rows, matvec, matvec_rows,
-                       unit_tangent)
+                       power_rows, unit_tangent)
 from .interpolation import at_reference
 from .plants import coulomb_friction
 from .pid import DiscretePID
@@ -181,7 +181,7 @@ class TaskFramePD:
         z2 = np.concatenate([f_dot[:, 0:1], f_dot[:, 1:] - dh * f_dot[:, 0:1]], axis=-1)
         slope = np.broadcast_to(np.eye(n), (b, n, n)).copy()
         slope[:, 1:, 0] = dh
-        curvature_term = np.concatenate([np.zeros((b, 1)), ddh * f_dot[:, 0:1] ** 2], axis=-1)
+        curvature_term = np.concatenate([np.zeros((b, 1)), ddh * power_rows(f_dot[:, 0:1], 2)], axis=-1)
         m, c = self.mass[..., :, None], self.damping[..., :, None]
         m_f, c_f, k_f = m * r, 2.0 * m * r_dot + c * r, m * r_ddot + c * r_dot
         v = -self.kp * z1 - self.kd * z2

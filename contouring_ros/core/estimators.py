@@ -13,7 +13,7 @@ import numpy as np
 from . import kernels
 from .curves import Curve
 from .foot_point import foot_point_flow, foot_point_flow_planar
-from .geometry import dot, dot_rows, frenet_axes, left_normal, matvec, matvec_rows, norm, signed_error
+from .geometry import atan2_rows, dot, dot_rows, frenet_axes, left_normal, matvec, matvec_rows, norm, power_rows, signed_error
 from .interpolation import at_reference
 
 __all__ = ["ContourEstimate", "TangentLineEstimator", "NewtonEstimator", "BranchCheck", "LocalApproximationEstimator",
@@ -203,6 +203,10 @@ class NewtonEstimator:
     #: --batch N on this 2-core machine: the default experiment breaks even at 16 members, a butterfly at
     #: about 10)
     PURE_BATCH_MINIMUM = 12
+    #: ... and with the compiled kernel (core/kernels.py), which iterates member by member: the loop around
+    #: it is the batch's gain (bench/batch_speed.py --only default --batch N, 1 s, Intel Xeon 2-core host:
+    #: 0.6x the runs one by one at 2 members, 1.1x at 4, 1.9x at 8)
+    COMPILED_BATCH_MINIMUM = 4
 
     def __init__(self, curve: Curve, k_prime: float, c_prime: float, theta0: float, inner_step: float,
                  tolerance: float = 1e-9, max_iterations: int = 200, branch_check: BranchCheck | None = None):
@@ -225,9 +229,12 @@ class NewtonEstimator:
 
     @property
     def batch_minimum(self) -> int:
-        """:data:`PURE_BATCH_MINIMUM`, whether or not the kernel is compiled (core/kernels.py): the groups that
-        run as batches, and so every figure, are the same with numba and without."""
-        return self.PURE_BATCH_MINIMUM
+        """:data:`COMPILED_BATCH_MINIMUM` where the flow runs compiled for this curve (numba on, the curve
+        with a formula: core/kernels.py), else :data:`PURE_BATCH_MINIMUM`. Only the speed depends on it: a
+        member of a batch has the numbers of its run alone, bit for bit, compiled or not
+        (tests/core/test_kernels.py, tests/core/test_batch.py)."""
+        compiled = kernels.ENABLED and kernels.formula_of(self.curve) is not None
+        return self.COMPILED_BATCH_MINIMUM if compiled else self.PURE_BATCH_MINIMUM
 
     def step(self, reference, position) -> ContourEstimate:
         capped = self._iterate(position)
@@ -374,7 +381,7 @@ def natural_local_terms(kappa: float, tau: float, t: float, n: int) -> tuple:
         kappa, tau, t = np.broadcast_arrays(kappa, tau, t)
         if n == 2:
             return 0.5 * kappa * t * t, kappa * t, kappa
-        return (np.concatenate([0.5 * kappa * t * t, kappa * tau * t**3 / 6.0], axis=-1),
+        return (np.concatenate([0.5 * kappa * t * t, kappa * tau * power_rows(t, 3) / 6.0], axis=-1),
                 np.concatenate([kappa * t, 0.5 * kappa * tau * t * t], axis=-1),
                 np.concatenate([kappa, kappa * tau * t], axis=-1))
     if n == 2:
@@ -481,7 +488,7 @@ class OsculatingCircleEstimator:
         d = at_reference(reference, _batch_derivatives, self.curve, reference.theta, 2)
         d1, d2 = d[1], d[2]
         speed = np.sqrt(np.sum(d1 * d1, axis=-1, keepdims=True))
-        kappa = (d1[:, 0:1] * d2[:, 1:2] - d1[:, 1:2] * d2[:, 0:1]) / speed**3
+        kappa = (d1[:, 0:1] * d2[:, 1:2] - d1[:, 1:2] * d2[:, 0:1]) / power_rows(speed, 3)
         straight = np.abs(kappa) < self.min_curvature
         with np.errstate(divide="ignore", invalid="ignore"):
             centre = reference.position + left_normal(d1 / speed) / kappa
@@ -489,7 +496,7 @@ class OsculatingCircleEstimator:
             distance = np.sqrt(dot_rows(radial, radial))[:, None]
             vector = centre + radial / (distance * np.abs(kappa)) - position
             start = reference.position - centre
-            angle = np.arctan2(start[:, 0:1] * radial[:, 1:2] - start[:, 1:2] * radial[:, 0:1],
+            angle = atan2_rows(start[:, 0:1] * radial[:, 1:2] - start[:, 1:2] * radial[:, 0:1],
                                np.sum(start * radial, axis=-1, keepdims=True))
             theta = reference.theta + np.copysign(1.0, kappa) * angle / (np.abs(kappa) * speed)
             signed = signed_error(vector, np.copysign(1.0, kappa) * left_normal(radial / distance))

@@ -17,7 +17,7 @@ from .curves import Curve
 
 __all__ = ["unit_tangent", "left_normal", "curvature", "signed_error", "FrenetFrame", "frenet_axes", "frenet_frame", "frenet_generator",
            "FootPoints", "ExactContourError", "dot", "sum_of_products", "norm", "matvec", "matmul", "dot_rows",
-           "matvec_rows", "matmul_rows"]
+           "matvec_rows", "matmul_rows", "power_rows", "atan2_rows"]
 
 
 # Products of short vectors and small matrices on the published (one-step, scalar) path. ``a @ b``,
@@ -78,6 +78,34 @@ def dot_rows(a, b) -> np.ndarray:
     for k in range(1, np.shape(a)[-1]):
         total = total + a[..., k] * b[..., k]
     return total
+
+
+def _pow_or_inf(x: float, exponent: float) -> float:
+    try:
+        return x ** exponent
+    except OverflowError:
+        return math.copysign(math.inf, x) if exponent % 2 else math.inf
+
+
+def _value_by_value(function, *arrays) -> np.ndarray:
+    """``function`` of Python floats applied to the broadcast ``arrays`` value by value."""
+    arrays = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in arrays))
+    shape = arrays[0].shape
+    return np.fromiter(map(function, *(a.ravel().tolist() for a in arrays)), float, arrays[0].size).reshape(shape)
+
+
+# numpy's own power and arctan2 (SIMD ones on AVX-512 builds) differ from the C library's, which the scalar
+# path's Python floats call, in the last bit of a few values in a hundred: a batch member would then part
+# from its run alone. The batch path computes them value by value as the scalar path does.
+
+def power_rows(x, exponent: float) -> np.ndarray:
+    """``x ** exponent`` of an array as Python floats compute it (the C library's pow; an overflow inf)."""
+    return _value_by_value(lambda v: _pow_or_inf(v, float(exponent)), x)
+
+
+def atan2_rows(y, x) -> np.ndarray:
+    """``math.atan2`` of arrays, value by value."""
+    return _value_by_value(math.atan2, y, x)
 
 
 def matvec_rows(m, v) -> np.ndarray:
@@ -181,17 +209,18 @@ def _frenet_axes_rows(curve: Curve, theta) -> tuple:
     speed = np.sqrt(dot_rows(d1, d1))[:, None]
     alpha = d1 / speed
     if curve.dimension == 2:
-        kappa = (d1[:, 0:1] * d2[:, 1:2] - d1[:, 1:2] * d2[:, 0:1]) / speed**3
+        kappa = (d1[:, 0:1] * d2[:, 1:2] - d1[:, 1:2] * d2[:, 0:1]) / power_rows(speed, 3)
         return np.stack([alpha, left_normal(alpha)], axis=-1), kappa, np.zeros_like(kappa), speed
     if curve.dimension != 3:
         raise ValueError("the Frenet frame is defined for planar and spatial (2-D and 3-D) contours")
     cross = np.cross(d1, d2)
     cross_norm = np.sqrt(dot_rows(cross, cross))[:, None]
-    straight = cross_norm <= 1e-12 * speed**3
+    speed_cubed = power_rows(speed, 3)
+    straight = cross_norm <= 1e-12 * speed_cubed
     with np.errstate(divide="ignore", invalid="ignore"):
         gamma = cross / cross_norm
         rotation = np.stack([alpha, np.cross(gamma, alpha), gamma], axis=-1)
-        kappa, tau = cross_norm / speed**3, dot_rows(cross, d3)[:, None] / cross_norm**2
+        kappa, tau = cross_norm / speed_cubed, dot_rows(cross, d3)[:, None] / power_rows(cross_norm, 2)
     if straight.any():
         helper = np.eye(3)[np.argmin(np.abs(alpha), axis=-1)]
         beta = np.cross(np.cross(alpha, helper), alpha)
@@ -283,7 +312,7 @@ def _frenet_frame_rows(curve: Curve, theta, theta_dot, theta_ddot, relative_step
     n = rotation.shape[-1]
     d = curve.derivatives(theta, order=2)[:, :, 0, :]
     speed = speed_theta * theta_dot
-    speed_rate = dot_rows(d[1], d[2])[:, None] / speed_theta * theta_dot**2 + speed_theta * theta_ddot
+    speed_rate = dot_rows(d[1], d[2])[:, None] / speed_theta * power_rows(theta_dot, 2) + speed_theta * theta_ddot
     h = relative_step * np.maximum(np.abs(curve.domain[1] - curve.domain[0]), 1e-9)
     _, kappa_plus, tau_plus, _ = _frenet_axes_rows(curve, theta + h)
     _, kappa_minus, tau_minus, _ = _frenet_axes_rows(curve, theta - h)

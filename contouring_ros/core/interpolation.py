@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .curves import Curve
+from .geometry import power_rows
 
 __all__ = ["UniformSchedule", "FeedrateSchedule", "InPositionClock", "Reference", "reference", "ahead_times",
            "reference_ahead", "reference_rows", "step_time", "ReferenceTable", "at_reference"]
@@ -134,7 +135,7 @@ class FeedrateSchedule:
         d = self.curve.derivatives(theta, order=2)
         speed = np.linalg.norm(d[1], axis=-1)
         theta_dot = v / speed
-        theta_ddot = (a - theta_dot**2 * np.sum(d[1] * d[2], axis=-1) / speed) / speed
+        theta_ddot = (a - power_rows(theta_dot, 2) * np.sum(d[1] * d[2], axis=-1) / speed) / speed     # as _at
         done = t >= self.duration
         theta = np.where(done, self.theta_end, theta)
         theta_dot = np.where(done, 0.0, theta_dot)

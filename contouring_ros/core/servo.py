@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .geometry import sum_of_products
+from .geometry import matvec_rows, sum_of_products
 from .pid import DiscretePID
 from .plants import coulomb_friction, first_order_hold_terms, has_limit, symmetric_clip
 
@@ -228,9 +228,10 @@ class ExtendedStateObserver:
             self.state = np.array([sum_of_products(phi, state) + sum_of_products(gamma, inputs)
                                    for phi, gamma in zip(*self._rows)])
             return
+        # the same sums in the same order, member by member (geometry.matvec_rows), so that a member of a
+        # batch has the numbers of its run alone
         inputs = np.concatenate(np.broadcast_arrays(command, position), axis=-1)
-        self.state = np.einsum("...ij,...j->...i", self._phi, self.state) \
-            + np.einsum("...ij,...j->...i", self._gamma, inputs)
+        self.state = matvec_rows(self._phi, self.state) + matvec_rows(self._gamma, inputs)
 
     def estimates(self) -> tuple:
         """(q^, v^, d^): floats, or (B, 1) columns for a batch."""

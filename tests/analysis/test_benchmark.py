@@ -339,6 +339,7 @@ def test_runs_together_equal_the_runs_one_by_one(monkeypatch):
     (the Newton estimate's batch is made to run with 3 members, below its batch_minimum)."""
     from contouring_ros.core.estimators import NewtonEstimator
     monkeypatch.setattr(NewtonEstimator, "PURE_BATCH_MINIMUM", 2)
+    monkeypatch.setattr(NewtonEstimator, "COMPILED_BATCH_MINIMUM", 2)
     families = {f.name: f for f in scenario_families()}
     family = families["paper000_h50"]
     data = family.data[family.proposed]

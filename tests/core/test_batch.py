@@ -363,6 +363,7 @@ def newton_batches_from_two(monkeypatch):
     """The Newton estimate batches from two members (below its batch_minimum a sweep runs it one by one)."""
     from contouring_ros.core.estimators import NewtonEstimator
     monkeypatch.setattr(NewtonEstimator, "PURE_BATCH_MINIMUM", 2)
+    monkeypatch.setattr(NewtonEstimator, "COMPILED_BATCH_MINIMUM", 2)
 
 
 def test_sweep_vectorises_each_structure(newton_batches_from_two):

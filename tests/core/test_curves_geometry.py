@@ -1,4 +1,6 @@
 """Curves and the exact contour error against cases with known answers."""
+import math
+
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
@@ -295,3 +297,49 @@ def test_far_points_off_a_curve_that_crosses_itself_get_the_nearest_branch_s_dis
     reach = solver._nearest(points)[1]
     assert np.sum(reach > 1) > 100 and np.sum(reach == 1) > 50
     assert_allclose(solver(points).distance, brute, rtol=1e-5, atol=1e-9)
+
+
+def test_power_and_atan2_of_rows_are_the_c_library_s_value_by_value():
+    """numpy's own power and arctan2 (SIMD on AVX-512 builds) may part from Python's floats in the last bit;
+    the batch path's forms must not."""
+    from contouring_ros.core.geometry import atan2_rows, power_rows
+    rng = np.random.default_rng(7)
+    x, y = rng.standard_normal((5000, 1)) * 3.0, rng.standard_normal((5000, 1))
+    for exponent in (2, 3):
+        got = power_rows(x, exponent)
+        assert got.shape == x.shape
+        assert got.tolist() == [[v[0] ** exponent] for v in x.tolist()]
+    assert atan2_rows(y, x).tolist() == [[math.atan2(a[0], b[0])] for a, b in zip(y.tolist(), x.tolist())]
+    assert power_rows(np.array([1e200, -1e200]), 3).tolist() == [math.inf, -math.inf]
+    assert power_rows(np.array([-1e200]), 2).tolist() == [math.inf]
+
+
+@pytest.mark.parametrize("curve", [c for c in CURVES if c.dimension in (2, 3)], ids=lambda c: type(c).__name__)
+def test_the_frame_of_one_step_is_the_frame_of_a_batch_bit_for_bit(curve):
+    """frenet_axes and frenet_frame of a float parameter (a run alone) and of a batch's column (B, 1): the
+    same numbers, so that a batch member runs as it would alone."""
+    from contouring_ros.core.geometry import frenet_axes
+    lo, hi = curve.domain
+    thetas = np.linspace(lo, hi, 201)
+    rates, accelerations = np.linspace(0.5, 40.0, 201), np.linspace(-30.0, 30.0, 201)
+    rows = frenet_axes(curve, thetas[:, None])
+    frames = frenet_frame(curve, thetas[:, None], rates[:, None], accelerations[:, None])
+    for j, theta in enumerate(thetas):
+        rotation, kappa, tau, speed = frenet_axes(curve, float(theta))
+        np.testing.assert_array_equal(rotation, rows[0][j])
+        assert (kappa, tau, speed) == (rows[1][j, 0], rows[2][j, 0], rows[3][j, 0])
+        one = frenet_frame(curve, float(theta), float(rates[j]), float(accelerations[j]))
+        for name in ("rotation", "rotation_rate", "rotation_acceleration", "curvature", "torsion", "speed"):
+            np.testing.assert_array_equal(np.asarray(getattr(one, name)), np.asarray(getattr(frames, name))[j].reshape(
+                np.shape(getattr(one, name))), err_msg=name)
+
+
+def test_a_feedrate_schedule_s_one_time_is_its_array_s_bit_for_bit():
+    """The reference of a run alone (a float time) and of a batch (an array of times): the same theta and
+    its rates, so the same reference acceleration."""
+    from contouring_ros.core.interpolation import FeedrateSchedule
+    schedule = FeedrateSchedule(Butterfly(0.01), 0.0, 2 * math.pi, 0.05, 2.0, 1.0)
+    times = np.linspace(0.0, schedule.duration, 3001)
+    many = schedule(times[:, None])
+    for k, t in enumerate(times.tolist()):
+        assert tuple(float(v) for v in schedule(t)) == tuple(float(a[k, 0]) for a in many), t
