@@ -461,3 +461,20 @@ def test_runs_with_and_without_the_eso_disturbance_compensation_share_a_batch_an
     together = simulate_batch(loops)
     _assert_equal_runs(together, [simulate(loop) for loop in saddle_loops()])
     assert not np.allclose(together[0].position, together[1].position, rtol=0, atol=1e-9)
+
+
+def test_benchmark_combinations_give_their_runs_alone_numbers_in_a_batch(capsys):
+    """A tuning's points run in batches of whatever size its rounds have: every member must give its run
+    alone's numbers bit for bit (tools/check_batches.py over every scenario is the full check). These
+    scenarios hold the classes whose batch path once parted in the last bit: the osculating circle, the
+    natural-local frames, the ESO's observer, the feedrate schedule's theta_ddot, the task-frame PD."""
+    import importlib.util
+    from conftest import ROOT
+    spec = importlib.util.spec_from_file_location("check_batches", ROOT / "tools" / "check_batches.py")
+    check = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(check)
+    code = check.main(["--scenarios", "paper003_ellipse", "paper001_mech_coupling", "paper004_screw_eso", "--points", "2"])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    checked = int(out.rsplit("\n", 2)[-2].split(" combinations checked")[0].split()[-1])
+    assert checked >= 20 and " checked, 0 differ," in out, out
