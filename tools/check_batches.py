@@ -55,16 +55,23 @@ def first_steps(result, steps: int):
 
 
 def experiments(family, reference, combo, points: int, seed: int) -> list:
-    """``points`` experiments of the combination at points drawn uniformly in the middle half of its box
-    (``reference``: the scenario's :func:`reference_job`)."""
+    """``points`` experiments of the combination at points drawn uniformly in the middle half of its box (the
+    first that build of at most 20 x ``points`` draws), its integer coordinates those of the first point (an
+    MPCC's horizon: a batch shares one); ``reference``: the scenario's :func:`reference_job`."""
     protocol = Protocol()
     data = family.data[family.proposed]
     tuning = Tuning(data, fit_to_machine(data, combo.sections, reference.machine), combo.gain_keys,
                     reference.machine, math.inf, family.from_time, protocol, f"{family.name} {combo.label}", 0.0)
     rng = np.random.default_rng(seed)
+    dimensions = tuning.space.dimensions
+    first = rng.uniform(0.25, 0.75, len(dimensions))
     out = []
-    for _ in range(points):
-        _, gains = tuning.space.decode(list(rng.uniform(0.25, 0.75, len(tuning.space.dimensions))))
+    for j in range(20 * points):         # draws until ``points`` build (a ZPETC refuses many)
+        if len(out) == points:
+            break
+        unit = first if j == 0 else rng.uniform(0.25, 0.75, len(dimensions))
+        unit = [first[i] if d.scale == "int" else u for i, (d, u) in enumerate(zip(dimensions, unit))]
+        _, gains = tuning.space.decode(unit)
         try:
             out.append(experiment_for(tuning.data, tuning.with_gains(gains), tuning.machine, tuning.where))
         except ConfigError:
