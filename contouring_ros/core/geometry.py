@@ -100,7 +100,8 @@ def _value_by_value(function, *arrays) -> np.ndarray:
 
 def power_rows(x, exponent: float) -> np.ndarray:
     """``x ** exponent`` of an array as Python floats compute it (the C library's pow; an overflow inf)."""
-    return _value_by_value(lambda v: _pow_or_inf(v, float(exponent)), x)
+    exponent = float(exponent)
+    return _value_by_value(lambda v: _pow_or_inf(v, exponent), x)
 
 
 def atan2_rows(y, x) -> np.ndarray:

@@ -8,8 +8,7 @@ from __future__ import annotations
 import bisect
 import math
 import threading
-import dataclasses
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields, is_dataclass, replace
 
 import numpy as np
 
@@ -270,11 +269,12 @@ def at_reference(reference: Reference, function, *arguments):
     """``function(*arguments)``, where ``function`` is pure and its arguments are the curve, constants and
     values of ``reference`` (the Frenet frame at the reference point, the curve's derivatives there):
     computed once per step along a path, for every run that reads the step from a :class:`ReferenceTable`
-    (once per batch size for batches, whose arrays of the reference's values are the same at a step), and
-    kept read-only; computed each time for any other reference (a node's, one computed by its run). A step
-    keeps at most :data:`MEMO_ENTRIES` of them, the oldest given up first, and none for batches of more than
-    :data:`MEMO_BATCH` members: batches of many sizes (a mixed batch hands each class its share of the
-    members) would otherwise keep one entry of every size they met, each step, for as long as the path."""
+    (a batch whose reference arrays repeat one row, as a table's do, gets the batch of one's value broadcast
+    to its members: one entry for every batch size), and kept read-only; computed each time for any other
+    reference (a node's, one computed by its run). A step keeps at most :data:`MEMO_ENTRIES` of them, the
+    oldest given up first, and none for other batches of more than :data:`MEMO_BATCH` members (rows taken
+    out of a batch by a mixed batch's classes), which would otherwise keep one entry of every size they met,
+    each step, for as long as the path."""
     memo = reference.memo
     if memo is None:
         return function(*arguments)
@@ -316,9 +316,8 @@ def _broadcast_all(value, members: int):
         return np.broadcast_to(value, (members,) + value.shape[1:]) if value.ndim else value
     if isinstance(value, tuple):
         return tuple(_broadcast_all(item, members) for item in value)
-    if dataclasses.is_dataclass(value):
-        return dataclasses.replace(value, **{f.name: _broadcast_all(getattr(value, f.name), members)
-                                             for f in dataclasses.fields(value)})
+    if is_dataclass(value):
+        return replace(value, **{f.name: _broadcast_all(getattr(value, f.name), members) for f in fields(value)})
     return value
 
 

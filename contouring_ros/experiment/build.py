@@ -268,15 +268,17 @@ def schedule_duration(curve_section: dict, schedule_section: dict, curve, where:
     (:func:`build_schedule_from`). Kept for the last :data:`KEPT_PATHS` paths that :func:`build_path` would
     share: a tuning validates the same path's experiment for every point it tries, and a feedrate
     schedule's profile is a pass over 20001 points."""
-    key = json.dumps([curve_section, schedule_section], sort_keys=True, default=repr) \
-        if shares_path(curve_section, schedule_section) else None
+    def built() -> tuple:
+        schedule = build_schedule_from(schedule_section, curve, where)
+        return schedule.duration, len(getattr(schedule, "stops", ()))
+
+    if not shares_path(curve_section, schedule_section):
+        return built()
+    key = json.dumps([curve_section, schedule_section], sort_keys=True, default=repr)
     with _paths_lock:
         found = _durations.get(key)
-    if found is not None:
-        return found
-    schedule = build_schedule_from(schedule_section, curve, where)
-    found = (schedule.duration, len(getattr(schedule, "stops", ())))
-    if key is not None:
+    if found is None:
+        found = built()
         with _paths_lock:
             _durations[key] = found
             while len(_durations) > KEPT_PATHS:
