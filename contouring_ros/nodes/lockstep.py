@@ -66,15 +66,18 @@ class LockstepStepping:
         have = self._pending.get(self.next_step, {})
         return [topic for topic, *_ in self._inputs if topic not in have]
 
-    def wait_loop(self, done, take_progress, describe_stall):
+    def wait_loop(self, done, take_progress, describe_stall, window=None):
         """Wait on the inputs' persistent wait set and take what arrives until ``done()``.
 
         ``take_progress()`` takes the ready messages and says whether anything moved on; after
         ``stall_timeout`` seconds (an experiment key) without progress the node gives up with
-        ``describe_stall()`` as the reason.
+        ``describe_stall()`` as the reason. ``window``: the Unix times of a realtime run's first and last
+        ticks; nothing is expected outside them, so the stall clock runs only inside.
         """
         wait_set = self.wait_set()
         last_progress = next_log = time.monotonic()
+        first_tick, last_tick = window if window is not None else (0.0, float("inf"))
+        quiet_end = last_progress + max(0.0, first_tick - time.time())
         while not done():
             wait_set.wait(200_000_000)
             self.serve_requests()
@@ -85,7 +88,8 @@ class LockstepStepping:
                 raise ExternalShutdownException()
             if take_progress():
                 last_progress = time.monotonic()
-            elif time.monotonic() - last_progress > self.experiment.stall_timeout:
+            elif (time.monotonic() - max(last_progress, quiet_end) > self.experiment.stall_timeout
+                  and time.time() <= last_tick):
                 raise RunError(f"{self.name}: stalled: {describe_stall()} for {self.experiment.stall_timeout:g} s")
 
     def spin(self):

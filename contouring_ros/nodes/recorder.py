@@ -161,13 +161,17 @@ class RecorderNode(LockstepNode):
             self.take_all()
             return sum(self.counts.values()) + self.strangers > before
 
-        done = self.complete
+        done, window = self.complete, None
         if self.experiment.timing == "realtime":
-            end = self.experiment.start_time + self.n_steps * self.experiment.sample_time + REALTIME_GRACE
-            done = lambda: self.complete() or time.time() > end  # noqa: E731
+            # the graph is up well before tick 0 (the runner's start delay), and steps that never came are
+            # waited for REALTIME_GRACE past the last tick: neither is a stall
+            last_tick = self.experiment.start_time + self.n_steps * self.experiment.sample_time
+            window = (self.experiment.start_time, last_tick)
+            done = lambda: self.complete() or time.time() > last_tick + REALTIME_GRACE  # noqa: E731
         self.wait_loop(done, take,
                        lambda: "incomplete topics " + ", ".join(t for t in self.lockstep_topics
-                                                                 if self.counts[t] < self.n_steps))
+                                                                 if self.counts[t] < self.n_steps),
+                       window=window)
         self.finished = True
         deadline = time.monotonic() + DIAGNOSTICS_LINGER      # the nodes' end-of-run summaries
         while time.monotonic() < deadline:

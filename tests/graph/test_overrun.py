@@ -113,3 +113,13 @@ def test_a_node_up_after_the_run_s_last_tick_gives_up(tmp_path):
                               env=private_environment(lease.domain_id), capture_output=True, text=True, timeout=120)
     assert done.returncode == 1 and time.monotonic() - start < 60.0
     assert "error: /x/servo: the graph was not up by the realtime run's last tick" in done.stderr
+
+
+def test_a_start_delay_longer_than_the_stall_timeout_is_not_a_stall(tmp_path, monkeypatch):
+    """The process layout's recorder is up seconds before tick 0 and hears nothing until then: its stall clock
+    starts at tick 0, so a stall_timeout shorter than the start delay still records the whole run."""
+    from contouring_ros.records.bag_reader import node_reports
+    _start_delay("process", monkeypatch)
+    bag = run_graph(_realtime(tmp_path, "    stall_timeout: 2.0\n"), tmp_path / "quiet.mcap", layout="process")
+    reports = node_reports(bag)
+    assert int(reports["/x/servo"]["ticks"]) >= 499
