@@ -14,6 +14,7 @@ MAX_BATCH = 10_000        # sweep --batch: combinations per vectorised batch
 MAX_BUDGET = 100_000      # benchmark --budget: evaluations per combination
 MAX_DRAWS = 1_000         # benchmark --draws
 MAX_SEARCHES = 100        # benchmark --searches
+MAX_BUDGET_GROWTH = 64    # benchmark --budget-growth: times --budget the longest searches get
 MAX_SECONDS = 1e9         # any time option (about 32 years)
 MAX_WAIT_SUBSCRIBERS = 1_000
 

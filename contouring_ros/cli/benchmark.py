@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import sys
 
-from .arguments import (MAX_BUDGET, MAX_DRAWS, MAX_SEARCHES, MAX_WORKERS, force_option, scheduler_option,
-                        whole)
+from .arguments import (MAX_BUDGET, MAX_BUDGET_GROWTH, MAX_DRAWS, MAX_SEARCHES, MAX_WORKERS, force_option,
+                        scheduler_option, whole)
 from ..errors import ConfigError
 
 __all__ = ["HELP", "OUTPUTS", "add_arguments", "main"]
@@ -64,6 +64,11 @@ def _protocol_options(parser) -> None:
                         help="while a row's searches do not agree, as many more as the agreement lacks run side by "
                              "side, up to this many, the same cap for every method (at least --searches, at most "
                              f"{MAX_SEARCHES}; default {Protocol.max_searches})")
+    parser.add_argument("--budget-growth", type=whole(1, MAX_BUDGET_GROWTH, "times the budget"),
+                        default=Protocol.budget_growth,
+                        help="after --max-searches, while a row's searches still do not agree, rounds of --searches "
+                             "new searches with 2x, 4x, ... --budget evaluations each, up to this many times "
+                             f"(1 to {MAX_BUDGET_GROWTH}; default {Protocol.budget_growth}: none)")
 
 
 def main(args) -> None:
@@ -102,7 +107,8 @@ def _protocol(args):
     max_searches = args.max_searches if args.max_searches is not None else max(Protocol.max_searches, args.searches)
     if max_searches < args.searches:
         raise ConfigError(f"--max-searches {max_searches}: expected at least --searches ({args.searches})")
-    return Protocol(evaluations=args.budget, draws=args.draws, searches=args.searches, max_searches=max_searches)
+    return Protocol(evaluations=args.budget, draws=args.draws, searches=args.searches, max_searches=max_searches,
+                    budget_growth=args.budget_growth)
 
 
 def _command(args, max_searches: int) -> str:
@@ -113,6 +119,7 @@ def _command(args, max_searches: int) -> str:
         + (f" --draws {args.draws}" if args.draws != Protocol.draws else "") \
         + (f" --searches {args.searches}" if args.searches != Protocol.searches else "") \
         + (f" --max-searches {max_searches}" if max_searches != Protocol.max_searches else "") \
+        + (f" --budget-growth {args.budget_growth}" if args.budget_growth != Protocol.budget_growth else "") \
         + (f" --methods {' '.join(args.methods)}" if args.methods else "")
 
 

@@ -258,32 +258,33 @@ class Tuning:
         rng = np.random.default_rng(10_000 + self.protocol.seed + index)
         return list(rng.uniform(0.0, 1.0, len(self.space.dimensions)))
 
-    def search(self, indices: list, optimiser=None) -> list:
+    def search(self, indices: list, optimiser=None, evaluations: int | None = None) -> list:
         """Searches ``indices`` (search i: seed protocol.seed + i) and the choice each ends with
         (:meth:`choose`). Search 0 evaluates the file's gains first. The searches run side by side, their
         populations in one batch (:func:`contouring_ros.studies.search.run_side_by_side`); another ``optimiser``
-        runs them one at a time."""
+        runs them one at a time. ``evaluations``: each search's budget (default: the protocol's)."""
         p = self.protocol
+        evaluations = p.evaluations if evaluations is None else int(evaluations)
         runs = [_Run(i) for i in indices]
         for run in runs:
             if run.index == 0:
                 self.evaluate([run], [[self.start(0)]])
-        budget = {run.index: p.evaluations - len(run.evaluations) for run in runs}
+        budget = {run.index: evaluations - len(run.evaluations) for run in runs}
         if optimiser is not None:
             for run in runs:
                 optimiser(functools.partial(self.population, run), self.start(run.index), budget[run.index],
                           p.seed + run.index)
         else:
-            self._side_by_side(runs, budget)
+            self._side_by_side(runs, budget, evaluations)
         return [self.choose(run.evaluations) for run in runs]
 
-    def _side_by_side(self, runs: list, budget: dict) -> None:
+    def _side_by_side(self, runs: list, budget: dict, evaluations: int) -> None:
         """The ``runs`` as IPOP-CMA-ES searches side by side, each within its ``budget``, search 0 told the
         value of its start (the file's gains, evaluated first)."""
         p = self.protocol
         searches = [IPOPCMAES(self.start(run.index), budget[run.index], p.seed + run.index, p.popsize, p.step,
                               self.space.steps, math.log10(1.0 + p.agreement), p.design,
-                              round(p.polish * p.evaluations), p.polish_step) for run in runs]
+                              round(p.polish * evaluations), p.polish_step) for run in runs]
         for run, search in zip(runs, searches):
             if run.evaluations:                      # search 0: the file's gains, evaluated first
                 search.known_start(run.evaluations[0].objective)
@@ -312,8 +313,9 @@ class Tuning:
 
     # --- the whole tuning ----------------------------------------------------------------------------
     def search_until_agreed(self, optimiser=None) -> list:
-        """protocol.searches searches, then more side by side while they do not agree (:meth:`more`); with
-        nothing to tune, search 0 alone (the file's gains, measured once)."""
+        """protocol.searches searches, then more side by side while they do not agree (:meth:`more`), then
+        rounds of longer ones while they still do not (:meth:`Protocol.budgets`); with nothing to tune, search 0
+        alone (the file's gains, measured once)."""
         p = self.protocol
         if not self.space.dimensions:
             return self.search([0], optimiser)
@@ -322,6 +324,10 @@ class Tuning:
         while more:
             searches += self.search(list(range(len(searches), len(searches) + more)), optimiser)
             more = self.more(searches)
+        for evaluations in p.budgets():           # Protocol.budget_growth: longer searches while they disagree
+            if searches_agreement(searches, p).converged:
+                break
+            searches += self.search(list(range(len(searches), len(searches) + p.searches)), optimiser, evaluations)
         return searches
 
     def more(self, searches: list) -> int:

@@ -27,9 +27,13 @@ one vectorised batch, robustness checks batched too) of at most :attr:`Protocol.
 row is *converged* when at least :attr:`Protocol.agree` searches end within :attr:`Protocol.agreement` of the
 best nominal TACE (:func:`~contouring_ros.studies.tuner.searches_agreement`); while it is not, as many more
 searches as the agreement lacks run side by side (seeds continuing), up to :attr:`Protocol.max_searches`, the
-same cap for every method. The best search is kept (:func:`~contouring_ros.studies.tuner.best_search`). The
-objective cannot tell apart points within the agreement's tolerance, and under model mismatch and noise two
-of them can differ severalfold; so of a robust result, the admissible points of every search within that
+same cap for every method; with :attr:`Protocol.budget_growth` above 1, rounds of :attr:`Protocol.searches`
+new searches follow, each round with twice the evaluations per search of the one before, while the searches
+(all of them) do not agree, up to that factor (a search that stops where an admissible straight path still
+falls to the best, ``tools/tune_row.py --segments``, is one too short for its row). The best search is kept
+(:func:`~contouring_ros.studies.tuner.best_search`). The objective cannot tell apart points within the
+agreement's tolerance, and under model mismatch and noise two of them can differ severalfold; so of a robust
+result, the admissible points of every search within that
 tolerance of the best nominal TACE (:attr:`Protocol.selection_candidates` of them at most, each
 :attr:`Protocol.selection_spacing` from the others) run over :attr:`Protocol.selection_draws` draws of their
 own, and the one of lowest median TACE there is kept (:meth:`~contouring_ros.studies.tuner.Tuning.select`);
@@ -99,6 +103,8 @@ class Protocol:
     polish_step: float = 0.05      # ... its first step [share of each coordinate's range]
     searches: int = 3              # independent searches per combination (seeds seed, seed + 1, ...)
     max_searches: int = 6          # ... more, side by side, while they do not agree, up to this many
+    budget_growth: int = 1         # ... then rounds of `searches` new searches with 2x, 4x, ... the evaluations,
+    #                                while they do not agree, up to this many x (1: none)
     agreement: float = 0.05        # searches agree when they end within this share of the best nominal TACE
     agree: int = 3                 # ... and a row is converged when at least this many do
     decades: float = 8.0           # the log box of a plugin that states no space: each gain's span either side
@@ -114,10 +120,26 @@ class Protocol:
     mismatch: float = 0.1          # model mismatch of a draw: each plant parameter x U(1 - this, 1 + this)
     seed: int = 1                  # search i's seed is seed + i (its CMA-ES samples and, from search 1 on, its start)
 
+    def _growth_text(self) -> str:
+        if self.budget_growth <= 1:
+            return ""
+        return (f"(then, while they do not agree, {self.searches} more with 2x the evaluations, and so on up to "
+                f"{self.budget_growth}x) ")
+
+    def budgets(self) -> list:
+        """The evaluations per search of each round after the first searches: 2x, 4x, ... up to
+        :attr:`budget_growth` x :attr:`evaluations` (empty: no growth)."""
+        out, factor = [], 2
+        while factor <= self.budget_growth:
+            out.append(factor * self.evaluations)
+            factor *= 2
+        return out
+
     def describe(self) -> str:
         return (f"each method in its physical tuning space (bandwidths and corner frequencies in Hz, damping and "
                 f"weight ratios; a plugin without one: each raw gain log-scaled over +-{self.decades:g} decades); "
                 f"{self.searches} to {max(self.searches, self.max_searches)} independent searches per combination "
+                f"{self._growth_text()}"
                 f"(the first from the file's gains, the others from uniform random points), each "
                 f"{self.design} scrambled-Sobol points over the box, then IPOP-CMA-ES from the best point "
                 f"(population {self.popsize}, doubled at each restart; the searches' populations run as one "

@@ -490,6 +490,38 @@ def test_searches_run_until_they_agree_and_report_it():
     assert short.agreement.searches == 3 and not short.converged
 
 
+def test_searches_that_do_not_agree_get_longer_searches_up_to_the_growth_cap():
+    """Protocol.budget_growth: after max_searches, rounds of `searches` new searches with 2x, 4x, ... the
+    evaluations while they do not agree; none once they do, none past the cap. (A stand-in for the searches:
+    each ends at a value that depends on its budget, apart below 40 evaluations, together from 40 on.)"""
+    from types import SimpleNamespace
+    assert Protocol(evaluations=10, budget_growth=8).budgets() == [20, 40, 80]
+    assert Protocol(evaluations=10, budget_growth=6).budgets() == [20, 40]
+    assert Protocol(evaluations=10).budgets() == []
+    asked = []
+
+    def search(self, indices, optimiser=None, evaluations=None):
+        budget = self.protocol.evaluations if evaluations is None else evaluations
+        asked.append((tuple(indices), budget))
+        return [SimpleNamespace(value=1.0 + (0.0 if budget >= 40 else 0.3 * i), penalised=math.inf)
+                for i in indices]
+
+    def grown(growth):
+        asked.clear()
+        stand_in = SimpleNamespace(protocol=Protocol(evaluations=10, searches=3, max_searches=4, budget_growth=growth),
+                                   space=SimpleNamespace(dimensions=[1]))
+        stand_in.search = search.__get__(stand_in)
+        stand_in.more = tuner.Tuning.more.__get__(stand_in)
+        return tuner.Tuning.search_until_agreed(stand_in)
+    found = grown(16)           # 10 and 20 evaluations disagree, 40 agree: no round of 80 or 160
+    assert asked == [((0, 1, 2), 10), ((3,), 10), ((4, 5, 6), 20), ((7, 8, 9), 40)]
+    assert tuner.searches_agreement(found, Protocol()).converged
+    grown(2)                    # the cap: one round of 2x, still apart, and no more
+    assert asked == [((0, 1, 2), 10), ((3,), 10), ((4, 5, 6), 20)]
+    grown(1)
+    assert asked == [((0, 1, 2), 10), ((3,), 10)]
+
+
 def test_the_report_counts_converged_rows_and_names_the_others():
     from types import SimpleNamespace
     from contouring_ros.studies.search import agreement

@@ -187,3 +187,26 @@ def test_checkpoint_status_lists_the_values_a_rows_searches_were_compared_by():
                                 evaluation(1, 1.2e-7, 2e-7, True), evaluation(2, 0.9e-7, 1e-6, False)])
     what, values = status.agreement_values(robust)
     assert what == "nominal TACE" and values == [1e-7, 1.2e-7, math.inf]
+
+
+def _tune_row_tool():
+    import importlib.util
+    from pathlib import Path
+    path = Path(__file__).resolve().parents[2] / "tools" / "tune_row.py"
+    spec = importlib.util.spec_from_file_location("tune_row", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_a_segment_tells_a_stop_on_a_slope_from_another_basin():
+    """tools/tune_row.py --segments: a search that stopped where an admissible straight path still falls to the
+    best is 'on a slope'; one with a rise or an inadmissible point between is not."""
+    verdict = _tune_row_tool().segment_verdict
+    assert verdict([0.40, 0.39, 0.385, 0.37, 0.36], [True] * 5).startswith("on a slope")
+    assert "1.11x" in verdict([0.40, 0.39, 0.385, 0.37, 0.36], [True] * 5)
+    assert verdict([0.40, 0.39, 0.392, 0.37, 0.36], [True] * 5).startswith("on a slope")     # 0.5%: within 1%
+    rise = verdict([1.11, 1.5, 2.1, 1.3, 0.36], [True] * 5)
+    assert rise.startswith("over a rise") and "89%" in rise
+    barrier = verdict([0.40, 0.39, 0.38, 0.37, 0.36], [True, True, False, True, True])
+    assert barrier.startswith("over a barrier") and "1 of 5" in barrier
