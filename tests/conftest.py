@@ -12,6 +12,15 @@ CONFIG = ROOT / "config"
 DEFAULT = CONFIG / "paper000_b_ismc_h50_newton.yaml"
 
 
+def load_tool(name: str):
+    """The module of the script tools/NAME.py (the tools are scripts, not a package)."""
+    import importlib.util
+    spec = importlib.util.spec_from_file_location(name, ROOT / "tools" / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
 def machine_pace() -> float:
     """How much slower than an idle machine this one runs now: the 1-minute load average per core, at least
     1 and at most 8. Timeouts that a busy machine (other programs, other test jobs) would overrun are

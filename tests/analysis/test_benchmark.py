@@ -16,6 +16,7 @@ from contouring_ros.studies.benchmark import lower_or_higher, plan, run_benchmar
 from contouring_ros.cli import main
 from contouring_ros.errors import ConfigError
 from contouring_ros.studies.tuning import Protocol
+from conftest import ROOT, load_tool
 
 SMALL = "paper003_mech_ellipse"      # one scenario of two files, two combinations
 FAST = Protocol(evaluations=6, popsize=4, design=0, draws=2, searches=1, max_searches=1)
@@ -98,7 +99,6 @@ def test_a_method_that_models_its_drive_is_given_the_realistic_machine():
 
 
 def test_a_learning_controller_is_judged_by_its_last_pass():
-    from conftest import ROOT
     from contouring_ros.experiment.ros_yaml import read_yaml
     from contouring_ros.studies.learning import simulate_passes
     path = ROOT / "config" / "ilc_ellipse.yaml"
@@ -585,13 +585,8 @@ def test_the_lowest_objective_counts_only_points_that_ran():
 def test_two_runs_compared_row_by_row_name_what_a_protocol_change_moved(tmp_path):
     """tools/compare_benchmarks.py: a row whose error doubled, a verdict that flipped, a status that changed
     and a new best combination are each counted and named; a run against itself changes nothing."""
-    import importlib.util
-    from pathlib import Path
-    root = Path(__file__).resolve().parents[2]
-    spec = importlib.util.spec_from_file_location("compare_benchmarks", root / "tools" / "compare_benchmarks.py")
-    tool = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(tool)
-    reference = root / "reports" / "benchmark.csv"
+    tool = load_tool("compare_benchmarks")
+    reference = ROOT / "reports" / "benchmark.csv"
     a = tool.read_rows(reference)
     same = tool.compare(a, tool.read_rows(reference), say=lambda line: None)
     assert same["status_changed"] == same["verdicts_changed"] == 0 and same["best_same"] == same["scenarios"]
@@ -731,20 +726,12 @@ def test_a_stopped_benchmark_goes_on_from_its_checkpoints(tmp_path, capsys):
     second = run_benchmark(families, FAST, workers=1, checkpoints=again)
     assert again.taken == len(tuned)                   # nothing tuned again
     # tools/checkpoint_status.py says what a run has kept so far, per scenario
-    import importlib.util
-    from pathlib import Path
-    spec = importlib.util.spec_from_file_location(
-        "checkpoint_status", Path(__file__).resolve().parents[2] / "tools" / "checkpoint_status.py")
-    status = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(status)
+    status = load_tool("checkpoint_status")
     assert status.main([str(tmp_path / "rows"), "--rows"]) == 0
     said = capsys.readouterr().out
     assert f"{SMALL}: {len(tuned)} rows kept" in said and all(r.combination.label in said for r in tuned)
     # tools/check_tuning.py takes the rows to check from the same folder: each kept row's nominal TACE
-    spec = importlib.util.spec_from_file_location(
-        "check_tuning", Path(__file__).resolve().parents[2] / "tools" / "check_tuning.py")
-    check = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(check)
+    check = load_tool("check_tuning")
     reported = check.reported_rows(str(tmp_path / "rows"))
     assert {(SMALL, r.combination.label) for r in tuned if r.tuned.nominal is not None} == set(reported)
     for r in tuned:

@@ -7,6 +7,7 @@ import pytest
 
 from contouring_ros.studies.search import IPOPCMAES, Poll, agreement, ipop_cmaes, run_side_by_side
 from contouring_ros.studies.tuning import Protocol
+from conftest import load_tool
 
 PROTOCOL = Protocol()
 
@@ -165,13 +166,8 @@ def test_checkpoint_status_lists_the_values_a_rows_searches_were_compared_by():
     """tools/checkpoint_status.py: a row whose searches found robust points lists their nominal TACE; a row
     where none did lists the lowest objective each search reached, as a TACE, which the agreement judged (not
     the nominal TACE nor the worst case of its not-robust choice, which can lie far apart at one optimum)."""
-    import importlib.util
-    from pathlib import Path
     from contouring_ros.studies.tuning import Evaluation, Outcome, Tuned
-    spec = importlib.util.spec_from_file_location(
-        "checkpoint_status", Path(__file__).resolve().parents[2] / "tools" / "checkpoint_status.py")
-    status = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(status)
+    status = load_tool("checkpoint_status")
 
     def evaluation(search, tace, worst, admissible, objective=None):
         failure = "" if admissible else "not robust: worst case over the perturbations"
@@ -189,20 +185,10 @@ def test_checkpoint_status_lists_the_values_a_rows_searches_were_compared_by():
     assert what == "nominal TACE" and values == [1e-7, 1.2e-7, math.inf]
 
 
-def _tune_row_tool():
-    import importlib.util
-    from pathlib import Path
-    path = Path(__file__).resolve().parents[2] / "tools" / "tune_row.py"
-    spec = importlib.util.spec_from_file_location("tune_row", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
 def test_a_segment_tells_a_stop_on_a_slope_from_another_basin():
     """tools/tune_row.py --segments: a search that stopped where an admissible straight path still falls to the
     best is 'on a slope'; one with a rise or an inadmissible point between is not."""
-    verdict = _tune_row_tool().segment_verdict
+    verdict = load_tool("tune_row").segment_verdict
     assert verdict([0.40, 0.39, 0.385, 0.37, 0.36], [True] * 5).startswith("on a slope")
     assert "1.11x" in verdict([0.40, 0.39, 0.385, 0.37, 0.36], [True] * 5)
     assert verdict([0.40, 0.39, 0.392, 0.37, 0.36], [True] * 5).startswith("on a slope")     # 0.5%: within 1%

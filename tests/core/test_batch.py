@@ -13,7 +13,7 @@ from contouring_ros.core.pid import DiscretePID
 from contouring_ros.core.simulation import simulate
 from contouring_ros.studies.sweep import combinations, run_sweep
 from contouring_ros.experiment.settings import parse_grid
-from conftest import CONFIG, DEFAULT, shortened
+from conftest import CONFIG, DEFAULT, load_tool, shortened
 
 
 def _loops(text, specs):
@@ -468,11 +468,7 @@ def test_benchmark_combinations_give_their_runs_alone_numbers_in_a_batch(capsys)
     alone's numbers bit for bit (tools/check_batches.py over every scenario is the full check). These
     scenarios hold the classes whose batch path once parted in the last bit: the osculating circle, the
     natural-local frames, the ESO's observer, the feedrate schedule's theta_ddot, the task-frame PD."""
-    import importlib.util
-    from conftest import ROOT
-    spec = importlib.util.spec_from_file_location("check_batches", ROOT / "tools" / "check_batches.py")
-    check = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(check)
+    check = load_tool("check_batches")
     code = check.main(["--scenarios", "paper003_ellipse", "paper001_mech_coupling", "paper004_screw_eso", "--points", "2"])
     out = capsys.readouterr().out
     assert code == 0, out

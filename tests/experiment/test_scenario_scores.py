@@ -1,16 +1,13 @@
 """Every scenario file of config/ simulates to the scores pinned in tests/data/scenario_scores.json (its first
 second, in-process; tools/pin_scenario_scores.py writes the file). A change to how experiments are read,
 validated or built must leave every one as it was; a change meant to alter results re-pins, and says so."""
-import importlib.util
 import json
 
 import pytest
 
-from conftest import CONFIG, ROOT
+from conftest import CONFIG, load_tool
 
-_spec = importlib.util.spec_from_file_location("pin_scenario_scores", ROOT / "tools" / "pin_scenario_scores.py")
-pin = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(pin)
+pin = load_tool("pin_scenario_scores")
 PINNED = json.loads(pin.OUT.read_text())
 #: numpy, OpenBLAS and libm builds round the last bits differently (matrix products, trigonometric functions):
 #: between the wheels PyPI served on two days the scores moved by up to 1.2e-12 of their value (the ESO's
