@@ -33,9 +33,8 @@ new searches follow, each round with twice the evaluations per search of the one
 falls to the best, ``tools/tune_row.py --segments``, is one too short for its row). The best search is kept
 (:func:`~contouring_ros.studies.tuner.best_search`). The objective cannot tell apart points within the
 agreement's tolerance, and under model mismatch and noise two of them can differ severalfold; so of a robust
-result, the admissible points of every search within that
-tolerance of the best nominal TACE (:attr:`Protocol.selection_candidates` of them at most, each
-:attr:`Protocol.selection_spacing` from the others) run over :attr:`Protocol.selection_draws` draws of their
+result, the admissible points of every search within that tolerance of the best nominal TACE
+(:attr:`Protocol.selection_candidates` of them at most, each :attr:`Protocol.selection_spacing` from the others) run over :attr:`Protocol.selection_draws` draws of their
 own, and the one of lowest median TACE there is kept (:meth:`~contouring_ros.studies.tuner.Tuning.select`);
 the report's draws then run once, for its gains.
 
@@ -123,8 +122,8 @@ class Protocol:
     def _growth_text(self) -> str:
         if self.budget_growth <= 1:
             return ""
-        return (f"(then, while they do not agree, {self.searches} more with 2x the evaluations, and so on up to "
-                f"{self.budget_growth}x) ")
+        return (f" (then, while they do not agree, {self.searches} more searches with 2x the evaluations, and so "
+                f"on up to {self.budget_growth}x)")
 
     def budgets(self) -> list:
         """The evaluations per search of each round after the first searches: 2x, 4x, ... up to
@@ -139,12 +138,11 @@ class Protocol:
         return (f"each method in its physical tuning space (bandwidths and corner frequencies in Hz, damping and "
                 f"weight ratios; a plugin without one: each raw gain log-scaled over +-{self.decades:g} decades); "
                 f"{self.searches} to {max(self.searches, self.max_searches)} independent searches per combination "
-                f"{self._growth_text()}"
                 f"(the first from the file's gains, the others from uniform random points), each "
                 f"{self.design} scrambled-Sobol points over the box, then IPOP-CMA-ES from the best point "
                 f"(population {self.popsize}, doubled at each restart; the searches' populations run as one "
                 f"batch), the last {100 * self.polish:g}% of them a pattern search's polls of the best point (first step "
-                f"{self.polish_step:g} of the box, halved to 0.001), at most {self.evaluations} evaluations in all; "
+                f"{self.polish_step:g} of the box, halved to 0.001), at most {self.evaluations} evaluations in all{self._growth_text()}; "
                 f"converged when {self.agree} searches end within "
                 f"{100 * self.agreement:g}% of the best nominal TACE; noise sensitivity <= {self.noise_factor:g} "
                 f"x the proposed method's; <= {100 * self.saturation_share:g}% of steps saturated; "
