@@ -35,8 +35,8 @@ falls to the best, ``tools/tune_row.py --segments``, is one too short for its ro
 agreement's tolerance, and under model mismatch and noise two of them can differ severalfold; so of a robust
 result, the admissible points of every search within that tolerance of the best nominal TACE
 (:attr:`Protocol.selection_candidates` of them at most, each :attr:`Protocol.selection_spacing` from the others)
-run over :attr:`Protocol.selection_draws` draws of their own, and the one of lowest median TACE there is kept (:meth:`~contouring_ros.studies.tuner.Tuning.select`);
-the report's draws then run once, for its gains.
+run over :attr:`Protocol.selection_draws` draws of their own, and the one of lowest median TACE there is kept
+(:meth:`~contouring_ros.studies.tuner.Tuning.select`); the report's draws then run once, for its gains.
 
 Constraints (the same for every method of a scenario, measured in simulation):
 
