@@ -68,7 +68,7 @@ def _protocol_options(parser) -> None:
                         default=Protocol.budget_growth,
                         help="after --max-searches, while a row's searches still do not agree, rounds of --searches "
                              "new searches with 2x, 4x, ... --budget evaluations each, up to this many times "
-                             f"(1 to {MAX_BUDGET_GROWTH}; default {Protocol.budget_growth}: none)")
+                             f"(1 to {MAX_BUDGET_GROWTH}, 1: none; default {Protocol.budget_growth})")
 
 
 def main(args) -> None:

@@ -102,7 +102,7 @@ class Protocol:
     polish_step: float = 0.05      # ... its first step [share of each coordinate's range]
     searches: int = 3              # independent searches per combination (seeds seed, seed + 1, ...)
     max_searches: int = 6          # ... more, side by side, while they do not agree, up to this many
-    budget_growth: int = 1         # ... then rounds of `searches` new searches with 2x, 4x, ... the evaluations,
+    budget_growth: int = 4         # ... then rounds of `searches` new searches with 2x, 4x, ... the evaluations,
     #                                while they do not agree, up to this many x (1: none)
     agreement: float = 0.05        # searches agree when they end within this share of the best nominal TACE
     agree: int = 3                 # ... and a row is converged when at least this many do
@@ -120,14 +120,17 @@ class Protocol:
     seed: int = 1                  # search i's seed is seed + i (its CMA-ES samples and, from search 1 on, its start)
 
     def _growth_text(self) -> str:
-        if self.budget_growth <= 1:
+        if not self.budgets():
             return ""
         return (f" (then, while they do not agree, {self.searches} more searches with 2x the evaluations, and so "
                 f"on up to {self.budget_growth}x)")
 
     def budgets(self) -> list:
         """The evaluations per search of each round after the first searches: 2x, 4x, ... up to
-        :attr:`budget_growth` x :attr:`evaluations` (empty: no growth)."""
+        :attr:`budget_growth` x :attr:`evaluations` (empty: no growth). A protocol whose searches could never
+        agree (fewer than :attr:`agree` of them, a quick look) gets none."""
+        if max(self.searches, self.max_searches) < self.agree:
+            return []
         out, factor = [], 2
         while factor <= self.budget_growth:
             out.append(factor * self.evaluations)

@@ -361,7 +361,7 @@ def _small_tune(**options):
     combo = next(c for c in plan(family)[0] if c.estimator == "natural_local")
     return tuner.tune(data, combo.sections, combo.gain_keys, {}, math.inf, family.from_time,
                        dataclasses.replace(Protocol(evaluations=8, popsize=4, design=0, draws=1, searches=1,
-                                                    max_searches=1, selection_draws=0),
+                                                    max_searches=1, selection_draws=0, budget_growth=1),
                                            **options.pop("protocol", {})),
                        "test", **options)
 
@@ -497,7 +497,9 @@ def test_searches_that_do_not_agree_get_longer_searches_up_to_the_growth_cap():
     from types import SimpleNamespace
     assert Protocol(evaluations=10, budget_growth=8).budgets() == [20, 40, 80]
     assert Protocol(evaluations=10, budget_growth=6).budgets() == [20, 40]
-    assert Protocol(evaluations=10).budgets() == []
+    assert Protocol(evaluations=10, budget_growth=1).budgets() == []
+    assert Protocol(evaluations=10, searches=1, max_searches=2).budgets() == []     # could never agree: a quick look
+    assert Protocol(evaluations=10).budgets() == [20, 40]                            # the default: up to 4x
     asked = []
 
     def search(self, indices, optimiser=None, evaluations=None):
